@@ -1,0 +1,55 @@
+#pragma once
+// Shared pieces of the viscd subcommands: option parsing helpers, printing, progress.
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "viscd/viscd.hpp"
+
+namespace viscd::app {
+
+/// Options every frame-running command shares.
+struct PipelineOptions {
+  std::string backend = "cpu";
+  std::string bits = "adaptive";
+  std::string layout = "extended";
+  float lambda = 200, a = 100, b = 400;
+  bool no_culling = false;
+  std::string map_size;  // "WxH" or empty
+  int threads = 0;
+};
+
+void add_pipeline_options(CLI::App& cmd, PipelineOptions& o, bool backend_auto);
+/// Config from the options; the error names the bad option.
+Result<Config> make_config(const PipelineOptions& o);
+/// Parses "1280x720".
+Result<std::pair<int, int>> parse_size(std::string_view text, std::string_view option);
+
+/// Prints "viscd: error: <msg>" to stderr and returns the exit code 1.
+int fail(const std::string& message);
+
+/// A progress bar on a terminal (stderr), plain lines every 10 % otherwise.
+class Progress {
+ public:
+  Progress(std::string label, std::size_t total, bool quiet);
+  void update(std::size_t done, const std::string& note);
+  void finish();
+
+ private:
+  std::string label_;
+  std::size_t total_;
+  bool tty_, quiet_;
+  int last_decile_ = -1;
+};
+
+/// Median of a copy of v (0 for empty).
+double median(std::vector<double> v);
+
+/// Each subcommand registers itself on the app; its callback stores the exit code in `rc`.
+void add_pairs_command(CLI::App& app, int& rc);
+void add_run_command(CLI::App& app, int& rc);
+
+}  // namespace viscd::app

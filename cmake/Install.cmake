@@ -1,0 +1,21 @@
+# Install rules so that another project can `find_package(viscd)` and link `viscd::viscd`.
+include(CMakePackageConfigHelpers)
+
+install(TARGETS viscd viscd_options EXPORT viscdTargets
+        ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+        LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
+        RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR}
+        INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/viscd DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+install(EXPORT viscdTargets NAMESPACE viscd:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/viscd)
+
+configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/viscdConfig.cmake.in
+                              ${PROJECT_BINARY_DIR}/viscdConfig.cmake
+                              INSTALL_DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/viscd)
+write_basic_package_version_file(${PROJECT_BINARY_DIR}/viscdConfigVersion.cmake
+                                 COMPATIBILITY SameMinorVersion)
+install(FILES ${PROJECT_BINARY_DIR}/viscdConfig.cmake ${PROJECT_BINARY_DIR}/viscdConfigVersion.cmake
+        DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/viscd)
+if(TARGET viscd_app)
+  install(TARGETS viscd_app RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+endif()

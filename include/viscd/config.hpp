@@ -1,0 +1,46 @@
+#pragma once
+/// \file config.hpp
+/// Settings of a detector. Every field has a documented default; `Config{}` is the paper's setup.
+
+#include <cstddef>
+#include <cstdint>
+
+namespace viscd {
+
+/// Morton code width m. `adaptive` picks 16/32/64 from the mean pixel count mu (paper Eq. 1).
+enum class Bits : std::uint8_t { adaptive = 0, b16 = 16, b32 = 32, b64 = 64 };
+
+/// How Morton bits are laid out over the axes.
+enum class Layout : std::uint8_t {
+  extended,  ///< DESIGN.md stage 4: axes by extent, few bits on the flattest axis (paper Table 2)
+  plain,     ///< classic interleaving x,y,z with equal bits: 5/5/5, 10/10/10 or 21/21/21
+};
+
+/// Settings shared by every backend. Defaults follow the paper's experiments.
+struct Config {
+  /// Culling threshold lambda, in screen pixels: objects covering fewer are culled. Default 200.
+  float lambda = 200.0f;
+  /// Eq. (1) thresholds on mu (mean screen pixels per object): m = 16 if mu < a, 32 if mu < b,
+  /// else 64. Defaults a = 100, b = 400.
+  float a = 100.0f;
+  float b = 400.0f;
+  /// Morton width: adaptive (default) or fixed 16/32/64. Pairs are exact for every choice.
+  Bits bits = Bits::adaptive;
+  /// Bit layout, extended (default) or plain.
+  Layout layout = Layout::extended;
+  /// Cull objects below lambda pixels. Applies only when a camera is given. Default on.
+  bool culling = true;
+  /// Visibility-map resolution; 0 x 0 (default) means the camera's screen resolution. Counts
+  /// on a smaller or larger map are scaled by screen area / map area before lambda and mu apply.
+  int map_width = 0;
+  int map_height = 0;
+  /// Produce the shaded image (stage 9) in FrameResult::image. Default off.
+  bool shade = false;
+  /// Hard cap on the memory pairs may take, in bytes (8 per pair); 0 (default) = no cap.
+  /// A frame with more pairs fails with an error that names the count; it never truncates.
+  std::size_t pair_memory_cap = 0;
+  /// Worker threads for the cpu backend; 0 (default) = all hardware threads, 1 = serial.
+  int threads = 0;
+};
+
+}  // namespace viscd

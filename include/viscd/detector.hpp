@@ -1,0 +1,67 @@
+#pragma once
+/// \file detector.hpp
+/// The one interface every backend implements, and a factory per backend.
+
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+
+#include "viscd/config.hpp"
+#include "viscd/frame.hpp"
+#include "viscd/result.hpp"
+#include "viscd/types.hpp"
+
+namespace viscd {
+
+/// Finds every overlapping pair of spheres, frame after frame.
+///
+/// Threading: a Detector is not thread-safe; use one per thread. It may use worker threads
+/// internally (Config::threads). Lifetime: `spheres` need only live for the call.
+class Detector {
+ public:
+  virtual ~Detector() = default;
+  Detector(const Detector&) = delete;
+  Detector& operator=(const Detector&) = delete;
+
+  /// Runs one frame. With `camera` == nullptr no visibility stages run and every object is
+  /// active; with a camera and Config::culling, objects below lambda screen pixels are culled.
+  /// Fails (and leaves `out` unspecified) on invalid spheres (non-finite, negative radius,
+  /// beyond kMaxCoordinate), an invalid camera, more than 2^31 - 1 objects, or pairs beyond
+  /// Config::pair_memory_cap.
+  [[nodiscard]] virtual Status detect(std::span<const Sphere> spheres, const Camera* camera,
+                                      FrameResult& out) = 0;
+
+  /// Backend name: "reference", "cpu", "gl".
+  [[nodiscard]] virtual std::string_view name() const = 0;
+
+  [[nodiscard]] const Config& config() const { return config_; }
+  /// Changes settings; takes effect on the next detect().
+  void set_config(const Config& config) { config_ = config; }
+
+ protected:
+  explicit Detector(const Config& config) : config_(config) {}
+  Config config_;
+};
+
+/// Brute force O(N^2) pairs and a per-pixel ray cast visibility map: the test oracle.
+[[nodiscard]] std::unique_ptr<Detector> make_reference_detector(const Config& config = {});
+/// The fast CPU backend: LBVH on all cores (OpenMP), tiled sphere rasterizer.
+[[nodiscard]] std::unique_ptr<Detector> make_cpu_detector(const Config& config = {});
+/// A backend by name ("reference", "cpu", or "gl" when built with VISCD_ENABLE_GL).
+[[nodiscard]] Result<std::unique_ptr<Detector>> make_detector(std::string_view backend,
+                                                              const Config& config = {});
+
+/// Largest number of pairs N objects can produce, N(N-1)/2: the capacity that always suffices.
+[[nodiscard]] constexpr std::uint64_t max_pairs_bound(std::uint64_t n) { return n < 2 ? 0 : n * (n - 1) / 2; }
+
+/// The overlap test of DESIGN.md, evaluated in float without FMA: |c_i - c_j| <= r_i + r_j.
+[[nodiscard]] bool spheres_overlap(const Sphere& a, const Sphere& b);
+
+/// Checks spheres for the input rules (finite, 0 <= r, magnitudes <= kMaxCoordinate) and the
+/// object limit; the error names the first bad sphere by index.
+[[nodiscard]] Status validate_spheres(std::span<const Sphere> spheres);
+/// Checks a camera (positive size, 0 < fov < 180, 0 < near < far, eye != target, up not parallel).
+[[nodiscard]] Status validate_camera(const Camera& camera);
+
+}  // namespace viscd

@@ -1,0 +1,49 @@
+#pragma once
+/// \file types.hpp
+/// Plain value types shared by every part of viscd: spheres, pairs, cameras, object states.
+
+#include <compare>
+#include <cstdint>
+
+namespace viscd {
+
+/// A bounding sphere: centre (x, y, z) and radius r, in world units (any unit, used consistently).
+/// Laid out as a `vec4` (16 bytes) so that arrays of spheres upload to the GPU unchanged.
+/// Valid spheres have finite coordinates with magnitude at most kMaxCoordinate and 0 <= r <= kMaxCoordinate;
+/// r = 0 is a point and allowed.
+struct Sphere {
+  float x = 0, y = 0, z = 0, r = 0;
+};
+static_assert(sizeof(Sphere) == 16, "Sphere must match GLSL vec4");
+
+/// Largest magnitude of a coordinate or radius viscd accepts. Squares of sums of such values stay
+/// finite in float (4e18^2 = 1.6e37 < 3.4e38), so the overlap test never sees an overflow.
+inline constexpr float kMaxCoordinate = 1e18f;
+
+/// An unordered pair of colliding objects, stored with i < j, as 0-based indices into the input.
+struct Pair {
+  std::uint32_t i = 0, j = 0;
+  friend constexpr auto operator<=>(const Pair&, const Pair&) = default;
+};
+
+/// What one frame decided about an object.
+enum class ObjectState : std::uint8_t {
+  culled = 0,     ///< fewer than lambda screen pixels: not given to the broadphase
+  free = 1,       ///< active (visible enough) and overlapping nothing active
+  colliding = 2,  ///< active and overlapping at least one other active object
+};
+
+/// A pinhole camera: right-handed look-at, OpenGL clip space (the view looks down -z).
+/// `width` x `height` is the screen in pixels; pixel counts are always given in screen pixels.
+struct Camera {
+  float eye[3] = {0, 0, 10};     ///< position, world units
+  float target[3] = {0, 0, 0};   ///< point looked at, world units
+  float up[3] = {0, 1, 0};       ///< up direction (need not be unit length)
+  float fov_y_deg = 60;          ///< vertical field of view, degrees, in (0, 180)
+  float near_plane = 0.1f;       ///< distance of the near plane along the view direction, > 0
+  float far_plane = 1000;        ///< distance of the far plane, > near_plane
+  int width = 1280;              ///< screen width in pixels, >= 1
+  int height = 720;              ///< screen height in pixels, >= 1
+};
+
+}  // namespace viscd

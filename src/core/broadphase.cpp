@@ -1,0 +1,189 @@
+#include "core/broadphase.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <bit>
+
+#include "core/parallel.hpp"
+#include "core/stopwatch.hpp"
+
+namespace viscd::detail {
+
+ActiveExtent active_extent(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int threads) {
+  const std::size_t n = active.size();
+  const int t_count = threads_for(n, threads);
+  std::vector<Aabb> boxes(static_cast<std::size_t>(t_count));
+  std::vector<double> diam(static_cast<std::size_t>(t_count), 0.0);
+#pragma omp parallel num_threads(t_count)
+  {
+    const int t = omp_get_thread_num();
+    const Chunk c = chunk_of(n, t, t_count);
+    Aabb b;
+    double d = 0;
+    for (std::size_t k = c.begin; k < c.end; ++k) {
+      const Sphere& s = spheres[active[k]];
+      b.grow(s.x, s.y, s.z);
+      d += 2.0 * s.r;
+    }
+    boxes[t] = b;
+    diam[t] = d;
+  }
+  ActiveExtent e;
+  double d = 0;
+  for (int t = 0; t < t_count; ++t) {
+    e.bounds.grow(boxes[t]);
+    d += diam[t];
+  }
+  e.mean_diameter = n ? static_cast<float>(d / static_cast<double>(n)) : 0.f;
+  return e;
+}
+
+void sort_pair_keys(std::vector<std::uint64_t>& keys, std::uint32_t max_index, int threads,
+                    RadixScratch<std::uint64_t>& scratch, std::vector<Pair>& out) {
+  const int key_bits = 32 + std::bit_width(max_index);
+  radix_sort<std::uint64_t>(keys, {}, key_bits, threads, scratch);
+  out.resize(keys.size());
+  const std::size_t n = keys.size();
+#pragma omp parallel for num_threads(threads_for(n, threads)) schedule(static)
+  for (std::size_t k = 0; k < n; ++k)
+    out[k] = Pair{static_cast<std::uint32_t>(keys[k] >> 32), static_cast<std::uint32_t>(keys[k])};
+}
+
+template <>
+std::vector<std::uint16_t>& LbvhBroadphase::keys<std::uint16_t>() { return keys16_; }
+template <>
+std::vector<std::uint32_t>& LbvhBroadphase::keys<std::uint32_t>() { return keys32_; }
+template <>
+std::vector<std::uint64_t>& LbvhBroadphase::keys<std::uint64_t>() { return keys64_; }
+
+std::vector<std::uint64_t> LbvhBroadphase::sorted_codes() const {
+  switch (bits_) {
+    case 16: return {keys16_.begin(), keys16_.begin() + static_cast<std::ptrdiff_t>(sorted_ids_.size())};
+    case 32: return {keys32_.begin(), keys32_.begin() + static_cast<std::ptrdiff_t>(sorted_ids_.size())};
+    default: return {keys64_.begin(), keys64_.begin() + static_cast<std::ptrdiff_t>(sorted_ids_.size())};
+  }
+}
+
+Status LbvhBroadphase::run(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
+                           Layout layout, int threads, std::size_t pair_memory_cap, std::vector<Pair>& pairs,
+                           FrameStats& stats) {
+  VISCD_ASSERT(bits == 16 || bits == 32 || bits == 64, "Morton width must be 16, 32 or 64");
+  Stopwatch sw;
+  const ActiveExtent extent = active_extent(spheres, active, threads);
+  layout_ = make_layout(layout, bits, extent.bounds, extent.mean_diameter);
+  bits_ = bits;
+  stats.bits = bits;
+  stats.layout = layout_.to_string();
+  stats.stage_ms[static_cast<std::size_t>(Stage::layout)] = sw.lap();
+  switch (bits) {
+    case 16: return run_keys<std::uint16_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);
+    case 32: return run_keys<std::uint32_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);
+    default: return run_keys<std::uint64_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);
+  }
+}
+
+template <class K>
+Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                                const Aabb& bounds, int threads, std::size_t pair_memory_cap,
+                                std::vector<Pair>& pairs, FrameStats& stats) {
+  auto ms = [&](Stage s) -> double& { return stats.stage_ms[static_cast<std::size_t>(s)]; };
+  Stopwatch sw;
+  const std::size_t n = active.size();
+  std::vector<K>& key = keys<K>();
+  if (key.size() < n) key.resize(n);
+  if (sorted_ids_.size() != n) sorted_ids_.resize(n);
+
+  // Stage 5: codes. Values start as active object ids in ascending order, so the stable sort
+  // breaks key ties by object index.
+  const MortonEncoder encoder(layout_, bounds);
+  const int t_n = threads_for(n, threads);
+#pragma omp parallel for num_threads(t_n) schedule(static)
+  for (std::size_t k = 0; k < n; ++k) {
+    const Sphere& s = spheres[active[k]];
+    key[k] = static_cast<K>(encoder.encode(s.x, s.y, s.z));
+    sorted_ids_[k] = active[k];
+  }
+  ms(Stage::codes) = sw.lap();
+
+  // Stage 6: sort.
+  RadixScratch<K>* scratch = nullptr;
+  if constexpr (sizeof(K) == 2) scratch = &scratch16_;
+  else if constexpr (sizeof(K) == 4) scratch = &scratch32_;
+  else scratch = &scratch64_;
+  radix_sort<K>(std::span<K>(key.data(), n), std::span<std::uint32_t>(sorted_ids_.data(), n), 8 * sizeof(K), threads,
+                *scratch);
+  ms(Stage::sort) = sw.lap();
+
+  // Stage 7: hierarchy, then boxes. Spheres are gathered into sorted order for coherent access.
+  build_lbvh<K>(std::span<const K>(key.data(), n), bvh_, threads);
+  ms(Stage::build) = sw.lap();
+  if (sorted_spheres_.size() != n) {
+    sorted_spheres_.resize(n);
+    leaf_boxes_.resize(n);
+  }
+#pragma omp parallel for num_threads(t_n) schedule(static)
+  for (std::size_t p = 0; p < n; ++p) {
+    sorted_spheres_[p] = spheres[sorted_ids_[p]];
+    leaf_boxes_[p] = conservative_box(sorted_spheres_[p]);
+  }
+  fit_lbvh(leaf_boxes_, bvh_, threads);
+  ms(Stage::fit) = sw.lap();
+#ifdef VISCD_VALIDATE
+  {
+    const std::string problem = validate_lbvh(bvh_, leaf_boxes_);
+    VISCD_ASSERT(problem.empty(), problem.c_str());
+  }
+#endif
+
+  // Stage 8: each leaf p looks for partners q > p only, so each pair is found once.
+  const int t_q = threads_for(n, threads);
+  if (thread_pairs_.size() < static_cast<std::size_t>(t_q)) thread_pairs_.resize(static_cast<std::size_t>(t_q));
+#pragma omp parallel num_threads(t_q)
+  {
+    auto& local = thread_pairs_[static_cast<std::size_t>(omp_get_thread_num())];
+    local.clear();
+#pragma omp for schedule(dynamic, 256)
+    for (std::size_t p = 0; p < n; ++p) {
+      const Sphere& a = sorted_spheres_[p];
+      const std::uint32_t ia = sorted_ids_[p];
+      for_each_overlap_after(bvh_, static_cast<std::uint32_t>(p), leaf_boxes_[p], [&](std::uint32_t q) {
+        if (!overlap_exact(a, sorted_spheres_[q])) return;
+        const std::uint32_t ib = sorted_ids_[q];
+        local.push_back(ia < ib ? (std::uint64_t{ia} << 32 | ib) : (std::uint64_t{ib} << 32 | ia));
+      });
+    }
+  }
+  std::size_t total = 0;
+  for (int t = 0; t < t_q; ++t) total += thread_pairs_[static_cast<std::size_t>(t)].size();
+  if (pair_memory_cap != 0 && total * sizeof(Pair) > pair_memory_cap) {
+    return Status::failure("frame has " + std::to_string(total) + " colliding pairs, which need " +
+                           std::to_string(total * sizeof(Pair)) + " bytes, over the pair memory cap of " +
+                           std::to_string(pair_memory_cap) + " bytes (Config::pair_memory_cap)");
+  }
+  pair_keys_.resize(total);
+  std::size_t offset = 0;
+  for (int t = 0; t < t_q; ++t) {
+    const auto& local = thread_pairs_[static_cast<std::size_t>(t)];
+    std::copy(local.begin(), local.end(), pair_keys_.begin() + static_cast<std::ptrdiff_t>(offset));
+    offset += local.size();
+  }
+  const std::uint32_t max_index = n ? *std::max_element(active.begin(), active.end()) : 0;
+  sort_pair_keys(pair_keys_, max_index, threads, pair_scratch_, pairs);
+  stats.pairs = pairs.size();
+  ms(Stage::query) = sw.lap();
+  return {};
+}
+
+void brute_force_pairs(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                       std::vector<Pair>& pairs) {
+  pairs.clear();
+  const std::size_t n = active.size();
+  for (std::size_t a = 0; a < n; ++a) {
+    const Sphere& sa = spheres[active[a]];
+    for (std::size_t b = a + 1; b < n; ++b)
+      if (overlap_exact(sa, spheres[active[b]])) pairs.push_back(Pair{active[a], active[b]});
+  }
+}
+
+}  // namespace viscd::detail

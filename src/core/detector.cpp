@@ -1,0 +1,99 @@
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <limits>
+#include <string>
+
+#include "core/geometry.hpp"
+#include "viscd/assert.hpp"
+#include "viscd/detector.hpp"
+
+namespace viscd {
+
+#ifdef VISCD_HAVE_GL
+Result<std::unique_ptr<Detector>> make_gl_detector_result(const Config& config);  // src/gl
+#endif
+
+Result<std::unique_ptr<Detector>> make_detector(std::string_view backend, const Config& config) {
+  if (backend == "reference") return make_reference_detector(config);
+  if (backend == "cpu") return make_cpu_detector(config);
+  if (backend == "gl") {
+#ifdef VISCD_HAVE_GL
+    return make_gl_detector_result(config);
+#else
+    return Result<std::unique_ptr<Detector>>::failure("backend 'gl' is not built in (configure with VISCD_ENABLE_GL=ON)");
+#endif
+  }
+  return Result<std::unique_ptr<Detector>>::failure("unknown backend '" + std::string(backend) +
+                                                    "': expected reference, cpu or gl");
+}
+
+bool spheres_overlap(const Sphere& a, const Sphere& b) { return detail::overlap_exact(a, b); }
+
+Status validate_spheres(std::span<const Sphere> spheres) {
+  if (spheres.size() > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
+    return Status::failure("too many spheres: " + std::to_string(spheres.size()) + " (at most 2^31 - 1)");
+  for (std::size_t k = 0; k < spheres.size(); ++k) {
+    const Sphere& s = spheres[k];
+    const float v[4] = {s.x, s.y, s.z, s.r};
+    for (int c = 0; c < 4; ++c) {
+      if (!std::isfinite(v[c]))
+        return Status::failure("sphere " + std::to_string(k) + ": " + "xyzr"[c] + " is not a finite number");
+      if (std::fabs(v[c]) > kMaxCoordinate)
+        return Status::failure("sphere " + std::to_string(k) + ": |" + "xyzr"[c] + "| = " + std::to_string(v[c]) +
+                               " exceeds the supported 1e18");
+    }
+    if (s.r < 0) return Status::failure("sphere " + std::to_string(k) + ": negative radius " + std::to_string(s.r));
+  }
+  return {};
+}
+
+Status validate_camera(const Camera& c) {
+  auto finite3 = [](const float* v) { return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]); };
+  if (!finite3(c.eye) || !finite3(c.target) || !finite3(c.up)) return Status::failure("camera: eye, target and up must be finite");
+  if (c.width < 1 || c.height < 1) return Status::failure("camera: width and height must be at least 1 pixel");
+  if (!(c.fov_y_deg > 0 && c.fov_y_deg < 180)) return Status::failure("camera: fov_y_deg must be in (0, 180)");
+  if (!(c.near_plane > 0 && c.far_plane > c.near_plane && std::isfinite(c.far_plane)))
+    return Status::failure("camera: need 0 < near < far (finite)");
+  const double f[3] = {double(c.target[0]) - c.eye[0], double(c.target[1]) - c.eye[1], double(c.target[2]) - c.eye[2]};
+  const double fl = std::sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
+  if (!(fl > 0)) return Status::failure("camera: eye and target coincide");
+  const double u[3] = {c.up[0], c.up[1], c.up[2]};
+  const double cx = f[1] * u[2] - f[2] * u[1], cy = f[2] * u[0] - f[0] * u[2], cz = f[0] * u[1] - f[1] * u[0];
+  const double ul = std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+  if (!(std::sqrt(cx * cx + cy * cy + cz * cz) > 1e-6 * fl * ul)) return Status::failure("camera: up is zero or parallel to the view direction");
+  return {};
+}
+
+std::string_view stage_name(Stage s) {
+  static constexpr std::string_view kNames[] = {"visibility", "count", "cull", "layout", "codes",
+                                                "sort",       "build", "fit",  "query",  "shade"};
+  static_assert(std::size(kNames) == kStageCount);
+  return kNames[static_cast<std::size_t>(s)];
+}
+
+double FrameStats::total_ms() const {
+  double t = 0;
+  for (double v : stage_ms) t += v;
+  return t;
+}
+
+namespace {
+bool default_assert_handler(const char* expr, const char* message, const char* file, int line) {
+  std::fprintf(stderr, "%s:%d: viscd assertion failed: %s (%s)\n", file, line, expr, message);
+  return false;
+}
+AssertHandler g_assert_handler = default_assert_handler;
+}  // namespace
+
+AssertHandler set_assert_handler(AssertHandler handler) {
+  AssertHandler old = g_assert_handler;
+  g_assert_handler = handler ? handler : default_assert_handler;
+  return old;
+}
+
+bool assert_failed(const char* expr, const char* message, const char* file, int line) {
+  return g_assert_handler(expr, message, file, line);
+}
+
+}  // namespace viscd

@@ -1,0 +1,206 @@
+#include "core/lbvh.hpp"
+
+#include <algorithm>
+#include <cstring>
+
+#include "core/parallel.hpp"
+
+namespace viscd::detail {
+namespace {
+
+// Length of the common prefix of the keys at sorted positions i and j, ties split by position;
+// -1 when j is outside [0, n).
+template <class K>
+inline int delta(const K* keys, std::int64_t n, std::int64_t i, std::int64_t j) {
+  if (j < 0 || j >= n) return -1;
+  const K a = keys[i], b = keys[j];
+  if (a != b) return std::countl_zero(static_cast<K>(a ^ b));
+  constexpr int kBits = 8 * sizeof(K);
+  return kBits + std::countl_zero(static_cast<std::uint32_t>(i ^ j));
+}
+
+}  // namespace
+
+template <class K>
+void build_lbvh(std::span<const K> sorted_keys, Lbvh& bvh, int threads) {
+  const auto n = static_cast<std::int64_t>(sorted_keys.size());
+  VISCD_ASSERT(n < static_cast<std::int64_t>(kLeafBit), "too many leaves for 31-bit ids");
+  bvh.leaves = static_cast<std::uint32_t>(n);
+  if (n < 2) {
+    bvh.nodes.clear();
+    bvh.parent.clear();
+    bvh.leaf_parent.assign(static_cast<std::size_t>(n), kNoParent);
+    return;
+  }
+  bvh.nodes.resize(static_cast<std::size_t>(n - 1));
+  bvh.parent.resize(static_cast<std::size_t>(n - 1));
+  bvh.leaf_parent.resize(static_cast<std::size_t>(n));
+  bvh.parent[0] = kNoParent;
+  const K* keys = sorted_keys.data();
+  const int t_count = threads_for(static_cast<std::size_t>(n), threads);
+
+#pragma omp parallel for num_threads(t_count) schedule(static)
+  for (std::int64_t i = 0; i < n - 1; ++i) {
+    // Direction of the range: towards the neighbour with the longer common prefix.
+    const int d = delta(keys, n, i, i + 1) - delta(keys, n, i, i - 1) > 0 ? 1 : -1;
+    const int delta_min = delta(keys, n, i, i - d);
+    // Upper bound of the range length, then binary search for its other end j.
+    std::int64_t lmax = 2;
+    while (delta(keys, n, i, i + lmax * d) > delta_min) lmax *= 2;
+    std::int64_t l = 0;
+    for (std::int64_t t = lmax / 2; t >= 1; t /= 2)
+      if (delta(keys, n, i, i + (l + t) * d) > delta_min) l += t;
+    const std::int64_t j = i + l * d;
+    // Split position: the last position sharing more than delta_node bits with i.
+    const int delta_node = delta(keys, n, i, j);
+    std::int64_t s = 0;
+    std::int64_t t = l;
+    do {
+      t = (t + 1) / 2;
+      if (delta(keys, n, i, i + (s + t) * d) > delta_node) s += t;
+    } while (t > 1);
+    const std::int64_t gamma = i + s * d + std::min(d, 0);
+    const std::int64_t first = std::min(i, j), last = std::max(i, j);
+
+    BvhNode& node = bvh.nodes[static_cast<std::size_t>(i)];
+    const auto ui = static_cast<std::uint32_t>(i);
+    if (first == gamma) {
+      node.child[0] = static_cast<std::uint32_t>(gamma) | kLeafBit;
+      bvh.leaf_parent[static_cast<std::size_t>(gamma)] = ui;
+    } else {
+      node.child[0] = static_cast<std::uint32_t>(gamma);
+      bvh.parent[static_cast<std::size_t>(gamma)] = ui;
+    }
+    if (last == gamma + 1) {
+      node.child[1] = static_cast<std::uint32_t>(gamma + 1) | kLeafBit;
+      bvh.leaf_parent[static_cast<std::size_t>(gamma + 1)] = ui;
+    } else {
+      node.child[1] = static_cast<std::uint32_t>(gamma + 1);
+      bvh.parent[static_cast<std::size_t>(gamma + 1)] = ui;
+    }
+    node.last[0] = static_cast<std::uint32_t>(gamma);
+    node.last[1] = static_cast<std::uint32_t>(last);
+  }
+}
+
+template void build_lbvh<std::uint16_t>(std::span<const std::uint16_t>, Lbvh&, int);
+template void build_lbvh<std::uint32_t>(std::span<const std::uint32_t>, Lbvh&, int);
+template void build_lbvh<std::uint64_t>(std::span<const std::uint64_t>, Lbvh&, int);
+
+void fit_lbvh(std::span<const Aabb> leaf_boxes, Lbvh& bvh, int threads) {
+  const std::size_t n = bvh.leaves;
+  VISCD_ASSERT(leaf_boxes.size() == n, "one box per leaf");
+  if (n == 0) {
+    bvh.root_box = Aabb{};
+    return;
+  }
+  if (n == 1) {
+    bvh.root_box = leaf_boxes[0];
+    return;
+  }
+  bvh.arrivals.assign(n - 1, 0);
+  const int t_count = threads_for(n, threads);
+
+#pragma omp parallel for num_threads(t_count) schedule(static)
+  for (std::size_t p = 0; p < n; ++p) {
+    std::uint32_t child = static_cast<std::uint32_t>(p) | kLeafBit;
+    std::uint32_t node = bvh.leaf_parent[p];
+    Aabb box = leaf_boxes[p];
+    for (;;) {
+      BvhNode& nd = bvh.nodes[node];
+      nd.box[nd.child[0] == child ? 0 : 1] = box;
+      // acq_rel: the first arrival's box write is visible to the second arrival, which merges.
+      const std::uint32_t before = std::atomic_ref<std::uint32_t>(bvh.arrivals[node]).fetch_add(1, std::memory_order_acq_rel);
+      if (before == 0) break;
+      box = nd.box[0];
+      box.grow(nd.box[1]);
+      if (node == 0) {
+        bvh.root_box = box;
+        break;
+      }
+      child = node;
+      node = bvh.parent[node];
+    }
+  }
+}
+
+std::string validate_lbvh(const Lbvh& bvh, std::span<const Aabb> leaf_boxes) {
+  const std::size_t n = bvh.leaves;
+  if (leaf_boxes.size() != n) return "leaf box count differs from leaf count";
+  if (n < 2) return bvh.nodes.empty() ? "" : "a tree of fewer than two leaves has internal nodes";
+  if (bvh.nodes.size() != n - 1) return "internal node count is not leaves - 1";
+  std::vector<std::uint8_t> seen_leaf(n, 0), seen_node(n - 1, 0);
+  // Iterative DFS from the root computing each subtree's box and last position.
+  struct Item {
+    std::uint32_t node;
+    int depth;
+  };
+  std::vector<Item> stack{{0, 0}};
+  seen_node[0] = 1;
+  if (bvh.parent[0] != kNoParent) return "root has a parent";
+  // Post-order needs subtree results; compute boxes by recursion over an explicit order.
+  std::vector<std::uint32_t> order;
+  order.reserve(n - 1);
+  while (!stack.empty()) {
+    const Item it = stack.back();
+    stack.pop_back();
+    order.push_back(it.node);
+    const BvhNode& nd = bvh.nodes[it.node];
+    for (int c = 0; c < 2; ++c) {
+      const std::uint32_t ch = nd.child[c];
+      if (ch & kLeafBit) {
+        const std::uint32_t leaf = ch & ~kLeafBit;
+        if (leaf >= n) return "leaf id out of range at node " + std::to_string(it.node);
+        if (seen_leaf[leaf]++) return "leaf " + std::to_string(leaf) + " appears twice";
+        if (bvh.leaf_parent[leaf] != it.node) return "leaf " + std::to_string(leaf) + " has a wrong parent link";
+      } else {
+        if (ch >= n - 1) return "child id out of range at node " + std::to_string(it.node);
+        if (seen_node[ch]++) return "internal node " + std::to_string(ch) + " reached twice";
+        if (bvh.parent[ch] != it.node) return "node " + std::to_string(ch) + " has a wrong parent link";
+        stack.push_back({ch, it.depth + 1});
+      }
+    }
+  }
+  for (std::size_t p = 0; p < n; ++p)
+    if (!seen_leaf[p]) return "leaf " + std::to_string(p) + " is not in the tree";
+  for (std::size_t i = 0; i < n - 1; ++i)
+    if (!seen_node[i]) return "internal node " + std::to_string(i) + " is not in the tree";
+  // Bottom-up over the reversed pre-order: children are handled before their parents.
+  std::vector<Aabb> box(n - 1);
+  std::vector<std::uint32_t> last(n - 1);
+  for (auto it = order.rbegin(); it != order.rend(); ++it) {
+    const BvhNode& nd = bvh.nodes[*it];
+    Aabb b;
+    std::uint32_t l = 0;
+    for (int c = 0; c < 2; ++c) {
+      const std::uint32_t ch = nd.child[c];
+      const Aabb& cb = (ch & kLeafBit) ? leaf_boxes[ch & ~kLeafBit] : box[ch];
+      const std::uint32_t cl = (ch & kLeafBit) ? (ch & ~kLeafBit) : last[ch];
+      if (!nd.box[c].contains(cb)) return "box of child " + std::to_string(c) + " of node " + std::to_string(*it) + " does not contain its subtree";
+      if (nd.last[c] != cl) return "last position of child " + std::to_string(c) + " of node " + std::to_string(*it) + " is wrong";
+      b.grow(cb);
+      l = std::max(l, cl);
+    }
+    box[*it] = b;
+    last[*it] = l;
+  }
+  if (!bvh.root_box.contains(box[0])) return "root box does not contain the tree";
+  return "";
+}
+
+int lbvh_depth(const Lbvh& bvh) {
+  if (bvh.leaves < 2) return 0;
+  int deepest = 0;
+  std::vector<std::pair<std::uint32_t, int>> stack{{0u, 0}};
+  while (!stack.empty()) {
+    auto [node, d] = stack.back();
+    stack.pop_back();
+    for (std::uint32_t ch : bvh.nodes[node].child) {
+      if (ch & kLeafBit) deepest = std::max(deepest, d + 1);
+      else stack.push_back({ch, d + 1});
+    }
+  }
+  return deepest;
+}
+
+}  // namespace viscd::detail

@@ -1,0 +1,106 @@
+#pragma once
+// Linear BVH over sorted Morton keys (DESIGN.md stage 7-8).
+//
+// Build: Karras 2012, "Maximizing Parallelism in the Construction of BVHs, Octrees, and k-d
+// Trees" (HPG), one independent task per internal node. n leaves (sorted positions 0..n-1) and
+// n-1 internal nodes, the root is internal node 0. Equal keys are split by position:
+//     delta(i, j) = clz_m(key_i ^ key_j)         if key_i != key_j
+//                 = m + clz_32(i ^ j)            otherwise              (m = key width)
+// so delta strictly increases from a node to its internal children and the depth of any leaf is
+// at most m + 32 (delta < m + 32): a traversal stack of kStackDepth >= 96 entries cannot overflow.
+//
+// Node layout: each internal node stores both children's boxes, child ids and the last sorted
+// position of each child's subtree, in one 64-byte cache line, so a traversal step tests both
+// children with one fetch:
+//     +---------------+---------------+----------+----------+---------+---------+
+//     | box[0] 24 B   | box[1] 24 B   | child[0] | child[1] | last[0] | last[1] |
+//     +---------------+---------------+----------+----------+---------+---------+
+// child ids with the top bit (kLeafBit) set are leaves (sorted positions).
+//
+// Fit: bottom-up, one task per leaf; at each internal node an atomic arrival counter lets the
+// second task through (the first task's box write happens-before it by acq_rel ordering).
+
+#include <atomic>
+#include <bit>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "core/geometry.hpp"
+#include "viscd/assert.hpp"
+
+namespace viscd::detail {
+
+inline constexpr std::uint32_t kLeafBit = 0x80000000u;
+inline constexpr std::uint32_t kNoParent = 0xFFFFFFFFu;
+/// Traversal stack entries; >= 64 + 32, the deepest possible tree (see above).
+inline constexpr int kStackDepth = 128;
+static_assert(kStackDepth >= 64 + 32, "stack must hold the deepest Karras tree over 64-bit keys");
+
+struct alignas(64) BvhNode {
+  Aabb box[2];
+  std::uint32_t child[2];
+  std::uint32_t last[2];
+};
+static_assert(sizeof(BvhNode) == 64);
+
+struct Lbvh {
+  std::uint32_t leaves = 0;
+  std::vector<BvhNode> nodes;             // leaves - 1 internal nodes, root = 0
+  std::vector<std::uint32_t> parent;      // parent of each internal node (root: kNoParent)
+  std::vector<std::uint32_t> leaf_parent; // parent of each leaf
+  std::vector<std::uint32_t> arrivals;    // fit: arrival counters, one per internal node
+  Aabb root_box;
+};
+
+/// Builds the topology over `sorted_keys` (ascending) of width `key_bits` = 8 * sizeof(K).
+template <class K>
+void build_lbvh(std::span<const K> sorted_keys, Lbvh& bvh, int threads);
+/// Fits boxes bottom-up; leaf_boxes[p] is the box of the leaf at sorted position p.
+void fit_lbvh(std::span<const Aabb> leaf_boxes, Lbvh& bvh, int threads);
+/// Checks parent/child links, that every leaf appears once, that every stored box contains its
+/// subtree's boxes and that `last` is each subtree's largest position. Returns "" when valid,
+/// else what is wrong. O(n). Used by tests and under VISCD_VALIDATE.
+[[nodiscard]] std::string validate_lbvh(const Lbvh& bvh, std::span<const Aabb> leaf_boxes);
+/// Depth of the deepest leaf (root = depth 0; a tree of one leaf has depth 0).
+[[nodiscard]] int lbvh_depth(const Lbvh& bvh);
+
+/// Calls f(q) for every leaf q > p whose box overlaps `box`. Never overflows: the stack holds
+/// kStackDepth entries and the tree is at most 96 deep.
+template <class F>
+inline void for_each_overlap_after(const Lbvh& bvh, std::uint32_t p, const Aabb& box, F&& f) {
+  if (bvh.leaves < 2) return;
+  std::uint32_t stack[kStackDepth];
+  int sp = 0;
+  std::uint32_t node = 0;
+  for (;;) {
+    const BvhNode& nd = bvh.nodes[node];
+    const bool hit0 = nd.last[0] > p && overlaps(nd.box[0], box);
+    const bool hit1 = nd.last[1] > p && overlaps(nd.box[1], box);
+    std::uint32_t next = kNoParent;
+    if (hit0) {
+      if (nd.child[0] & kLeafBit) f(nd.child[0] & ~kLeafBit);
+      else next = nd.child[0];
+    }
+    if (hit1) {
+      if (nd.child[1] & kLeafBit) {
+        f(nd.child[1] & ~kLeafBit);
+      } else if (next == kNoParent) {
+        next = nd.child[1];
+      } else {
+        VISCD_ASSERT(sp < kStackDepth, "LBVH traversal stack overflow: tree deeper than m + 32");
+        stack[sp++] = nd.child[1];
+      }
+    }
+    if (next != kNoParent) {
+      node = next;
+    } else if (sp > 0) {
+      node = stack[--sp];
+    } else {
+      return;
+    }
+  }
+}
+
+}  // namespace viscd::detail

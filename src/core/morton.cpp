@@ -1,0 +1,110 @@
+#include "core/morton.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "viscd/assert.hpp"
+
+namespace viscd::detail {
+namespace {
+
+constexpr char kAxisName[3] = {'x', 'y', 'z'};
+
+// Fills `position` by interleaving from the top bit of the code in `order`, skipping axes whose
+// bits are used up. The used bits occupy the low sum(axis_bits) positions of the code.
+void assign_positions(MortonLayout& l) {
+  int total = l.axis_bits[0] + l.axis_bits[1] + l.axis_bits[2];
+  VISCD_ASSERT(total <= l.bits, "layout uses more bits than the code has");
+  std::array<int, 3> left = l.axis_bits;
+  int pos = total - 1;
+  while (pos >= 0) {
+    for (std::uint8_t axis : l.order) {
+      if (left[axis] == 0) continue;
+      --left[axis];
+      l.position[axis][left[axis]] = static_cast<std::int8_t>(pos--);
+    }
+  }
+}
+
+}  // namespace
+
+std::string MortonLayout::to_string() const {
+  std::string s;
+  for (int k = 0; k < 3; ++k) {
+    const int axis = order[k];
+    if (axis_bits[axis] == 0) continue;
+    if (!s.empty()) s += "→";
+    s += kAxisName[axis];
+    s += "(" + std::to_string(axis_bits[axis]) + ")";
+  }
+  return s;
+}
+
+MortonLayout extended_layout(int bits, const Aabb& b, float mean_diameter) {
+  MortonLayout l;
+  l.bits = bits;
+  const std::array<float, 3> extent = {std::max(0.f, b.hi.x - b.lo.x), std::max(0.f, b.hi.y - b.lo.y),
+                                       std::max(0.f, b.hi.z - b.lo.z)};
+  std::array<std::uint8_t, 3> order{0, 1, 2};
+  std::stable_sort(order.begin(), order.end(), [&](int p, int q) { return extent[p] > extent[q]; });
+  l.order = order;
+
+  // Bits finer than an object are wasted on the flattest axis.
+  int cap = 1;
+  const double ratio = static_cast<double>(extent[order[2]]) / static_cast<double>(mean_diameter);
+  if (ratio > 1.0) {  // log2 <= 0 (and NaN from 0/0) leave cap at 1; an infinite ratio caps at m/3
+    cap = std::isinf(ratio) ? bits : std::max(1, static_cast<int>(std::ceil(std::log2(ratio))));
+  }
+  const int smallest = std::min(cap, bits / 3);
+  const int rest = bits - smallest;
+  l.axis_bits[order[0]] = rest - rest / 2;
+  l.axis_bits[order[1]] = rest / 2;
+  l.axis_bits[order[2]] = smallest;
+  assign_positions(l);
+  return l;
+}
+
+MortonLayout plain_layout(int bits) {
+  MortonLayout l;
+  l.bits = bits;
+  l.axis_bits = {bits / 3, bits / 3, bits / 3};
+  l.order = {0, 1, 2};
+  assign_positions(l);
+  return l;
+}
+
+MortonLayout make_layout(Layout kind, int bits, const Aabb& centre_bounds, float mean_diameter) {
+  return kind == Layout::plain ? plain_layout(bits) : extended_layout(bits, centre_bounds, mean_diameter);
+}
+
+int bits_for_mean_pixels(double mu, float a, float b) {
+  if (mu < a) return 16;
+  if (mu < b) return 32;
+  return 64;
+}
+
+MortonEncoder::MortonEncoder(const MortonLayout& layout, const Aabb& bounds) {
+  const std::array<float, 3> lo = {bounds.lo.x, bounds.lo.y, bounds.lo.z};
+  const std::array<float, 3> hi = {bounds.hi.x, bounds.hi.y, bounds.hi.z};
+  for (int axis = 0; axis < 3; ++axis) {
+    const int nb = layout.axis_bits[axis];
+    VISCD_ASSERT(nb >= 0 && nb <= 32, "an axis has more than 32 bits");
+    const double cells = std::ldexp(1.0, nb);
+    const double extent = static_cast<double>(hi[axis]) - static_cast<double>(lo[axis]);
+    lo_[axis] = lo[axis];
+    scale_[axis] = (extent > 0.0 && std::isfinite(extent)) ? cells / extent : 0.0;
+    max_cell_[axis] = cells - 1.0;
+    for (int byte = 0; byte < 4; ++byte) {
+      for (int v = 0; v < 256; ++v) {
+        std::uint64_t code = 0;
+        for (int bit = 0; bit < 8; ++bit) {
+          const int axis_bit = 8 * byte + bit;
+          if (axis_bit < nb && ((v >> bit) & 1)) code |= std::uint64_t{1} << layout.position[axis][axis_bit];
+        }
+        table_[axis][byte][v] = code;
+      }
+    }
+  }
+}
+
+}  // namespace viscd::detail

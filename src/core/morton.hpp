@@ -1,0 +1,69 @@
+#pragma once
+// Morton layouts (DESIGN.md stage 4) and codes (stage 5).
+//
+// A layout says which axis supplies each bit of an m-bit code, most significant first. The
+// extended layout (after Vinkler et al. 2017, "Extended Morton Codes", and the paper's Table 2)
+// orders the axes by the extent of the active centres and gives the flattest axis no more bits
+// than resolve an object there; for the paper's flat world it yields
+//   m = 16:  x(7)→z(6)→y(3)    code bits 15..0:  x z y x z y x z y x z x z x z x
+// Encoding quantises each axis to its bit count over the bounds of the active centres, then
+// scatters the axis bits to their code positions with byte-wise lookup tables (4 bytes x 3 axes).
+
+#include <array>
+#include <cstdint>
+#include <string>
+
+#include "core/geometry.hpp"
+#include "viscd/config.hpp"
+
+namespace viscd::detail {
+
+struct MortonLayout {
+  int bits = 32;                           ///< m: code width, 16, 32 or 64
+  std::array<int, 3> axis_bits{};          ///< bits given to x, y, z (sum <= bits)
+  std::array<std::uint8_t, 3> order{0, 1, 2};  ///< axes, the one that gets the first (highest) bit first
+  /// Code bit position (0 = least significant) of each axis bit, indexed [axis][bit of axis value].
+  std::array<std::array<std::int8_t, 32>, 3> position{};
+
+  /// "x(7)→z(6)→y(3)"
+  [[nodiscard]] std::string to_string() const;
+};
+
+/// DESIGN.md's rule: axes by extent (ties x, y, z); the smallest gets
+/// min(cap, floor(m/3)) bits with cap = max(1, ceil(log2(extent_smallest / mean_diameter)));
+/// the other two share the rest, the larger taking the extra bit; bits interleave from the most
+/// significant in axis order, skipping exhausted axes.
+[[nodiscard]] MortonLayout extended_layout(int bits, const Aabb& centre_bounds, float mean_diameter);
+/// Plain interleaving x, y, z with floor(m/3) bits each: 5/5/5, 10/10/10, 21/21/21.
+[[nodiscard]] MortonLayout plain_layout(int bits);
+/// Layout by kind.
+[[nodiscard]] MortonLayout make_layout(Layout kind, int bits, const Aabb& centre_bounds, float mean_diameter);
+
+/// Eq. (1): m from mu and the thresholds.
+[[nodiscard]] int bits_for_mean_pixels(double mu, float a, float b);
+
+/// Encodes centres into codes of a layout, over given bounds.
+class MortonEncoder {
+ public:
+  MortonEncoder(const MortonLayout& layout, const Aabb& bounds);
+  /// Code of a centre; centres outside the bounds clamp to the border cells.
+  [[nodiscard]] std::uint64_t encode(float x, float y, float z) const {
+    return scatter(0, quantize(0, x)) | scatter(1, quantize(1, y)) | scatter(2, quantize(2, z));
+  }
+
+ private:
+  [[nodiscard]] std::uint32_t quantize(int axis, float v) const {
+    const double q = (static_cast<double>(v) - lo_[axis]) * scale_[axis];
+    if (!(q > 0.0)) return 0;  // also catches NaN
+    return q >= max_cell_[axis] ? static_cast<std::uint32_t>(max_cell_[axis]) : static_cast<std::uint32_t>(q);
+  }
+  [[nodiscard]] std::uint64_t scatter(int axis, std::uint32_t q) const {
+    const auto& t = table_[axis];
+    return t[0][q & 0xFF] | t[1][(q >> 8) & 0xFF] | t[2][(q >> 16) & 0xFF] | t[3][q >> 24];
+  }
+
+  std::array<double, 3> lo_{}, scale_{}, max_cell_{};
+  std::array<std::array<std::array<std::uint64_t, 256>, 4>, 3> table_{};
+};
+
+}  // namespace viscd::detail

@@ -1,0 +1,68 @@
+#include "core/pipeline.hpp"
+
+#include "core/broadphase.hpp"
+#include "core/parallel.hpp"
+#include "core/stopwatch.hpp"
+
+namespace viscd::detail {
+
+Status PipelineDetector::detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) {
+  if (Status s = validate_spheres(spheres); !s) return s;
+  if (camera) {
+    if (Status s = validate_camera(*camera); !s) return s;
+    if (config_.map_width < 0 || config_.map_height < 0 || (config_.map_width == 0) != (config_.map_height == 0))
+      return Status::failure("visibility map size must be W x H with both positive, or 0 x 0 for the screen size");
+  }
+  const int threads = resolve_threads(config_.threads);
+  const std::size_t n = spheres.size();
+  FrameStats& stats = out.stats;
+  stats = FrameStats{};
+  stats.objects = static_cast<std::uint32_t>(n);
+  stats.has_camera = camera != nullptr;
+  auto ms = [&](Stage s) -> double& { return stats.stage_ms[static_cast<std::size_t>(s)]; };
+  Stopwatch sw;
+
+  int bits = 32;  // without a camera mu is undefined; adaptive falls back to the paper's 32 bits
+  std::unique_ptr<CameraRig> rig;
+  if (camera) {
+    const int mw = config_.map_width ? config_.map_width : camera->width;
+    const int mh = config_.map_height ? config_.map_height : camera->height;
+    rig = std::make_unique<CameraRig>(*camera, mw, mh);
+    map_.resize(mw, mh, config_.shade);
+    rasterize(*rig, spheres, threads);
+    ms(Stage::visibility) = sw.lap();
+    count_pixels(map_, n, threads, counts_, count_scratch_);
+    ms(Stage::count) = sw.lap();
+    bits = cull_and_choose_bits(counts_, rig->pixel_scale, config_, out.pixels, active_, stats);
+    ms(Stage::cull) = sw.lap();
+  } else {
+    map_ = VisibilityMap{};
+    out.pixels.clear();
+    active_.resize(n);
+    for (std::size_t k = 0; k < n; ++k) active_[k] = static_cast<std::uint32_t>(k);
+    stats.active = static_cast<std::uint32_t>(n);
+    if (config_.bits != Bits::adaptive) bits = static_cast<int>(config_.bits);
+  }
+
+  if (Status s = broadphase(spheres, active_, bits, threads, out.pairs, stats); !s) return s;
+  stats.pairs = out.pairs.size();
+
+  sw.lap();
+  out.state.assign(n, ObjectState::culled);
+  for (std::uint32_t k : active_) out.state[k] = ObjectState::free;
+  for (const Pair& p : out.pairs) out.state[p.i] = out.state[p.j] = ObjectState::colliding;
+  ms(Stage::query) += sw.lap();
+
+  if (camera && config_.shade) {
+    shade(*rig, map_, out.state, threads, out.image);
+    out.image_width = map_.width;
+    out.image_height = map_.height;
+    ms(Stage::shade) = sw.lap();
+  } else {
+    out.image.clear();
+    out.image_width = out.image_height = 0;
+  }
+  return {};
+}
+
+}  // namespace viscd::detail

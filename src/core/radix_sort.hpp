@@ -1,0 +1,99 @@
+#pragma once
+// Parallel LSD radix sort of (key, value) pairs, 8-bit digits, stable: equal keys keep the
+// order of their values (callers pass values in increasing order, so ties end up by index).
+// The number of passes follows the key width: 2 for 16-bit, 4 for 32-bit and 8 for 64-bit keys;
+// a pass whose digit is the same for every key is skipped (it would move nothing).
+//
+// Each pass: every thread builds a histogram of its contiguous chunk; an exclusive scan over
+// (digit, thread) gives each thread its own output offsets; every thread scatters its chunk.
+// Stability follows from chunk order = thread order and in-chunk order being kept.
+
+#include <omp.h>
+
+#include <array>
+#include <cstdint>
+#include <cstring>
+#include <span>
+#include <vector>
+
+#include "core/parallel.hpp"
+#include "viscd/assert.hpp"
+
+namespace viscd::detail {
+
+/// Reusable scratch for radix_sort (one per caller; not thread-safe).
+template <class K>
+struct RadixScratch {
+  std::vector<K> keys;
+  std::vector<std::uint32_t> values;
+  std::vector<std::array<std::uint32_t, 256>> histograms;  // per thread
+};
+
+/// Sorts keys[0..n) ascending, carrying values along (pass an empty `values` to sort keys only). `key_bits` (<= 8 * sizeof(K)) bounds the
+/// bits that may be non-zero; passes above it are not run. Uses up to `threads` threads.
+template <class K>
+void radix_sort(std::span<K> keys, std::span<std::uint32_t> values, int key_bits, int threads,
+                RadixScratch<K>& scratch) {
+  const bool has_values = !values.empty();
+  VISCD_ASSERT(!has_values || keys.size() == values.size(), "keys and values differ in length");
+  VISCD_ASSERT(key_bits <= static_cast<int>(8 * sizeof(K)), "key_bits exceeds the key type");
+  const std::size_t n = keys.size();
+  if (n < 2) return;
+  if (scratch.keys.size() < n) {
+    scratch.keys.resize(n);
+  }
+  if (has_values && scratch.values.size() < n) scratch.values.resize(n);
+  const int t_count = threads_for(n, threads);
+  if (scratch.histograms.size() < static_cast<std::size_t>(t_count)) scratch.histograms.resize(t_count);
+
+  K* src_k = keys.data();
+  std::uint32_t* src_v = values.data();
+  K* dst_k = scratch.keys.data();
+  std::uint32_t* dst_v = scratch.values.data();
+  const int passes = (key_bits + 7) / 8;
+  for (int pass = 0; pass < passes; ++pass) {
+    const int shift = 8 * pass;
+    bool constant_digit = false;
+#pragma omp parallel num_threads(t_count)
+    {
+      const int t = omp_get_thread_num();
+      const Chunk c = chunk_of(n, t, t_count);
+      auto& h = scratch.histograms[t];
+      h.fill(0);
+      for (std::size_t i = c.begin; i < c.end; ++i) ++h[(src_k[i] >> shift) & 0xFF];
+#pragma omp barrier
+#pragma omp single
+      {
+        // Exclusive scan in (digit, thread) order, written back into the histograms as offsets.
+        std::uint32_t sum = 0;
+        for (int d = 0; d < 256; ++d) {
+          std::uint32_t digit_total = 0;
+          for (int u = 0; u < t_count; ++u) {
+            const std::uint32_t c_count = scratch.histograms[u][d];
+            scratch.histograms[u][d] = sum;
+            sum += c_count;
+            digit_total += c_count;
+          }
+          if (digit_total == n) constant_digit = true;
+        }
+      }  // implicit barrier
+      if (!constant_digit) {
+        for (std::size_t i = c.begin; i < c.end; ++i) {
+          const std::uint32_t pos = h[(src_k[i] >> shift) & 0xFF]++;
+          dst_k[pos] = src_k[i];
+          if (has_values) dst_v[pos] = src_v[i];
+        }
+      }
+    }
+    if (!constant_digit) {
+      std::swap(src_k, dst_k);
+      std::swap(src_v, dst_v);
+    }
+  }
+  if (src_k != keys.data()) {
+    std::memcpy(keys.data(), src_k, n * sizeof(K));
+    if (has_values) std::memcpy(values.data(), src_v, n * sizeof(std::uint32_t));
+  }
+}
+
+}  // namespace viscd::detail

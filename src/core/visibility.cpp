@@ -1,0 +1,188 @@
+#include "core/visibility.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "core/morton.hpp"
+#include "core/parallel.hpp"
+#include "viscd/assert.hpp"
+
+namespace viscd::detail {
+namespace {
+
+Vec3 sub(Vec3 a, Vec3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+float dot(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+Vec3 cross(Vec3 a, Vec3 b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
+Vec3 normalize(Vec3 a) {
+  const float l = std::sqrt(dot(a, a));
+  return {a.x / l, a.y / l, a.z / l};
+}
+
+}  // namespace
+
+CameraRig::CameraRig(const Camera& c, int map_width, int map_height) {
+  eye = {c.eye[0], c.eye[1], c.eye[2]};
+  forward = normalize(sub({c.target[0], c.target[1], c.target[2]}, eye));
+  right = normalize(cross(forward, {c.up[0], c.up[1], c.up[2]}));
+  up = cross(right, forward);
+  map_w = map_width;
+  map_h = map_height;
+  tan_half_y = static_cast<float>(std::tan(c.fov_y_deg * std::numbers::pi / 360.0));
+  // The screen's aspect ratio, not the map's: a smaller map samples the same view.
+  tan_half_x = tan_half_y * static_cast<float>(c.width) / static_cast<float>(c.height);
+  near_plane = c.near_plane;
+  far_plane = c.far_plane;
+  pixel_scale = (static_cast<double>(c.width) * c.height) / (static_cast<double>(map_w) * map_h);
+}
+
+void VisibilityMap::resize(int w, int h, bool with_normals) {
+  width = w;
+  height = h;
+  const auto n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
+  ids.resize(n);
+  depth.resize(n);
+  normal.resize(with_normals ? 3 * n : 0);
+}
+
+void write_normal(const CameraRig& cam, std::span<const Sphere> spheres, VisibilityMap& map, int px, int py) {
+  const std::size_t i = static_cast<std::size_t>(py) * static_cast<std::size_t>(map.width) + static_cast<std::size_t>(px);
+  float* n = &map.normal[3 * i];
+  const std::uint32_t id = map.ids[i];
+  if (id == 0) {
+    n[0] = n[1] = n[2] = 0;
+    return;
+  }
+  const Sphere& s = spheres[id - 1];
+  const Vec3 d = cam.dir(px, py);
+  const float t = map.depth[i];
+  const Vec3 p = {cam.eye.x + t * d.x - s.x, cam.eye.y + t * d.y - s.y, cam.eye.z + t * d.z - s.z};
+  const float l = std::sqrt(dot(p, p));
+  if (l > 0) {
+    n[0] = p.x / l, n[1] = p.y / l, n[2] = p.z / l;
+  } else {
+    n[0] = -d.x, n[1] = -d.y, n[2] = -d.z;  // a point sphere (r = 0) faces the viewer
+  }
+}
+
+void rasterize_reference(const CameraRig& cam, std::span<const Sphere> spheres, VisibilityMap& map) {
+  for (int py = 0; py < map.height; ++py) {
+    for (int px = 0; px < map.width; ++px) {
+      const Vec3 d = cam.dir(px, py);
+      float best = std::numeric_limits<float>::infinity();
+      std::uint32_t best_id = 0;
+      for (std::size_t k = 0; k < spheres.size(); ++k) {
+        const float t = hit(cam, d, spheres[k]);
+        if (t >= 0.0f && t < best) {  // ascending k: ties keep the smaller id
+          best = t;
+          best_id = static_cast<std::uint32_t>(k + 1);
+        }
+      }
+      const std::size_t i = static_cast<std::size_t>(py) * static_cast<std::size_t>(map.width) + static_cast<std::size_t>(px);
+      map.ids[i] = best_id;
+      map.depth[i] = best_id ? best : cam.far_plane;
+      if (!map.normal.empty()) write_normal(cam, spheres, map, px, py);
+    }
+  }
+}
+
+PixelRect sphere_rect(const CameraRig& cam, const Sphere& s) {
+  const Vec3 c = sub({s.x, s.y, s.z}, cam.eye);
+  const float cz = dot(c, cam.forward), cx = dot(c, cam.right), cy = dot(c, cam.up);
+  // Margin for the rounding of this bound and of hit(): generous, it only costs a few pixels.
+  const float slack = 1e-4f * (std::fabs(cz) + std::fabs(cx) + std::fabs(cy) + s.r) + 1e-6f;
+  const float r = s.r + slack;
+  if (cz + r < cam.near_plane || cz - r > cam.far_plane) return {};
+  const float dmin = cz - r, dmax = cz + r;
+  if (!(dmin > cam.near_plane * 0.5f)) return {0, 0, cam.map_w, cam.map_h, 0.0f};  // reaches the near plane or the eye
+  auto span_of = [&](float lo, float hi, float tan_half) {
+    const float vmax = (hi >= 0 ? hi / dmin : hi / dmax) / tan_half;
+    const float vmin = (lo <= 0 ? lo / dmin : lo / dmax) / tan_half;
+    return std::pair{vmin, vmax};  // normalised device coordinates
+  };
+  const auto [nx0, nx1] = span_of(cx - r, cx + r, cam.tan_half_x);
+  const auto [ny0, ny1] = span_of(cy - r, cy + r, cam.tan_half_y);
+  // Pixel centre px + 0.5 = (ndc + 1) / 2 * W; rows count down from ndc_y = 1.
+  auto clampi = [](double v, int hi) { return static_cast<int>(std::clamp(v, 0.0, static_cast<double>(hi))); };
+  PixelRect rect;
+  rect.x0 = clampi(std::floor((nx0 + 1.0) * 0.5 * cam.map_w - 0.5) - 1, cam.map_w);
+  rect.x1 = clampi(std::ceil((nx1 + 1.0) * 0.5 * cam.map_w - 0.5) + 2, cam.map_w);
+  rect.y0 = clampi(std::floor((1.0 - ny1) * 0.5 * cam.map_h - 0.5) - 1, cam.map_h);
+  rect.y1 = clampi(std::ceil((1.0 - ny0) * 0.5 * cam.map_h - 0.5) + 2, cam.map_h);
+  rect.near_depth = dmin;  // r includes the slack, so every hit has t >= dmin
+  return rect;
+}
+
+void count_pixels(const VisibilityMap& map, std::size_t objects, int threads, std::vector<std::uint32_t>& counts,
+                  std::vector<std::vector<std::uint32_t>>& scratch) {
+  const std::size_t n = map.ids.size();
+  const int t_count = threads_for(n, threads);
+  if (scratch.size() < static_cast<std::size_t>(t_count)) scratch.resize(static_cast<std::size_t>(t_count));
+  counts.assign(objects, 0);
+#pragma omp parallel num_threads(t_count)
+  {
+    const int t = omp_get_thread_num();
+    auto& h = scratch[static_cast<std::size_t>(t)];
+    h.assign(objects + 1, 0);
+    const Chunk c = chunk_of(n, t, t_count);
+    for (std::size_t i = c.begin; i < c.end; ++i) ++h[map.ids[i]];
+#pragma omp barrier
+#pragma omp for schedule(static)
+    for (std::size_t k = 0; k < objects; ++k) {
+      std::uint32_t sum = 0;
+      for (int u = 0; u < t_count; ++u) sum += scratch[static_cast<std::size_t>(u)][k + 1];
+      counts[k] = sum;
+    }
+  }
+}
+
+int cull_and_choose_bits(std::span<const std::uint32_t> counts, double pixel_scale, const Config& config,
+                         std::vector<float>& pixels, std::vector<std::uint32_t>& active, FrameStats& stats) {
+  const std::size_t n = counts.size();
+  pixels.resize(n);
+  active.clear();
+  double total = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    const double px = static_cast<double>(counts[k]) * pixel_scale;
+    pixels[k] = static_cast<float>(px);
+    total += px;
+    if (!config.culling || px >= static_cast<double>(config.lambda)) active.push_back(static_cast<std::uint32_t>(k));
+  }
+  stats.mean_pixels = n ? total / static_cast<double>(n) : 0.0;
+  stats.active = static_cast<std::uint32_t>(active.size());
+  return config.bits == Bits::adaptive ? bits_for_mean_pixels(stats.mean_pixels, config.a, config.b)
+                                       : static_cast<int>(config.bits);
+}
+
+void shade(const CameraRig& cam, const VisibilityMap& map, std::span<const ObjectState> state, int threads,
+           std::vector<std::uint8_t>& rgba) {
+  const std::size_t n = map.ids.size();
+  VISCD_ASSERT(map.normal.size() == 3 * n, "shading needs the normal map");
+  rgba.resize(4 * n);
+  const Vec3 light = normalize({0.4f, 0.8f, 0.45f});
+  const Vec3 view = {-cam.forward.x, -cam.forward.y, -cam.forward.z};
+#pragma omp parallel for num_threads(threads_for(n, threads)) schedule(static)
+  for (std::size_t i = 0; i < n; ++i) {
+    std::uint8_t* out = &rgba[4 * i];
+    out[3] = 255;
+    const std::uint32_t id = map.ids[i];
+    if (id == 0) {
+      out[0] = kColourBackground[0], out[1] = kColourBackground[1], out[2] = kColourBackground[2];
+      continue;
+    }
+    const std::uint8_t* base = state[id - 1] == ObjectState::colliding ? kColourColliding
+                               : state[id - 1] == ObjectState::free     ? kColourFree
+                                                                        : kColourCulled;
+    const Vec3 nrm = {map.normal[3 * i], map.normal[3 * i + 1], map.normal[3 * i + 2]};
+    // Lambert plus a little ambient and a rim from the view direction, so spheres read as round.
+    const float diffuse = std::max(0.0f, dot(nrm, light));
+    const float facing = std::max(0.0f, dot(nrm, view));
+    const float k = 0.25f + 0.6f * diffuse + 0.15f * facing;
+    for (int ch = 0; ch < 3; ++ch)
+      out[ch] = static_cast<std::uint8_t>(std::min(255.0f, static_cast<float>(base[ch]) * k + 0.5f));
+  }
+}
+
+}  // namespace viscd::detail

@@ -1,0 +1,99 @@
+#pragma once
+// Visibility map (DESIGN.md stage 1), pixel counts (2), culling and mu (3), shading (9): the parts
+// shared by the reference and cpu backends. Both rasterizers call the same `hit()` per pixel and
+// resolve depth ties by the smaller object id, so their id maps are equal bit for bit.
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "core/geometry.hpp"
+#include "viscd/config.hpp"
+#include "viscd/frame.hpp"
+#include "viscd/types.hpp"
+
+namespace viscd::detail {
+
+/// A camera prepared for ray casting over a map of map_w x map_h pixels. The ray through the
+/// centre of pixel (px, py) (row 0 at the top) is eye + t * dir(px, py), where dir has unit
+/// component along `forward`, so t is the view depth of the point it reaches.
+struct CameraRig {
+  Vec3 eye, forward, right, up;
+  float tan_half_x = 1, tan_half_y = 1, near_plane = 0.1f, far_plane = 1000;
+  int map_w = 1, map_h = 1;
+  /// Screen pixels per map pixel: (screen area) / (map area).
+  double pixel_scale = 1;
+
+  CameraRig(const Camera& camera, int map_width, int map_height);
+  [[nodiscard]] Vec3 dir(int px, int py) const {
+    const float nx = (2.0f * (static_cast<float>(px) + 0.5f) / static_cast<float>(map_w) - 1.0f) * tan_half_x;
+    const float ny = (1.0f - 2.0f * (static_cast<float>(py) + 0.5f) / static_cast<float>(map_h)) * tan_half_y;
+    return {forward.x + right.x * nx + up.x * ny, forward.y + right.y * nx + up.y * ny,
+            forward.z + right.z * nx + up.z * ny};
+  }
+};
+
+/// Nearest visible intersection of the ray eye + t d with a sphere: the smaller root t with
+/// near <= t <= far, else the larger root in that range (the camera is inside the sphere or the
+/// front is clipped by the near plane, as a mesh without back-face culling would show), else a
+/// negative number (miss).
+inline float hit(const CameraRig& cam, const Vec3& d, const Sphere& s) {
+  const float ox = cam.eye.x - s.x, oy = cam.eye.y - s.y, oz = cam.eye.z - s.z;
+  const float a = d.x * d.x + d.y * d.y + d.z * d.z;
+  const float b = ox * d.x + oy * d.y + oz * d.z;
+  const float c = ox * ox + oy * oy + oz * oz - s.r * s.r;
+  const float disc = b * b - a * c;
+  if (!(disc >= 0.0f)) return -1.0f;
+  const float sq = std::sqrt(disc);
+  const float t0 = (-b - sq) / a;
+  if (t0 >= cam.near_plane && t0 <= cam.far_plane) return t0;
+  const float t1 = (-b + sq) / a;
+  if (t1 >= cam.near_plane && t1 <= cam.far_plane) return t1;
+  return -1.0f;
+}
+
+/// The id map (object index + 1, 0 = background) and view depth of each map pixel; normals
+/// (unit, world space, 3 floats per pixel) only when asked for (shading).
+struct VisibilityMap {
+  int width = 0, height = 0;
+  std::vector<std::uint32_t> ids;
+  std::vector<float> depth;
+  std::vector<float> normal;
+  void resize(int w, int h, bool with_normals);
+};
+
+/// Fills the normal of a map pixel from its id and depth.
+void write_normal(const CameraRig& cam, std::span<const Sphere> spheres, VisibilityMap& map, int px, int py);
+
+/// The reference rasterizer: for every pixel, every sphere. O(W H N); the oracle.
+void rasterize_reference(const CameraRig& cam, std::span<const Sphere> spheres, VisibilityMap& map);
+
+/// Conservative map-pixel rectangle [x0, x1) x [y0, y1) that contains every pixel whose centre
+/// ray can hit the sphere; empty (x0 >= x1) when the sphere is wholly outside near..far.
+struct PixelRect {
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  /// A lower bound of the depth t of any hit on the sphere (for early depth rejection).
+  float near_depth = 0;
+};
+[[nodiscard]] PixelRect sphere_rect(const CameraRig& cam, const Sphere& s);
+
+/// Stage 2: pixels per object over the map, with per-thread histograms (`scratch` reused).
+void count_pixels(const VisibilityMap& map, std::size_t objects, int threads, std::vector<std::uint32_t>& counts,
+                  std::vector<std::vector<std::uint32_t>>& scratch);
+
+/// Stage 3: screen-scaled pixels, mu over all N, active set (pixels >= lambda, or all when
+/// culling is off), and m from Eq. (1) or Config::bits. Fills stats.active/mean_pixels.
+int cull_and_choose_bits(std::span<const std::uint32_t> counts, double pixel_scale, const Config& config,
+                         std::vector<float>& pixels, std::vector<std::uint32_t>& active, FrameStats& stats);
+
+/// Stage 9: lit spheres, red colliding, blue free, yellow culled; dark background. RGBA8.
+void shade(const CameraRig& cam, const VisibilityMap& map, std::span<const ObjectState> state, int threads,
+           std::vector<std::uint8_t>& rgba);
+
+/// The paper's colours, RGB.
+inline constexpr std::uint8_t kColourColliding[3] = {220, 40, 40};
+inline constexpr std::uint8_t kColourFree[3] = {50, 90, 230};
+inline constexpr std::uint8_t kColourCulled[3] = {235, 200, 40};
+inline constexpr std::uint8_t kColourBackground[3] = {18, 18, 24};
+
+}  // namespace viscd::detail
