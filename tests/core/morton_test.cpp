@@ -1,0 +1,127 @@
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <random>
+
+#include "core/morton.hpp"
+
+namespace viscd::detail {
+namespace {
+
+// The paper's flat world: x extent >= z extent, y spread 6 mean diameters (in (4, 8]).
+Aabb flat_world() { return Aabb{{-100, -3, -90}, {100, 3, 90}}; }
+
+TEST(MortonLayout, ReproducesPaperTable2) {
+  EXPECT_EQ(extended_layout(16, flat_world(), 1.0f).to_string(), "x(7)→z(6)→y(3)");
+  EXPECT_EQ(extended_layout(32, flat_world(), 1.0f).to_string(), "x(15)→z(14)→y(3)");
+  EXPECT_EQ(extended_layout(64, flat_world(), 1.0f).to_string(), "x(31)→z(30)→y(3)");
+}
+
+TEST(MortonLayout, SmallestAxisCapFollowsDiameter) {
+  // y spread = 4.0 diameters exactly: ceil(log2 4) = 2 bits.
+  EXPECT_EQ(extended_layout(32, Aabb{{0, 0, 0}, {100, 4, 50}}, 1.0f).to_string(), "x(15)→z(15)→y(2)");
+  // Thinner than one object: 1 bit (the cap's floor).
+  EXPECT_EQ(extended_layout(32, Aabb{{0, 0, 0}, {100, 0.5f, 50}}, 1.0f).to_string(), "x(16)→z(15)→y(1)");
+  // A cube: ceil(log2(1e6)) = 20 bits for the last axis; at 1e9 the m/3 = 21 cap applies.
+  EXPECT_EQ(extended_layout(64, Aabb{{0, 0, 0}, {1e6f, 1e6f, 1e6f}}, 1.0f).to_string(), "x(22)→y(22)→z(20)");
+  EXPECT_EQ(extended_layout(64, Aabb{{0, 0, 0}, {1e9f, 1e9f, 1e9f}}, 1.0f).to_string(), "x(22)→y(21)→z(21)");
+  // Ties order x, y, z.
+  EXPECT_EQ(extended_layout(16, Aabb{{0, 0, 0}, {8, 8, 8}}, 1.0f).to_string(), "x(7)→y(6)→z(3)");
+}
+
+TEST(MortonLayout, DegenerateExtents) {
+  // All centres equal: no extent anywhere, zero diameter (points).
+  const MortonLayout l = extended_layout(16, Aabb{{1, 1, 1}, {1, 1, 1}}, 0.0f);
+  EXPECT_EQ(l.axis_bits[0] + l.axis_bits[1] + l.axis_bits[2], 16);
+  // Points spread over a line: infinite ratio caps the smallest axis at m/3.
+  const MortonLayout p = extended_layout(64, Aabb{{0, 0, 0}, {5, 5, 5}}, 0.0f);
+  for (int a = 0; a < 3; ++a) EXPECT_LE(p.axis_bits[a], 32);
+  EXPECT_EQ(p.axis_bits[0] + p.axis_bits[1] + p.axis_bits[2], 64);
+}
+
+TEST(MortonLayout, PlainLayouts) {
+  EXPECT_EQ(plain_layout(16).to_string(), "x(5)→y(5)→z(5)");
+  EXPECT_EQ(plain_layout(32).to_string(), "x(10)→y(10)→z(10)");
+  EXPECT_EQ(plain_layout(64).to_string(), "x(21)→y(21)→z(21)");
+}
+
+TEST(MortonLayout, HandWorkedBitPositions16) {
+  // x(7)→z(6)→y(3), code bits 15..0:  x z y x z y x z y x z x z x z x
+  const MortonLayout l = extended_layout(16, flat_world(), 1.0f);
+  const char want[] = "xzyxzyxzyxzxzxzx";
+  for (int pos = 15; pos >= 0; --pos) {
+    int owner = -1;
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < l.axis_bits[a]; ++b)
+        if (l.position[a][b] == pos) owner = a;
+    ASSERT_GE(owner, 0) << "bit " << pos << " unassigned";
+    EXPECT_EQ("xyz"[owner], want[15 - pos]) << "bit " << pos;
+  }
+}
+
+// Independent encoder: quantise, then place bits one by one walking the layout's order.
+std::uint64_t naive_encode(const MortonLayout& l, const Aabb& b, float x, float y, float z) {
+  const double v[3] = {x, y, z}, lo[3] = {b.lo.x, b.lo.y, b.lo.z}, hi[3] = {b.hi.x, b.hi.y, b.hi.z};
+  std::uint64_t q[3];
+  for (int a = 0; a < 3; ++a) {
+    const double cells = std::ldexp(1.0, l.axis_bits[a]);
+    const double e = hi[a] - lo[a];
+    double c = e > 0 ? std::floor((v[a] - lo[a]) / e * cells) : 0;
+    c = std::clamp(c, 0.0, cells - 1);
+    q[a] = static_cast<std::uint64_t>(c);
+  }
+  std::uint64_t code = 0;
+  int left[3] = {l.axis_bits[0], l.axis_bits[1], l.axis_bits[2]};
+  int remaining = left[0] + left[1] + left[2];
+  while (remaining > 0)
+    for (int k = 0; k < 3; ++k) {
+      const int a = l.order[k];
+      if (left[a] == 0) continue;
+      --left[a];
+      code = (code << 1) | ((q[a] >> left[a]) & 1);
+      --remaining;
+    }
+  return code;
+}
+
+TEST(MortonEncoder, MatchesNaiveEncoder) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> u(-120, 120);
+  for (int bits : {16, 32, 64}) {
+    for (Layout kind : {Layout::extended, Layout::plain}) {
+      const Aabb b = flat_world();
+      const MortonLayout l = make_layout(kind, bits, b, 1.0f);
+      const MortonEncoder enc(l, b);
+      for (int k = 0; k < 2000; ++k) {
+        const float x = u(rng), y = u(rng) / 30, z = u(rng);
+        const std::uint64_t got = enc.encode(x, y, z), want = naive_encode(l, b, x, y, z);
+        ASSERT_EQ(got, want) << "m=" << bits << " at (" << x << "," << y << "," << z << ")";
+        if (bits < 64) ASSERT_LT(got, std::uint64_t{1} << bits);
+      }
+    }
+  }
+}
+
+TEST(MortonEncoder, CornersAndZeroExtent) {
+  const Aabb b = flat_world();
+  const MortonLayout l = extended_layout(32, b, 1.0f);
+  const MortonEncoder enc(l, b);
+  EXPECT_EQ(enc.encode(-100, -3, -90), 0u);
+  EXPECT_EQ(enc.encode(100, 3, 90), (std::uint64_t{1} << 32) - 1);  // top cell of every axis
+  const MortonEncoder flat(extended_layout(32, Aabb{{0, 0, 0}, {0, 0, 0}}, 0), Aabb{{0, 0, 0}, {0, 0, 0}});
+  EXPECT_EQ(flat.encode(0, 0, 0), 0u);
+}
+
+TEST(AdaptiveBits, Equation1Boundaries) {
+  EXPECT_EQ(bits_for_mean_pixels(0.0, 100, 400), 16);
+  EXPECT_EQ(bits_for_mean_pixels(99.999, 100, 400), 16);
+  EXPECT_EQ(bits_for_mean_pixels(100.0, 100, 400), 32);
+  EXPECT_EQ(bits_for_mean_pixels(399.99, 100, 400), 32);
+  EXPECT_EQ(bits_for_mean_pixels(400.0, 100, 400), 64);
+  EXPECT_EQ(bits_for_mean_pixels(1e9, 100, 400), 64);
+}
+
+}  // namespace
+}  // namespace viscd::detail

@@ -1,0 +1,224 @@
+// Stages 1-3 and 9 of the cpu backend against the reference backend (per-pixel ray casting over
+// every sphere) and hand-worked cases.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <numeric>
+
+#include "core/pipeline.hpp"
+#include "test_util.hpp"
+
+namespace viscd {
+namespace {
+
+using test::oracle_pairs;
+using test::random_spheres;
+using test::same_pairs;
+
+Camera camera_at(float ex, float ey, float ez, float tx, float ty, float tz, int w, int h) {
+  Camera c;
+  c.eye[0] = ex, c.eye[1] = ey, c.eye[2] = ez;
+  c.target[0] = tx, c.target[1] = ty, c.target[2] = tz;
+  c.width = w, c.height = h;
+  c.near_plane = 0.1f;
+  c.far_plane = 500;
+  return c;
+}
+
+const detail::VisibilityMap& map_of(Detector& d) { return static_cast<detail::PipelineDetector&>(d).visibility_map(); }
+
+// Runs cpu and reference on the same frame and checks ids, counts, active set and pairs.
+void check_against_reference(const std::vector<Sphere>& s, const Camera& cam, Config c, const std::string& what) {
+  auto cpu = make_cpu_detector(c), ref = make_reference_detector(c);
+  const FrameResult fc = test::run_frame(*cpu, s, &cam), fr = test::run_frame(*ref, s, &cam);
+  ASSERT_EQ(map_of(*cpu).ids, map_of(*ref).ids) << what << ": id maps differ";
+  ASSERT_EQ(map_of(*cpu).depth, map_of(*ref).depth) << what << ": depth maps differ";
+  ASSERT_EQ(fc.pixels, fr.pixels) << what;
+  EXPECT_EQ(fc.stats.active, fr.stats.active) << what;
+  EXPECT_DOUBLE_EQ(fc.stats.mean_pixels, fr.stats.mean_pixels) << what;
+  EXPECT_EQ(fc.stats.bits, fr.stats.bits) << what;
+  EXPECT_EQ(fc.stats.layout, fr.stats.layout) << what;
+  // Pairs: brute force over the active set, computed here from the reference's pixel counts.
+  std::vector<std::uint32_t> active;
+  for (std::uint32_t k = 0; k < s.size(); ++k)
+    if (!c.culling || fr.pixels[k] >= c.lambda) active.push_back(k);
+  const auto want = oracle_pairs(s, &active);
+  EXPECT_TRUE(same_pairs(fc.pairs, want)) << what;
+  EXPECT_TRUE(same_pairs(fr.pairs, want)) << what;
+  for (std::uint32_t k = 0; k < s.size(); ++k) {
+    const bool is_active = std::binary_search(active.begin(), active.end(), k);
+    if (!is_active) ASSERT_EQ(fc.state[k], ObjectState::culled) << what << " object " << k;
+    else ASSERT_NE(fc.state[k], ObjectState::culled) << what << " object " << k;
+  }
+}
+
+TEST(Visibility, CpuEqualsReferenceOnRandomScenesAndCameras) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-1, 1);
+  for (int trial = 0; trial < 12; ++trial) {
+    const auto s = random_spheres(40 + 30 * trial, 100 + trial, 10.0f, 0.2f, 2.5f);
+    const int w = 97 + 13 * trial, h = 53 + 7 * trial;  // odd sizes: tiles cut at the edges
+    const Camera cam = camera_at(30 * u(rng), 30 * u(rng), 30 * u(rng), 3 * u(rng), 3 * u(rng), 3 * u(rng), w, h);
+    Config c;
+    c.lambda = 20;
+    check_against_reference(s, cam, c, "trial " + std::to_string(trial));
+    c.culling = false;
+    check_against_reference(s, cam, c, "trial " + std::to_string(trial) + " unculled");
+  }
+}
+
+TEST(Visibility, ScaledMapsAndDegenerateSizes) {
+  const auto s = random_spheres(300, 8, 10.0f, 0.3f, 2.0f);
+  const Camera cam = camera_at(0, 5, 35, 0, 0, 0, 1280, 720);
+  Config c;
+  c.map_width = 64, c.map_height = 36;  // 400 screen pixels per map pixel
+  check_against_reference(s, cam, c, "64x36 map");
+  auto cpu = make_cpu_detector(c);
+  const FrameResult f = test::run_frame(*cpu, s, &cam);
+  double total = 0;
+  for (float p : f.pixels) {
+    EXPECT_EQ(std::fmod(p, 400.0f), 0.0f);
+    total += p;
+  }
+  EXPECT_LE(total, 1280.0 * 720.0);
+  c.map_width = c.map_height = 1;  // 1x1 map: one object gets the whole screen
+  check_against_reference(s, cam, c, "1x1 map");
+  const FrameResult one = test::run_frame(*make_cpu_detector(c), s, &cam);
+  const double sum = std::accumulate(one.pixels.begin(), one.pixels.end(), 0.0);
+  EXPECT_TRUE(sum == 0.0 || sum == 1280.0 * 720.0);
+  // More objects than pixels.
+  c.map_width = 8, c.map_height = 6;
+  check_against_reference(random_spheres(2000, 4, 10.0f, 0.05f, 0.5f), cam, c, "8x6 map, 2000 objects");
+}
+
+TEST(Visibility, CameraInsideASphereSeesItsInside) {
+  // The camera at the centre of a big sphere: every pixel sees its far side (one object).
+  const std::vector<Sphere> s = {{0, 0, 0, 50}, {0, 0, -10, 1}};
+  const Camera cam = camera_at(0, 0, 0, 0, 0, -1, 20, 10);
+  Config c;
+  c.culling = false;
+  check_against_reference(s, cam, c, "inside");
+  const FrameResult f = test::run_frame(*make_cpu_detector(c), s, &cam);
+  // The small sphere at z = -10 is in front of the far wall (t = 50) where the view meets it.
+  EXPECT_GT(f.pixels[1], 0.0f);
+  EXPECT_EQ(f.pixels[0] + f.pixels[1], 200.0f);
+}
+
+TEST(Visibility, BehindTheCameraAndBeyondFarAreInvisible) {
+  const std::vector<Sphere> s = {{0, 0, 20, 1},      // behind the eye (looking down -z)
+                                 {0, 0, -600, 5},    // beyond far = 500
+                                 {0, 0, -20, 1}};    // visible
+  const Camera cam = camera_at(0, 0, 0, 0, 0, -1, 64, 48);
+  Config c;
+  c.lambda = 1;
+  check_against_reference(s, cam, c, "behind/far");
+  const FrameResult f = test::run_frame(*make_cpu_detector(c), s, &cam);
+  EXPECT_EQ(f.pixels[0], 0.0f);
+  EXPECT_EQ(f.pixels[1], 0.0f);
+  EXPECT_GT(f.pixels[2], 0.0f);
+  EXPECT_EQ(f.state[0], ObjectState::culled);
+  EXPECT_EQ(f.state[2], ObjectState::free);
+}
+
+TEST(Visibility, MeanPixelsAndBitsAtTheThresholds) {
+  // One sphere around the camera covers all 20 x 10 = 200 pixels; a second is hidden: mu = 100.
+  const std::vector<Sphere> s = {{0, 0, 0, 50}, {0, 0, -100, 1}};
+  const Camera cam = camera_at(0, 0, 0, 0, 0, -1, 20, 10);
+  auto bits_for = [&](float a, float b) {
+    Config c;
+    c.a = a, c.b = b;
+    const FrameResult f = test::run_frame(*make_cpu_detector(c), s, &cam);
+    EXPECT_DOUBLE_EQ(f.stats.mean_pixels, 100.0);
+    return f.stats.bits;
+  };
+  EXPECT_EQ(bits_for(100, 400), 32);     // mu == a
+  EXPECT_EQ(bits_for(100.01f, 400), 16); // mu just below a
+  EXPECT_EQ(bits_for(50, 100), 64);      // mu == b
+  EXPECT_EQ(bits_for(50, 100.01f), 32);  // mu just below b
+  Config fixed;
+  fixed.bits = Bits::b64;
+  EXPECT_EQ(test::run_frame(*make_cpu_detector(fixed), s, &cam).stats.bits, 64);
+}
+
+TEST(Visibility, AllCulledAndNoneCulled) {
+  const auto s = random_spheres(500, 21, 5.0f, 0.5f, 1.5f);
+  const Camera cam = camera_at(0, 0, 30, 0, 0, 0, 160, 90);
+  Config c;
+  c.lambda = 1e9f;
+  const FrameResult all = test::run_frame(*make_cpu_detector(c), s, &cam);
+  EXPECT_EQ(all.stats.active, 0u);
+  EXPECT_TRUE(all.pairs.empty());
+  for (ObjectState st : all.state) EXPECT_EQ(st, ObjectState::culled);
+  c.lambda = 0;  // pixels >= 0 always: nobody is culled, hidden objects included
+  const FrameResult none = test::run_frame(*make_cpu_detector(c), s, &cam);
+  EXPECT_EQ(none.stats.active, 500u);
+  EXPECT_TRUE(same_pairs(none.pairs, oracle_pairs(s)));
+}
+
+TEST(Visibility, InvalidCameraAndMapAreErrors) {
+  const auto s = random_spheres(10, 1);
+  Camera cam = camera_at(0, 0, 10, 0, 0, 10, 64, 48);  // eye == target
+  FrameResult f;
+  EXPECT_FALSE(make_cpu_detector()->detect(s, &cam, f).ok());
+  cam = camera_at(0, 0, 10, 0, 0, 0, 64, 48);
+  cam.near_plane = 0;
+  EXPECT_FALSE(make_cpu_detector()->detect(s, &cam, f).ok());
+  cam.near_plane = 0.1f;
+  Config c;
+  c.map_width = 10;  // height missing
+  const Status st = make_cpu_detector(c)->detect(s, &cam, f);
+  ASSERT_FALSE(st.ok());
+  EXPECT_NE(st.error().find("map"), std::string::npos);
+}
+
+// Hue class of a shaded pixel.
+char hue(const std::uint8_t* p) {
+  const int r = p[0], g = p[1], b = p[2];
+  if (r < 40 && g < 40 && b < 40) return '.';
+  if (r > 2 * g && r > 2 * b) return 'R';
+  if (b > r && b > g) return 'B';
+  if (r > b + 40 && g > b + 40) return 'Y';
+  return '?';
+}
+
+TEST(Shading, PaperColoursWhereTheSceneSaysSo) {
+  // Left: two overlapping spheres (red). Right: one free sphere (blue). Far back: one tiny
+  // sphere below lambda (yellow). The camera looks down -z from z = 20.
+  const std::vector<Sphere> s = {{-6, 0, 0, 2}, {-3.5f, 0, 0, 1.5f}, {6, 0, 0, 2.5f}, {0, 4, -150, 1.5f}};
+  const Camera cam = camera_at(0, 0, 20, 0, 0, 0, 320, 180);
+  Config c;
+  c.lambda = 60;
+  c.shade = true;
+  auto det = make_cpu_detector(c);
+  const FrameResult f = test::run_frame(*det, s, &cam);
+  ASSERT_EQ(f.image_width, 320);
+  ASSERT_EQ(f.image.size(), 320u * 180 * 4);
+  EXPECT_EQ(f.state[0], ObjectState::colliding);
+  EXPECT_EQ(f.state[2], ObjectState::free);
+  EXPECT_EQ(f.state[3], ObjectState::culled);
+  // Project each centre to a pixel and read its colour class.
+  const detail::CameraRig rig(cam, 320, 180);
+  auto pixel_of = [&](const Sphere& sp) {
+    const float dx = sp.x - rig.eye.x, dy = sp.y - rig.eye.y, dz = sp.z - rig.eye.z;
+    const float z = dx * rig.forward.x + dy * rig.forward.y + dz * rig.forward.z;
+    const float x = (dx * rig.right.x + dy * rig.right.y + dz * rig.right.z) / z / rig.tan_half_x;
+    const float y = (dx * rig.up.x + dy * rig.up.y + dz * rig.up.z) / z / rig.tan_half_y;
+    const int px = static_cast<int>((x + 1) * 0.5f * 320), py = static_cast<int>((1 - y) * 0.5f * 180);
+    return &f.image[4 * (static_cast<std::size_t>(py) * 320 + px)];
+  };
+  EXPECT_EQ(hue(pixel_of(s[0])), 'R');
+  EXPECT_EQ(hue(pixel_of(s[2])), 'B');
+  EXPECT_EQ(hue(pixel_of(s[3])), 'Y');
+  EXPECT_EQ(hue(&f.image[0]), '.');  // background corner
+  // And the PNG writer produces a PNG.
+  const std::string path = ::testing::TempDir() + "/viscd_shade.png";
+  ASSERT_TRUE(write_png(path, f.image, f.image_width, f.image_height).ok());
+  std::ifstream in(path, std::ios::binary);
+  char magic[8] = {};
+  in.read(magic, 8);
+  EXPECT_EQ(std::string(magic + 1, 3), "PNG");
+}
+
+}  // namespace
+}  // namespace viscd

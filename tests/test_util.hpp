@@ -1,0 +1,68 @@
+#pragma once
+// Helpers shared by the test suites: deterministic random spheres and pair comparisons.
+
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <random>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "viscd/viscd.hpp"
+
+namespace viscd::test {
+
+/// n spheres with centres uniform in [-extent, extent]^3 and radii uniform in [rmin, rmax].
+inline std::vector<Sphere> random_spheres(std::size_t n, std::uint64_t seed, float extent = 10, float rmin = 0.1f,
+                                          float rmax = 1.0f) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<float> c(-extent, extent), r(rmin, rmax);
+  std::vector<Sphere> s(n);
+  for (auto& sp : s) sp = {c(rng), c(rng), c(rng), r(rng)};
+  return s;
+}
+
+/// Brute-force pairs among spheres[active] (or all), the oracle written independently here.
+inline std::vector<Pair> oracle_pairs(std::span<const Sphere> s, const std::vector<std::uint32_t>* active = nullptr) {
+  std::vector<std::uint32_t> all;
+  if (!active) {
+    for (std::uint32_t k = 0; k < s.size(); ++k) all.push_back(k);
+    active = &all;
+  }
+  std::vector<Pair> out;
+  for (std::size_t a = 0; a < active->size(); ++a)
+    for (std::size_t b = a + 1; b < active->size(); ++b) {
+      const Sphere &p = s[(*active)[a]], &q = s[(*active)[b]];
+      if (spheres_overlap(p, q)) out.push_back({(*active)[a], (*active)[b]});
+    }
+  return out;
+}
+
+/// Runs a detector on one frame and returns the result; fails the test on error.
+inline FrameResult run_frame(Detector& d, std::span<const Sphere> s, const Camera* cam = nullptr) {
+  FrameResult f;
+  const Status st = d.detect(s, cam, f);
+  EXPECT_TRUE(st.ok()) << d.name() << ": " << st.error();
+  return f;
+}
+
+/// Pair lists must be identical; reports the first difference.
+inline ::testing::AssertionResult same_pairs(const std::vector<Pair>& got, const std::vector<Pair>& want) {
+  for (std::size_t k = 0; k < std::min(got.size(), want.size()); ++k)
+    if (!(got[k] == want[k]))
+      return ::testing::AssertionFailure() << "pair " << k << " differs: got (" << got[k].i << "," << got[k].j
+                                           << ") want (" << want[k].i << "," << want[k].j << ")";
+  if (got.size() != want.size())
+    return ::testing::AssertionFailure() << "got " << got.size() << " pairs, want " << want.size();
+  return ::testing::AssertionSuccess();
+}
+
+inline Config config_bits(Bits b, Layout l = Layout::extended) {
+  Config c;
+  c.bits = b;
+  c.layout = l;
+  return c;
+}
+
+}  // namespace viscd::test
