@@ -1,4 +1,5 @@
 // `viscd pairs`: one frame from files.
+#include <cctype>
 #include <cinttypes>
 
 #include "common.hpp"
@@ -37,7 +38,9 @@ int run_pairs(const PairsArgs& a) {
   if (!a.validate_hash.empty()) {
     char expected[32];
     std::snprintf(expected, sizeof expected, "%016" PRIx64, hash);
-    if (a.validate_hash != expected) {
+    std::string given = a.validate_hash;
+    for (char& ch : given) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    if (given != expected) {
       std::fprintf(stderr, "viscd: hash mismatch: expected %s, got %s\n", a.validate_hash.c_str(), expected);
       return 3;
     }

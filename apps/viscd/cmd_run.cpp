@@ -39,7 +39,7 @@ int run_run(RunArgs a) {
   std::string backend = a.pipeline.backend;
   if (backend == "auto") {
     backend = "cpu";
-    std::fprintf(stderr, "viscd: backend auto -> cpu (the gl backend is not built into this binary)\n");
+    if (!a.quiet) std::fprintf(stderr, "viscd: backend auto -> cpu (the gl backend is not built into this binary)\n");
   }
   auto detector = make_detector(backend, config.value());
   if (!detector) return fail(detector.error());

@@ -57,8 +57,17 @@ std::string parse_sphere(const std::vector<std::string_view>& f, Sphere& s) {
   for (int c = 0; c < 4; ++c) {
     std::string_view t = f[c];
     if (!t.empty() && t[0] == '+') t.remove_prefix(1);
-    const auto [ptr, ec] = std::from_chars(t.data(), t.data() + t.size(), v[c]);
-    if (ec == std::errc::result_out_of_range) return std::string(kName[c]) + " = '" + std::string(f[c]) + "' is out of float range";
+    auto [ptr, ec] = std::from_chars(t.data(), t.data() + t.size(), v[c]);
+    if (ec == std::errc::result_out_of_range) {
+      // Underflow (e.g. 1e-46) rounds to zero like any other decimal; overflow is an error.
+      double d = 0;
+      const auto [dptr, dec] = std::from_chars(t.data(), t.data() + t.size(), d);
+      if (dec != std::errc() || dptr != t.data() + t.size() || std::fabs(d) >= 1.0)
+        return std::string(kName[c]) + " = '" + std::string(f[c]) + "' is out of float range";
+      v[c] = static_cast<float>(d);
+      ptr = dptr;
+      ec = std::errc();
+    }
     if (ec != std::errc() || ptr != t.data() + t.size() || t.empty())
       return std::string(kName[c]) + ": expected a number, found '" + std::string(f[c]) + "'";
     if (!std::isfinite(v[c])) return std::string(kName[c]) + " = " + std::string(f[c]) + " is not finite (NaN and infinity are not allowed)";
@@ -82,6 +91,9 @@ void for_each_line(std::string_view text, F&& f) {
 }
 
 Result<std::string> slurp(const std::filesystem::path& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec))
+    return Result<std::string>::failure(path.string() + ": is a folder, expected a file");
   std::ifstream in(path, std::ios::binary);
   if (!in) return Result<std::string>::failure(path.string() + ": cannot open for reading");
   std::ostringstream ss;
