@@ -66,14 +66,23 @@ void fit_lbvh(std::span<const Aabb> leaf_boxes, Lbvh& bvh, int threads);
 /// Depth of the deepest leaf (root = depth 0; a tree of one leaf has depth 0).
 [[nodiscard]] int lbvh_depth(const Lbvh& bvh);
 
-/// Calls f(q) for every leaf q > p whose box overlaps `box`. Never overflows: the stack holds
-/// kStackDepth entries and the tree is at most 96 deep.
+template <class F>
+inline void for_each_overlap_in_subtree(const Lbvh& bvh, std::uint32_t root, std::uint32_t p, const Aabb& box, F&& f);
+
+/// Calls f(q) for every leaf q > p whose box overlaps `box`. The stack holds kStackDepth
+/// entries and a Karras tree is at most 96 deep; should a deeper tree ever come in, the
+/// overflowing subtree is finished by recursion, so no pair is ever dropped.
 template <class F>
 inline void for_each_overlap_after(const Lbvh& bvh, std::uint32_t p, const Aabb& box, F&& f) {
   if (bvh.leaves < 2) return;
+  for_each_overlap_in_subtree(bvh, 0, p, box, f);
+}
+
+template <class F>
+inline void for_each_overlap_in_subtree(const Lbvh& bvh, std::uint32_t root, std::uint32_t p, const Aabb& box, F&& f) {
   std::uint32_t stack[kStackDepth];
   int sp = 0;
-  std::uint32_t node = 0;
+  std::uint32_t node = root;
   for (;;) {
     const BvhNode& nd = bvh.nodes[node];
     const bool hit0 = nd.last[0] > p && overlaps(nd.box[0], box);
@@ -88,9 +97,12 @@ inline void for_each_overlap_after(const Lbvh& bvh, std::uint32_t p, const Aabb&
         f(nd.child[1] & ~kLeafBit);
       } else if (next == kNoParent) {
         next = nd.child[1];
-      } else {
-        VISCD_ASSERT(sp < kStackDepth, "LBVH traversal stack overflow: tree deeper than m + 32");
+      } else if (sp < kStackDepth) {
         stack[sp++] = nd.child[1];
+      } else {
+        // Unreachable for trees built by build_lbvh (depth <= m + 32 < kStackDepth); a tree
+        // from elsewhere still gets every pair: finish this subtree by recursion.
+        for_each_overlap_in_subtree(bvh, nd.child[1], p, box, f);
       }
     }
     if (next != kNoParent) {

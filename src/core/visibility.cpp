@@ -97,13 +97,20 @@ PixelRect sphere_rect(const CameraRig& cam, const Sphere& s) {
   if (cz + r < cam.near_plane || cz - r > cam.far_plane) return {};
   const float dmin = cz - r, dmax = cz + r;
   if (!(dmin > cam.near_plane * 0.5f)) return {0, 0, cam.map_w, cam.map_h, 0.0f};  // reaches the near plane or the eye
-  auto span_of = [&](float lo, float hi, float tan_half) {
-    const float vmax = (hi >= 0 ? hi / dmin : hi / dmax) / tan_half;
-    const float vmin = (lo <= 0 ? lo / dmin : lo / dmax) / tan_half;
-    return std::pair{vmin, vmax};  // normalised device coordinates
+  (void)dmax;
+  // Exact extent of the projection along one screen axis: the slopes v/z of the two lines from
+  // the eye tangent to the circle (centre (cv, cz), radius r) in the plane of that axis and the
+  // view direction. With the circle wholly in front (cz - r > 0) and t = sqrt(cv^2 + cz^2 - r^2):
+  //   slope = tan(phi -+ alpha) = (cv t -+ r cz) / (cz t +- cv r).
+  // Computed in double; the slack in r and the pixel margin below absorb the float rounding.
+  auto span_of = [&](float cv, float tan_half) {
+    const double v = cv, z = cz, rr = r;
+    const double t = std::sqrt(std::max(0.0, v * v + z * z - rr * rr));
+    const double lo = (v * t - rr * z) / (z * t + v * rr), hi = (v * t + rr * z) / (z * t - v * rr);
+    return std::pair{lo / tan_half, hi / tan_half};  // normalised device coordinates
   };
-  const auto [nx0, nx1] = span_of(cx - r, cx + r, cam.tan_half_x);
-  const auto [ny0, ny1] = span_of(cy - r, cy + r, cam.tan_half_y);
+  const auto [nx0, nx1] = span_of(cx, cam.tan_half_x);
+  const auto [ny0, ny1] = span_of(cy, cam.tan_half_y);
   // Pixel centre px + 0.5 = (ndc + 1) / 2 * W; rows count down from ndc_y = 1.
   auto clampi = [](double v, int hi) { return static_cast<int>(std::clamp(v, 0.0, static_cast<double>(hi))); };
   PixelRect rect;

@@ -114,14 +114,20 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
         }
       }
     }
+    // Copy out row by row; branch-free so it vectorises (background depth = far plane).
+    const float far_depth = cam.far_plane;
     for (int py = y0; py < y1; ++py) {
-      for (int px = x0; px < x1; ++px) {
-        const int local = (py - y0) * kTile + (px - x0);
-        const std::size_t i = static_cast<std::size_t>(py) * W + static_cast<std::size_t>(px);
-        map.ids[i] = best_id[local];
-        map.depth[i] = best_id[local] ? best[local] : cam.far_plane;
-        if (normals) write_normal(cam, spheres, map, px, py);
+      const std::size_t row = static_cast<std::size_t>(py) * W;
+      const float* brow = best + (py - y0) * kTile;
+      const std::uint32_t* irow = best_id + (py - y0) * kTile;
+      std::uint32_t* ids = map.ids.data() + row + x0;
+      float* depth = map.depth.data() + row + x0;
+      for (int i = 0; i < x1 - x0; ++i) {
+        ids[i] = irow[i];
+        depth[i] = irow[i] ? brow[i] : far_depth;
       }
+      if (normals)
+        for (int px = x0; px < x1; ++px) write_normal(cam, spheres, map, px, py);
     }
   }
 }

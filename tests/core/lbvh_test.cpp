@@ -94,3 +94,40 @@ TEST(Lbvh, ValidateDetectsCorruption) {
 
 }  // namespace
 }  // namespace viscd::detail
+
+namespace viscd::detail {
+namespace {
+
+TEST(Lbvh, TraversalDeeperThanItsStackDropsNothing) {
+  // A hand-built tree (not a Karras tree) deeper than the traversal stack: chain nodes
+  // C_0..C_{k-1} descend through child[0] and each has a pair node P_i (two leaves) as child[1],
+  // which the traversal must push. With k = 200 > kStackDepth the overflow path runs; every
+  // box overlaps, so leaf 0 must see all other leaves.
+  const std::uint32_t k = 200, n = 2 * (k + 1);
+  Lbvh bvh;
+  bvh.leaves = n;
+  bvh.nodes.resize(n - 1);
+  const Aabb unit{{0, 0, 0}, {1, 1, 1}};
+  for (std::uint32_t j = 0; j <= k; ++j) {  // pair nodes k..2k hold leaves 2j, 2j + 1
+    BvhNode& pn = bvh.nodes[k + j];
+    pn.box[0] = pn.box[1] = unit;
+    pn.child[0] = (2 * j) | kLeafBit, pn.child[1] = (2 * j + 1) | kLeafBit;
+    pn.last[0] = 2 * j, pn.last[1] = 2 * j + 1;
+  }
+  for (std::uint32_t i = 0; i < k; ++i) {
+    BvhNode& cn = bvh.nodes[i];
+    cn.box[0] = cn.box[1] = unit;
+    cn.child[0] = i + 1 < k ? i + 1 : 2 * k;  // deeper chain, or the last pair node
+    cn.last[0] = n - 1;
+    cn.child[1] = k + i;
+    cn.last[1] = 2 * i + 1;
+  }
+  std::vector<std::uint32_t> got;
+  for_each_overlap_after(bvh, 0, unit, [&](std::uint32_t q) { got.push_back(q); });
+  std::sort(got.begin(), got.end());
+  ASSERT_EQ(got.size(), n - 1);
+  for (std::uint32_t q = 1; q < n; ++q) EXPECT_EQ(got[q - 1], q);
+}
+
+}  // namespace
+}  // namespace viscd::detail

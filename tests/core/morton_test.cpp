@@ -98,7 +98,9 @@ TEST(MortonEncoder, MatchesNaiveEncoder) {
         const float x = u(rng), y = u(rng) / 30, z = u(rng);
         const std::uint64_t got = enc.encode(x, y, z), want = naive_encode(l, b, x, y, z);
         ASSERT_EQ(got, want) << "m=" << bits << " at (" << x << "," << y << "," << z << ")";
-        if (bits < 64) ASSERT_LT(got, std::uint64_t{1} << bits);
+        if (bits < 64) {
+          ASSERT_LT(got, std::uint64_t{1} << bits);
+        }
       }
     }
   }

@@ -1,0 +1,46 @@
+#pragma once
+/// \file gl.hpp
+/// The OpenGL 4.5 backend's own settings and factory (DESIGN.md, "Backends"). Available when
+/// viscd is built with VISCD_ENABLE_GL (the default); the backend runs headless through EGL
+/// (Mesa's surfaceless platform, llvmpipe where there is no GPU). See docs/gl.md.
+
+#include <cstdint>
+#include <memory>
+
+#include "viscd/config.hpp"
+#include "viscd/detector.hpp"
+#include "viscd/result.hpp"
+
+namespace viscd {
+
+/// How spheres are drawn into the visibility map (stage 1).
+enum class GlGeometry : std::uint8_t {
+  impostor,  ///< default: one camera-facing quad per sphere, ray-cast per pixel (exact silhouettes)
+  mesh,      ///< the paper's instanced tessellated sphere (960 triangles, inscribed: slightly smaller)
+};
+
+/// How pixels are counted per object (stage 2).
+enum class GlCounter : std::uint8_t {
+  ssbo,         ///< default: SSBO atomicAdd in a compute shader, any N
+  atomic_uint,  ///< the paper's atomic counter array in a fragment shader; N <= GL_MAX_FRAGMENT_ATOMIC_COUNTERS
+};
+
+/// Settings of the gl backend beyond Config.
+struct GlOptions {
+  GlGeometry geometry = GlGeometry::impostor;
+  GlCounter counter = GlCounter::ssbo;
+  /// Debug context with synchronous debug output: any GL error makes detect() fail with the
+  /// driver's message. Default off (on in the tests).
+  bool debug = false;
+  /// Pairs the pair buffer holds before its first growth. Default 65536 (512 KiB).
+  std::uint32_t initial_pair_capacity = 1u << 16;
+};
+
+/// Creates the gl backend: an EGL surfaceless OpenGL 4.5 core context of its own and the
+/// backend's programs. Fails with a message when no such context can be created or a shader
+/// does not build. The detector uses its context from the thread that calls detect(); it is
+/// not thread-safe. FrameStats::stage_ms holds GPU times read one frame late (the previous
+/// frame's; zero on the first frame), except `layout`, which is host time.
+[[nodiscard]] Result<std::unique_ptr<Detector>> make_gl_detector(const Config& config, const GlOptions& options = {});
+
+}  // namespace viscd

@@ -1,0 +1,277 @@
+// Stages 5-8 of the gl backend: Morton codes, radix sort, Karras build, fit, query, pair sort.
+#include <bit>
+#include <cmath>
+#include <cstring>
+
+#include "core/broadphase.hpp"
+#include "core/stopwatch.hpp"
+#include "gl/gl_detector.hpp"
+
+namespace viscd::gl {
+namespace {
+
+void barrier() { glMemoryBarrier(GL_ALL_BARRIER_BITS); }
+
+}  // namespace
+
+// Exclusive scan of n uints from `in` into `out` (three dispatches, reduce-then-scan). Leaves the
+// total in block_sums_[ceil(n / VISCD_SCAN_BLOCK)].
+void GlDetector::scan(GLuint in, GLuint out, std::uint32_t n) {
+  const std::uint32_t blocks = (n + VISCD_SCAN_BLOCK - 1) / VISCD_SCAN_BLOCK;
+  block_sums_.reserve(4 * (static_cast<GLsizeiptr>(blocks) + 1));
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, VISCD_BIND_SCAN_IN, in);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, VISCD_BIND_SCAN_OUT, out);
+  block_sums_.bind_storage(VISCD_BIND_SCAN_BLOCKS);
+  if (blocks) {
+    glProgramUniform1ui(scan_local_.get(), scan_local_.uniform("u_n"), n);
+    glUseProgram(scan_local_.get());
+    glDispatchCompute(blocks, 1, 1);
+    barrier();
+  }
+  glProgramUniform1ui(scan_blocks_.get(), scan_blocks_.uniform("u_count"), blocks);
+  glUseProgram(scan_blocks_.get());
+  glDispatchCompute(1, 1, 1);
+  barrier();
+  if (blocks > 1) {
+    glProgramUniform1ui(scan_add_.get(), scan_add_.uniform("u_n"), n);
+    scan_add_.dispatch(n);
+    barrier();
+  }
+}
+
+// LSD radix sort of uvec2 keys (and uint values) in keys[0]/values[0], 8-bit digits, stable:
+// ceil(key_bits / 8) passes (the pass count follows m), each histogram -> scan -> scatter.
+int GlDetector::radix_sort(Buffer* keys, Buffer* values, std::uint32_t n, int key_bits) {
+  if (n < 2) return 0;
+  const std::uint32_t tiles = (n + VISCD_SORT_TILE - 1) / VISCD_SORT_TILE;
+  const auto hist_bytes = static_cast<GLsizeiptr>(4) * 256 * tiles;
+  hist_.reserve(hist_bytes);
+  hist_scan_.reserve(hist_bytes);
+  int src = 0;
+  const int passes = (key_bits + 7) / 8;
+  glProgramUniform1ui(radix_hist_.get(), radix_hist_.uniform("u_n"), n);
+  glProgramUniform1ui(radix_scatter_.get(), radix_scatter_.uniform("u_n"), n);
+  glProgramUniform1ui(radix_scatter_.get(), radix_scatter_.uniform("u_has_values"), values ? 1u : 0u);
+  for (int pass = 0; pass < passes; ++pass) {
+    const auto shift = static_cast<GLuint>(8 * pass);
+    keys[src].bind_storage(VISCD_BIND_KEYS_IN);
+    hist_.bind_storage(VISCD_BIND_SCAN_IN);
+    glProgramUniform1ui(radix_hist_.get(), radix_hist_.uniform("u_shift"), shift);
+    glUseProgram(radix_hist_.get());
+    glDispatchCompute(tiles, 1, 1);
+    barrier();
+    scan(hist_.get(), hist_scan_.get(), 256 * tiles);
+    keys[src].bind_storage(VISCD_BIND_KEYS_IN);
+    keys[1 - src].bind_storage(VISCD_BIND_KEYS_OUT);
+    if (values) {
+      values[src].bind_storage(VISCD_BIND_VALUES_IN);
+      values[1 - src].bind_storage(VISCD_BIND_VALUES_OUT);
+    }
+    hist_scan_.bind_storage(VISCD_BIND_SCAN_OUT);
+    glProgramUniform1ui(radix_scatter_.get(), radix_scatter_.uniform("u_shift"), shift);
+    glUseProgram(radix_scatter_.get());
+    glDispatchCompute(tiles, 1, 1);
+    barrier();
+    src = 1 - src;
+  }
+  return src;
+}
+
+void GlDetector::reserve_broadphase(std::uint32_t n) {
+  const auto bytes = [n](GLsizeiptr per) { return per * static_cast<GLsizeiptr>(n); };
+  for (int k = 0; k < 2; ++k) {
+    keys_[k].reserve(bytes(8));
+    values_[k].reserve(bytes(4));
+  }
+  nodes_.reserve(bytes(64));
+  parent_.reserve(bytes(8));
+  arrivals_.reserve(bytes(4));
+  sorted_.reserve(bytes(16));
+  leaf_boxes_.reserve(bytes(24));
+}
+
+Status GlDetector::broadphase(std::uint32_t n, std::uint32_t objects, const detail::MortonLayout& layout,
+                              const detail::Aabb& bounds, std::vector<Pair>& pairs, FrameStats& stats) {
+  reserve_broadphase(n);
+  last_n_ = n;
+  last_bits_ = layout.bits;
+
+  // Stage 5: codes. The encoder parameters are MortonEncoder's, computed the same way in double.
+  stage_begin(Stage::codes);
+  {
+    const float lo[3] = {bounds.lo.x, bounds.lo.y, bounds.lo.z};
+    const float hi[3] = {bounds.hi.x, bounds.hi.y, bounds.hi.z};
+    double lo_d[3], scale[3], max_cell[3];
+    GLint position[96] = {};
+    for (int a = 0; a < 3; ++a) {
+      const double cells = std::ldexp(1.0, layout.axis_bits[a]);
+      const double extent = static_cast<double>(hi[a]) - static_cast<double>(lo[a]);
+      lo_d[a] = lo[a];
+      scale[a] = (extent > 0.0 && std::isfinite(extent)) ? cells / extent : 0.0;
+      max_cell[a] = cells - 1.0;
+      for (int b = 0; b < layout.axis_bits[a]; ++b) position[32 * a + b] = layout.position[a][b];
+    }
+    const GLuint p = morton_.get();
+    glProgramUniform1ui(p, morton_.uniform("u_n"), n);
+    glProgramUniform3dv(p, morton_.uniform("u_lo"), 1, lo_d);
+    glProgramUniform3dv(p, morton_.uniform("u_scale"), 1, scale);
+    glProgramUniform3dv(p, morton_.uniform("u_max_cell"), 1, max_cell);
+    glProgramUniform3i(p, morton_.uniform("u_axis_bits"), layout.axis_bits[0], layout.axis_bits[1], layout.axis_bits[2]);
+    glProgramUniform1iv(p, morton_.uniform("u_position"), 96, position);
+    spheres_.bind_storage(VISCD_BIND_SPHERES);
+    active_.bind_storage(VISCD_BIND_ACTIVE);
+    keys_[0].bind_storage(VISCD_BIND_KEYS_OUT);
+    values_[0].bind_storage(VISCD_BIND_VALUES_OUT);
+    morton_.dispatch(n);
+    barrier();
+  }
+  stage_end(Stage::codes);
+
+  // Stage 6: sort (key, object index); values start ascending, the sort is stable.
+  stage_begin(Stage::sort);
+  sorted_in_ = radix_sort(keys_, values_, n, layout.bits);
+  stage_end(Stage::sort);
+
+  // Stage 7: build, then fit.
+  stage_begin(Stage::build);
+  keys_[sorted_in_].bind_storage(VISCD_BIND_KEYS_IN);
+  nodes_.bind_storage(VISCD_BIND_NODES);
+  parent_.bind_storage(VISCD_BIND_PARENT);
+  glProgramUniform1i(build_.get(), build_.uniform("u_n"), static_cast<GLint>(n));
+  glProgramUniform1i(build_.get(), build_.uniform("u_bits"), layout.bits);
+  if (n >= 2) build_.dispatch(n - 1);
+  barrier();
+  stage_end(Stage::build);
+  stage_begin(Stage::fit);
+  if (n >= 2) {
+    const GLuint zero = 0;
+    glClearNamedBufferSubData(arrivals_.get(), GL_R32UI, 0, 4 * static_cast<GLsizeiptr>(n - 1), GL_RED_INTEGER,
+                              GL_UNSIGNED_INT, &zero);
+    barrier();
+  }
+  spheres_.bind_storage(VISCD_BIND_SPHERES);
+  values_[sorted_in_].bind_storage(VISCD_BIND_VALUES_IN);
+  sorted_.bind_storage(VISCD_BIND_SORTED);
+  leaf_boxes_.bind_storage(VISCD_BIND_LEAF_BOXES);
+  arrivals_.bind_storage(VISCD_BIND_ARRIVALS);
+  info_.bind_storage(VISCD_BIND_INFO);
+  glProgramUniform1ui(fit_.get(), fit_.uniform("u_n"), n);
+  fit_.dispatch(n);
+  barrier();
+  stage_end(Stage::fit);
+
+  // Stage 8: query; on overflow grow the buffer to the exact count and run it again.
+  stage_begin(Stage::query);
+  std::uint32_t count = 0;
+  for (int attempt = 0;; ++attempt) {
+    VISCD_ASSERT(attempt < 2, "the pair count is exact, one re-run suffices");
+    const GLuint zero = 0;
+    glNamedBufferSubData(info_.get(), offsetof(shader::FrameInfo, pair_count), 4, &zero);
+    pairs_.bind_storage(VISCD_BIND_PAIRS);
+    glProgramUniform1ui(query_.get(), query_.uniform("u_n"), n);
+    glProgramUniform1ui(query_.get(), query_.uniform("u_capacity"), pair_capacity_);
+    query_.dispatch(n);
+    barrier();
+    glGetNamedBufferSubData(info_.get(), offsetof(shader::FrameInfo, pair_count), 4, &count);  // wait 2
+    if (config_.pair_memory_cap != 0 && static_cast<std::size_t>(count) * sizeof(Pair) > config_.pair_memory_cap)
+      return Status::failure("frame has " + std::to_string(count) + " colliding pairs, which need " +
+                             std::to_string(static_cast<std::size_t>(count) * sizeof(Pair)) +
+                             " bytes, over the pair memory cap of " + std::to_string(config_.pair_memory_cap) +
+                             " bytes (Config::pair_memory_cap)");
+    if (count <= pair_capacity_) break;
+    // A pair count beyond 2^32 - 1 would wrap the counter; N < 2^29 with our spheres cannot
+    // fill 2^32 pairs on any machine this runs on, and the cap check above catches it first.
+    pair_capacity_ = count;
+    pairs_.reserve(static_cast<GLsizeiptr>(pair_capacity_) * 8);
+  }
+  // Sort the pairs as 64-bit keys (i << 32 | j): x = j, y = i; i, j < objects.
+  pairs_tmp_.reserve(static_cast<GLsizeiptr>(std::max<std::uint32_t>(count, 1)) * 8);
+  Buffer* pair_bufs = nullptr;
+  Buffer tmp[2];
+  // radix_sort ping-pongs between two buffers: lend it pairs_ and pairs_tmp_.
+  tmp[0] = std::move(pairs_);
+  tmp[1] = std::move(pairs_tmp_);
+  pair_bufs = tmp;
+  const int key_bits = 32 + std::bit_width(objects ? objects - 1 : 0u);
+  const int in = radix_sort(pair_bufs, nullptr, count, key_bits);
+  // Keep the sorted pairs in pairs_ (the state pass reads them).
+  pairs_ = std::move(tmp[in]);
+  pairs_tmp_ = std::move(tmp[1 - in]);
+  pairs.resize(count);
+  if (count) {
+    glGetNamedBufferSubData(pairs_.get(), 0, static_cast<GLsizeiptr>(count) * 8, pairs.data());
+    for (Pair& p : pairs) std::swap(p.i, p.j);  // stored (x = j, y = i)
+  }
+  stats.pairs = count;
+  stage_end(Stage::query);
+  return {};
+}
+
+Status GlDetector::run_broadphase(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
+                                  std::vector<Pair>& pairs, FrameStats& stats) {
+  VISCD_ASSERT(bits == 16 || bits == 32 || bits == 64, "Morton width must be 16, 32 or 64");
+  if (Status s = validate_spheres(spheres); !s) return s;
+  if (!ctx_->make_current()) return Status::failure("OpenGL: cannot make the detector's context current");
+  upload_spheres(spheres);
+  const auto n = static_cast<std::uint32_t>(active.size());
+  active_.reserve(4 * static_cast<GLsizeiptr>(n));
+  states_.reserve(4 * static_cast<GLsizeiptr>(spheres.size()));
+  if (n) glNamedBufferSubData(active_.get(), 0, 4 * static_cast<GLsizeiptr>(n), active.data());
+  const shader::FrameInfo zero_info{};
+  glNamedBufferSubData(info_.get(), 0, sizeof zero_info, &zero_info);
+  const detail::ActiveExtent e = detail::active_extent(spheres, active, 1);
+  const detail::MortonLayout layout = detail::make_layout(config_.layout, bits, e.bounds, e.mean_diameter);
+  stats.bits = bits;
+  stats.layout = layout.to_string();
+  stats.active = n;
+  stats.objects = static_cast<std::uint32_t>(spheres.size());
+  if (Status s = broadphase(n, static_cast<std::uint32_t>(spheres.size()), layout, e.bounds, pairs, stats); !s) return s;
+  return gl_errors("run_broadphase()");
+}
+
+std::vector<std::uint64_t> GlDetector::read_sorted_codes() {
+  (void)ctx_->make_current();
+  std::vector<std::uint32_t> raw(2 * static_cast<std::size_t>(last_n_));
+  if (last_n_) glGetNamedBufferSubData(keys_[sorted_in_].get(), 0, 8 * static_cast<GLsizeiptr>(last_n_), raw.data());
+  std::vector<std::uint64_t> codes(last_n_);
+  for (std::size_t k = 0; k < last_n_; ++k) codes[k] = (std::uint64_t{raw[2 * k + 1]} << 32) | raw[2 * k];
+  return codes;
+}
+
+std::vector<std::uint32_t> GlDetector::read_sorted_ids() {
+  (void)ctx_->make_current();
+  std::vector<std::uint32_t> ids(last_n_);
+  if (last_n_) glGetNamedBufferSubData(values_[sorted_in_].get(), 0, 4 * static_cast<GLsizeiptr>(last_n_), ids.data());
+  return ids;
+}
+
+void GlDetector::read_tree(detail::Lbvh& bvh, std::vector<detail::Aabb>& leaf_boxes) {
+  (void)ctx_->make_current();
+  const std::uint32_t n = last_n_;
+  bvh.leaves = n;
+  leaf_boxes.resize(n);
+  static_assert(sizeof(detail::Aabb) == sizeof(shader::LeafBox) && sizeof(detail::BvhNode) == sizeof(shader::LbvhNode));
+  if (n) glGetNamedBufferSubData(leaf_boxes_.get(), 0, 24 * static_cast<GLsizeiptr>(n), leaf_boxes.data());
+  shader::FrameInfo info{};
+  glGetNamedBufferSubData(info_.get(), 0, sizeof info, &info);
+  if (n >= 2) {
+    bvh.nodes.resize(n - 1);
+    bvh.parent.resize(n - 1);
+    bvh.leaf_parent.resize(n);
+    glGetNamedBufferSubData(nodes_.get(), 0, 64 * static_cast<GLsizeiptr>(n - 1), bvh.nodes.data());
+    glGetNamedBufferSubData(parent_.get(), 0, 4 * static_cast<GLsizeiptr>(n - 1), bvh.parent.data());
+    glGetNamedBufferSubData(parent_.get(), 4 * static_cast<GLintptr>(n - 1), 4 * static_cast<GLsizeiptr>(n),
+                            bvh.leaf_parent.data());
+  } else {
+    bvh.nodes.clear();
+    bvh.parent.clear();
+    bvh.leaf_parent.assign(n, detail::kNoParent);
+  }
+  bvh.root_box = detail::Aabb{};
+  if (n) {
+    bvh.root_box.lo = {info.root_lo.x, info.root_lo.y, info.root_lo.z};
+    bvh.root_box.hi = {info.root_hi.x, info.root_hi.y, info.root_hi.z};
+  }
+}
+
+}  // namespace viscd::gl

@@ -1,0 +1,50 @@
+#pragma once
+// A headless OpenGL 4.5 core context through EGL (Mesa's surfaceless platform: llvmpipe on
+// machines without a GPU, the GPU's driver elsewhere), with debug output captured.
+
+#include <epoxy/egl.h>
+#include <epoxy/gl.h>
+
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "viscd/result.hpp"
+
+namespace viscd::gl {
+
+/// Owns an EGL display connection and a GL 4.5 core context without any surface.
+/// Not thread-safe; make it current on the thread that uses it (make_current()).
+class Context {
+ public:
+  /// Creates the context. `debug`: a debug context with synchronous debug output, whose
+  /// errors are collected (take_errors()). Fails with a message naming the step that failed.
+  [[nodiscard]] static Result<std::unique_ptr<Context>> create(bool debug);
+  ~Context();
+  Context(const Context&) = delete;
+  Context& operator=(const Context&) = delete;
+
+  /// Makes this context current on the calling thread.
+  [[nodiscard]] bool make_current() const;
+  /// "llvmpipe (LLVM 15.0.6, 256 bits) | 4.5 (Core Profile) Mesa 22.3.6"
+  [[nodiscard]] const std::string& description() const { return description_; }
+  /// Debug messages of type error (and high-severity messages) since the last call.
+  [[nodiscard]] std::vector<std::string> take_errors();
+  /// Whether debug output is on.
+  [[nodiscard]] bool debug() const { return debug_; }
+
+ private:
+  Context() = default;
+  static void GLAPIENTRY on_debug(GLenum source, GLenum type, GLuint id, GLenum severity, GLsizei length,
+                                  const GLchar* message, const void* user);
+
+  EGLDisplay display_ = EGL_NO_DISPLAY;
+  EGLContext context_ = EGL_NO_CONTEXT;
+  std::string description_;
+  bool debug_ = false;
+  std::mutex mutex_;
+  std::vector<std::string> errors_;
+};
+
+}  // namespace viscd::gl

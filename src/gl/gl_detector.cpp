@@ -1,0 +1,314 @@
+#include "gl/gl_detector.hpp"
+
+#include <chrono>
+#include <cstring>
+
+#include "core/broadphase.hpp"
+#include "core/stopwatch.hpp"
+
+namespace viscd {
+namespace gl {
+
+Result<std::unique_ptr<GlDetector>> GlDetector::create(const Config& config, const GlOptions& options) {
+  using R = Result<std::unique_ptr<GlDetector>>;
+  std::unique_ptr<GlDetector> d(new GlDetector(config, options));
+  auto ctx = Context::create(options.debug);
+  if (!ctx) return R::failure(ctx.error());
+  d->ctx_ = std::move(ctx.value());
+  if (Status s = d->init(); !s) return R::failure(s.error());
+  return d;
+}
+
+GlDetector::~GlDetector() {
+  // The GL objects below are deleted by their owners, which need this context current.
+  if (ctx_) (void)ctx_->make_current();
+}
+
+Status GlDetector::init() {
+  struct Entry {
+    Program* program;
+    const char* name;
+  };
+  const Entry computes[] = {{&scan_local_, "scan_local.comp"}, {&scan_blocks_, "scan_blocks.comp"},
+                            {&scan_add_, "scan_add.comp"},     {&count_, "count.comp"},
+                            {&cull_, "cull.comp"},             {&bounds_, "bounds.comp"},
+                            {&morton_, "morton.comp"},         {&radix_hist_, "radix_hist.comp"},
+                            {&radix_scatter_, "radix_scatter.comp"}, {&build_, "lbvh_build.comp"},
+                            {&fit_, "lbvh_fit.comp"},          {&query_, "lbvh_query.comp"},
+                            {&state_, "state.comp"},           {&shade_, "shade.comp"}};
+  for (const Entry& e : computes) {
+    auto p = Program::compute(e.name);
+    if (!p) return Status::failure(p.error());
+    *e.program = std::move(p.value());
+  }
+  auto imp = Program::graphics("gbuffer_impostor.vert", "gbuffer_impostor.frag");
+  if (!imp) return Status::failure(imp.error());
+  impostor_ = std::move(imp.value());
+  auto mesh = Program::graphics("gbuffer_mesh.vert", "gbuffer_mesh.frag");
+  if (!mesh) return Status::failure(mesh.error());
+  mesh_ = std::move(mesh.value());
+  VISCD_ASSERT(radix_scatter_.local_size() == 256 && radix_hist_.local_size() == 256,
+               "radix sort needs one invocation per 8-bit digit");
+  VISCD_ASSERT(scan_local_.local_size() * VISCD_SCAN_PER_THREAD == VISCD_SCAN_BLOCK, "scan block size");
+
+  GLuint name = 0;
+  glCreateVertexArrays(1, &name);
+  empty_vao_ = VertexArray(name);
+  glCreateFramebuffers(1, &name);
+  empty_fbo_ = Framebuffer(name);
+  info_.reserve(sizeof(shader::FrameInfo));
+  pair_capacity_ = std::max<std::uint32_t>(1, options_.initial_pair_capacity);
+  pairs_.reserve(static_cast<GLsizeiptr>(pair_capacity_) * 8);
+
+  GLint bits = 0;
+  glGetQueryiv(GL_TIMESTAMP, GL_QUERY_COUNTER_BITS, &bits);
+  timers_ok_ = bits > 0;
+  if (timers_ok_) {
+    for (auto& frame : timers_)
+      for (Query& q : frame) {
+        glCreateQueries(GL_TIMESTAMP, 1, &name);
+        q = Query(name);
+      }
+  }
+  return gl_errors("initialisation");
+}
+
+Status GlDetector::gl_errors(const char* where) {
+  std::vector<std::string> errors = ctx_->take_errors();
+  GLenum e = glGetError();
+  while (e != GL_NO_ERROR) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "glGetError() = 0x%04x", static_cast<unsigned>(e));
+    errors.emplace_back(buf);
+    e = glGetError();
+  }
+  if (errors.empty()) return {};
+  std::string msg = std::string("OpenGL error during ") + where + ": " + errors.front();
+  if (errors.size() > 1) msg += " (and " + std::to_string(errors.size() - 1) + " more)";
+  return Status::failure(msg);
+}
+
+void GlDetector::upload_spheres(std::span<const Sphere> spheres) {
+  spheres_.reserve(static_cast<GLsizeiptr>(spheres.size_bytes()));
+  if (!spheres.empty()) glNamedBufferSubData(spheres_.get(), 0, static_cast<GLsizeiptr>(spheres.size_bytes()), spheres.data());
+}
+
+// ---- timers: a GL_TIMESTAMP before and after each stage, read back one frame later ----
+
+void GlDetector::stage_begin(Stage s) {
+  if (!timers_ok_) return;
+  const auto k = static_cast<std::size_t>(s);
+  glQueryCounter(timers_[static_cast<std::size_t>(timer_frame_)][2 * k].get(), GL_TIMESTAMP);
+}
+
+void GlDetector::stage_end(Stage s) {
+  if (!timers_ok_) return;
+  const auto k = static_cast<std::size_t>(s);
+  glQueryCounter(timers_[static_cast<std::size_t>(timer_frame_)][2 * k + 1].get(), GL_TIMESTAMP);
+  timer_used_[static_cast<std::size_t>(timer_frame_)][k] = true;
+}
+
+void GlDetector::read_timers(FrameStats& stats) {
+  if (!timers_ok_) return;
+  // The other slot holds the previous frame's queries: by now the GPU has long finished them
+  // (this frame already waited on later work), so reading them does not stall.
+  const auto prev = static_cast<std::size_t>(1 - timer_frame_);
+  for (std::size_t k = 0; k < kStageCount; ++k) {
+    if (!timer_used_[prev][k] || static_cast<Stage>(k) == Stage::layout) continue;
+    GLint available = 0;
+    glGetQueryObjectiv(timers_[prev][2 * k + 1].get(), GL_QUERY_RESULT_AVAILABLE, &available);
+    if (!available) continue;
+    GLuint64 t0 = 0, t1 = 0;
+    glGetQueryObjectui64v(timers_[prev][2 * k].get(), GL_QUERY_RESULT, &t0);
+    glGetQueryObjectui64v(timers_[prev][2 * k + 1].get(), GL_QUERY_RESULT, &t1);
+    stats.stage_ms[k] = t1 >= t0 ? static_cast<double>(t1 - t0) * 1e-6 : 0.0;
+  }
+  timer_used_[prev].fill(false);
+  timer_frame_ = 1 - timer_frame_;
+}
+
+// ---- the frame ----
+
+Status GlDetector::detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) {
+  if (Status s = validate_spheres(spheres); !s) return s;
+  if (camera) {
+    if (Status s = validate_camera(*camera); !s) return s;
+    if (config_.map_width < 0 || config_.map_height < 0 || (config_.map_width == 0) != (config_.map_height == 0))
+      return Status::failure("visibility map size must be W x H with both positive, or 0 x 0 for the screen size");
+  }
+  if (spheres.size() >= (1u << 29)) return Status::failure("the gl backend handles at most 2^29 - 1 objects");
+  if (!ctx_->make_current()) return Status::failure("OpenGL: cannot make the detector's context current");
+  if (Status s = gl_errors("an earlier call"); !s) return s;
+
+  const auto n_all = static_cast<std::uint32_t>(spheres.size());
+  FrameStats& stats = out.stats;
+  stats = FrameStats{};
+  stats.objects = n_all;
+  stats.has_camera = camera != nullptr;
+  upload_spheres(spheres);
+  counts_.reserve(4 * static_cast<GLsizeiptr>(n_all));
+  pixels_.reserve(4 * static_cast<GLsizeiptr>(n_all));
+  flags_.reserve(4 * static_cast<GLsizeiptr>(n_all));
+  scan_out_.reserve(4 * static_cast<GLsizeiptr>(n_all));
+  active_.reserve(4 * static_cast<GLsizeiptr>(n_all));
+  states_.reserve(4 * static_cast<GLsizeiptr>(n_all));
+  partials_.reserve(static_cast<GLsizeiptr>(sizeof(shader::BoundsPartial)) * (n_all / VISCD_WG_SIZE + 1));
+  const shader::FrameInfo zero_info{};
+  glNamedBufferSubData(info_.get(), 0, sizeof zero_info, &zero_info);
+
+  std::unique_ptr<detail::CameraRig> rig;
+  if (camera) {
+    const int mw = config_.map_width ? config_.map_width : camera->width;
+    const int mh = config_.map_height ? config_.map_height : camera->height;
+    rig = std::make_unique<detail::CameraRig>(*camera, mw, mh);
+    if (options_.counter == GlCounter::atomic_uint) {
+      // Checked before any work so that the error is clean.
+      GLint max_frag = 0, max_size = 0;
+      glGetIntegerv(GL_MAX_FRAGMENT_ATOMIC_COUNTERS, &max_frag);
+      glGetIntegerv(GL_MAX_ATOMIC_COUNTER_BUFFER_SIZE, &max_size);
+      const std::uint32_t limit = std::min<std::uint32_t>(static_cast<std::uint32_t>(max_frag), static_cast<std::uint32_t>(max_size) / 4);
+      if (n_all > limit)
+        return Status::failure("atomic_uint counting supports at most " + std::to_string(limit) +
+                               " objects on this driver (GL_MAX_FRAGMENT_ATOMIC_COUNTERS = " + std::to_string(max_frag) +
+                               ", GL_MAX_ATOMIC_COUNTER_BUFFER_SIZE = " + std::to_string(max_size) + " bytes); the frame has " +
+                               std::to_string(n_all) + ": use the ssbo counter mode");
+    }
+    stage_begin(Stage::visibility);
+    ensure_map(mw, mh);
+    draw_gbuffer(*rig, n_all);
+    stage_end(Stage::visibility);
+    stage_begin(Stage::count);
+    if (Status s = count_pixels(n_all); !s) return s;
+    stage_end(Stage::count);
+  }
+
+  // Stage 3: flags, pixels, total; scan; compaction; the active count into FrameInfo.
+  stage_begin(Stage::cull);
+  counts_.bind_storage(VISCD_BIND_COUNTS);
+  pixels_.bind_storage(VISCD_BIND_PIXELS);
+  flags_.bind_storage(VISCD_BIND_FLAGS);
+  active_.bind_storage(VISCD_BIND_ACTIVE);
+  info_.bind_storage(VISCD_BIND_INFO);
+  glProgramUniform1ui(cull_.get(), cull_.uniform("u_n"), n_all);
+  glProgramUniform1ui(cull_.get(), cull_.uniform("u_phase"), 0);
+  glProgramUniform1ui(cull_.get(), cull_.uniform("u_has_counts"), camera ? 1u : 0u);
+  glProgramUniform1ui(cull_.get(), cull_.uniform("u_culling"), config_.culling ? 1u : 0u);
+  glProgramUniform1d(cull_.get(), cull_.uniform("u_scale"), rig ? rig->pixel_scale : 1.0);
+  glProgramUniform1d(cull_.get(), cull_.uniform("u_lambda"), static_cast<double>(config_.lambda));
+  cull_.dispatch(n_all);
+  glMemoryBarrier(GL_ALL_BARRIER_BITS);
+  scan(flags_.get(), scan_out_.get(), n_all);
+  // scan() leaves the total (the active count) in block_sums_[blocks]; copy it on the GPU.
+  const std::uint32_t blocks = (n_all + VISCD_SCAN_BLOCK - 1) / VISCD_SCAN_BLOCK;
+  glCopyNamedBufferSubData(block_sums_.get(), info_.get(), 4 * static_cast<GLintptr>(blocks),
+                           offsetof(shader::FrameInfo, active_count), 4);
+  flags_.bind_storage(VISCD_BIND_FLAGS);
+  scan_out_.bind_storage(VISCD_BIND_SCAN_OUT);
+  active_.bind_storage(VISCD_BIND_ACTIVE);
+  glProgramUniform1ui(cull_.get(), cull_.uniform("u_phase"), 1);
+  cull_.dispatch(n_all);
+  glMemoryBarrier(GL_ALL_BARRIER_BITS);
+  stage_end(Stage::cull);
+
+  // Stage 4 inputs on the GPU (sized by N, n read on the GPU), then wait 1: FrameInfo.
+  stage_begin(Stage::layout);
+  spheres_.bind_storage(VISCD_BIND_SPHERES);
+  active_.bind_storage(VISCD_BIND_ACTIVE);
+  partials_.bind_storage(VISCD_BIND_PARTIALS);
+  info_.bind_storage(VISCD_BIND_INFO);
+  glProgramUniform1ui(bounds_.get(), bounds_.uniform("u_phase"), 0);
+  bounds_.dispatch(n_all);
+  glMemoryBarrier(GL_ALL_BARRIER_BITS);
+  glProgramUniform1ui(bounds_.get(), bounds_.uniform("u_phase"), 1);
+  glUseProgram(bounds_.get());
+  glDispatchCompute(1, 1, 1);
+  glMemoryBarrier(GL_ALL_BARRIER_BITS);
+  stage_end(Stage::layout);
+  detail::Stopwatch sw;
+  shader::FrameInfo info{};
+  glGetNamedBufferSubData(info_.get(), 0, sizeof info, &info);
+  const std::uint32_t n = info.active_count;
+  stats.active = n;
+  int bits = 32;  // without a camera mu is undefined; adaptive falls back to 32 (as PipelineDetector)
+  if (camera) {
+    // mu over all N (DESIGN.md). The cpu backend sums count * scale in double; with scale 1
+    // (map = screen) both sums are exact and equal, otherwise they may differ in the last ulp.
+    stats.mean_pixels = n_all ? static_cast<double>(info.total_pixels) * rig->pixel_scale / n_all : 0.0;
+    bits = config_.bits == Bits::adaptive ? detail::bits_for_mean_pixels(stats.mean_pixels, config_.a, config_.b)
+                                          : static_cast<int>(config_.bits);
+  } else if (config_.bits != Bits::adaptive) {
+    bits = static_cast<int>(config_.bits);
+  }
+  detail::Aabb bounds;
+  bounds.lo = {info.lo.x, info.lo.y, info.lo.z};
+  bounds.hi = {info.hi.x, info.hi.y, info.hi.z};
+  const float mean_diameter = n ? static_cast<float>(info.diameter_sum.x / static_cast<double>(n)) : 0.f;
+  const detail::MortonLayout layout = detail::make_layout(config_.layout, bits, bounds, mean_diameter);
+  stats.bits = bits;
+  stats.layout = layout.to_string();
+  const double layout_ms = sw.lap();
+
+  if (Status s = broadphase(n, n_all, layout, bounds, out.pairs, stats); !s) return s;
+  stats.pairs = out.pairs.size();
+
+  // Object states on the GPU (the shading pass reads them), then read back.
+  stage_begin(Stage::query);
+  states_.bind_storage(VISCD_BIND_STATE);
+  active_.bind_storage(VISCD_BIND_ACTIVE);
+  pairs_.bind_storage(VISCD_BIND_PAIRS);
+  glProgramUniform1ui(state_.get(), state_.uniform("u_phase"), 0);
+  glProgramUniform1ui(state_.get(), state_.uniform("u_n"), n_all);
+  state_.dispatch(n_all);
+  glMemoryBarrier(GL_ALL_BARRIER_BITS);
+  glProgramUniform1ui(state_.get(), state_.uniform("u_phase"), 1);
+  glProgramUniform1ui(state_.get(), state_.uniform("u_n"), n);
+  state_.dispatch(n);
+  glMemoryBarrier(GL_ALL_BARRIER_BITS);
+  glProgramUniform1ui(state_.get(), state_.uniform("u_phase"), 2);
+  glProgramUniform1ui(state_.get(), state_.uniform("u_n"), static_cast<GLuint>(out.pairs.size()));
+  state_.dispatch(out.pairs.size());
+  glMemoryBarrier(GL_ALL_BARRIER_BITS);
+  stage_end(Stage::query);
+  {
+    std::vector<std::uint32_t> st(n_all);
+    if (n_all) glGetNamedBufferSubData(states_.get(), 0, 4 * static_cast<GLsizeiptr>(n_all), st.data());
+    out.state.resize(n_all);
+    for (std::uint32_t k = 0; k < n_all; ++k) out.state[k] = static_cast<ObjectState>(st[k]);
+  }
+  if (camera) {
+    out.pixels.resize(n_all);
+    if (n_all) glGetNamedBufferSubData(pixels_.get(), 0, 4 * static_cast<GLsizeiptr>(n_all), out.pixels.data());
+  } else {
+    out.pixels.clear();
+  }
+
+  if (camera && config_.shade) {
+    stage_begin(Stage::shade);
+    shade(*rig);
+    stage_end(Stage::shade);
+    out.image.resize(4 * static_cast<std::size_t>(map_w_) * static_cast<std::size_t>(map_h_));
+    glGetNamedBufferSubData(image_.get(), 0, static_cast<GLsizeiptr>(out.image.size()), out.image.data());
+    out.image_width = map_w_;
+    out.image_height = map_h_;
+  } else {
+    out.image.clear();
+    out.image_width = out.image_height = 0;
+  }
+  read_timers(stats);
+  stats.stage_ms[static_cast<std::size_t>(Stage::layout)] = layout_ms;
+  return gl_errors("detect()");
+}
+
+}  // namespace gl
+
+Result<std::unique_ptr<Detector>> make_gl_detector(const Config& config, const GlOptions& options) {
+  auto d = gl::GlDetector::create(config, options);
+  if (!d) return Result<std::unique_ptr<Detector>>::failure(d.error());
+  return std::unique_ptr<Detector>(std::move(d.value()));
+}
+
+Result<std::unique_ptr<Detector>> make_gl_detector_result(const Config& config) {
+  return make_gl_detector(config, GlOptions{});
+}
+
+}  // namespace viscd

@@ -1,0 +1,115 @@
+#pragma once
+// The gl backend (DESIGN.md): every stage of the frame runs in OpenGL 4.5 compute shaders (and
+// one instanced draw for the visibility map). The host waits for the GPU twice per frame:
+//   1. after stage 3, for a 96-byte FrameInfo (active count, pixel total, active bounds,
+//      diameter sum): m and the Morton layout are then decided on the host with the very
+//      functions the cpu backend uses (core/morton.hpp), so that both backends choose the same
+//      m and layout and produce bit-identical codes; all later dispatch sizes use the count.
+//   2. after the query, for the pair count (to grow the pair buffer and re-run on overflow) and
+//      then for the results the caller asked for (pairs, states, pixels, image).
+// Everything before wait 1 is sized by N and reads n from the GPU (no wait).
+
+#include <array>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "core/geometry.hpp"
+#include "core/lbvh.hpp"
+#include "core/morton.hpp"
+#include "core/visibility.hpp"
+#include "gl/context.hpp"
+#include "gl/objects.hpp"
+#include "gl/program.hpp"
+#include "gl/shaders/shared/layout.h"
+#include "viscd/gl.hpp"
+
+namespace viscd::gl {
+
+class GlDetector final : public Detector {
+ public:
+  [[nodiscard]] static Result<std::unique_ptr<GlDetector>> create(const Config& config, const GlOptions& options);
+  ~GlDetector() override;
+
+  [[nodiscard]] Status detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) override;
+  [[nodiscard]] std::string_view name() const override { return "gl"; }
+  [[nodiscard]] const GlOptions& options() const { return options_; }
+  void set_options(const GlOptions& options) { options_ = options; }
+  /// "llvmpipe (LLVM 15.0.6, 256 bits) | 4.5 (Core Profile) Mesa 22.3.6"
+  [[nodiscard]] const std::string& device() const { return ctx_->description(); }
+
+  // ---- stage access for tests (each makes the context current and checks GL errors) ----
+
+  /// Stages 5-8 alone over a given active set (ascending), with the layout and bounds computed
+  /// on the host as the cpu backend does. Writes sorted pairs, stats.bits/layout/pairs.
+  [[nodiscard]] Status run_broadphase(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
+                                      std::vector<Pair>& pairs, FrameStats& stats);
+  /// After a frame or run_broadphase: sorted codes (widened), sorted object ids, the tree with
+  /// its leaf boxes (a core Lbvh, ready for validate_lbvh), and the current pair capacity.
+  [[nodiscard]] std::vector<std::uint64_t> read_sorted_codes();
+  [[nodiscard]] std::vector<std::uint32_t> read_sorted_ids();
+  void read_tree(detail::Lbvh& bvh, std::vector<detail::Aabb>& leaf_boxes);
+  [[nodiscard]] std::uint32_t pair_capacity() const { return pair_capacity_; }
+  /// After a frame with a camera: the id map, rows top to bottom (object index + 1, 0 = none).
+  [[nodiscard]] std::vector<std::uint32_t> read_id_map();
+  /// Stage 2 alone on a given id map (rows top to bottom) of `objects` objects, in the current
+  /// counter mode.
+  [[nodiscard]] Result<std::vector<std::uint32_t>> count_id_map(std::span<const std::uint32_t> ids, int width,
+                                                                int height, std::uint32_t objects);
+
+ private:
+  GlDetector(const Config& config, const GlOptions& options) : Detector(config), options_(options) {}
+  [[nodiscard]] Status init();
+  [[nodiscard]] Status gl_errors(const char* where);
+  void upload_spheres(std::span<const Sphere> spheres);
+
+  // visibility.cpp
+  void ensure_map(int w, int h);
+  void draw_gbuffer(const detail::CameraRig& rig, std::uint32_t n);
+  [[nodiscard]] Status count_pixels(std::uint32_t n);
+  void shade(const detail::CameraRig& rig);
+  void make_mesh();
+
+  // broadphase.cpp
+  void scan(GLuint in, GLuint out, std::uint32_t n);
+  /// Sorts keys_[0] (+ values_[0]) by their low key_bits; returns which of the two buffers
+  /// holds the result.
+  int radix_sort(Buffer* keys, Buffer* values, std::uint32_t n, int key_bits);
+  [[nodiscard]] Status broadphase(std::uint32_t n, std::uint32_t objects, const detail::MortonLayout& layout,
+                                  const detail::Aabb& bounds, std::vector<Pair>& pairs, FrameStats& stats);
+  void reserve_broadphase(std::uint32_t n);
+
+  // timers (gl_detector.cpp)
+  void stage_begin(Stage s);
+  void stage_end(Stage s);
+  void read_timers(FrameStats& stats);
+
+  GlOptions options_;
+  std::unique_ptr<Context> ctx_;
+  // Programs.
+  Program scan_local_, scan_blocks_, scan_add_, count_, cull_, bounds_, morton_, radix_hist_, radix_scatter_,
+      build_, fit_, query_, state_, shade_, impostor_, mesh_, count_atomic_;
+  std::uint32_t count_atomic_n_ = 0;  // N the atomic_uint program was built for
+  // Buffers (see shaders/shared/layout.h for their contents).
+  Buffer spheres_, counts_, pixels_, flags_, scan_out_, block_sums_, active_, info_, partials_, hist_, hist_scan_,
+      nodes_, parent_, arrivals_, sorted_, leaf_boxes_, pairs_, pairs_tmp_, states_, image_;
+  Buffer keys_[2], values_[2];
+  Buffer mesh_vbo_, mesh_ibo_;
+  GLsizei mesh_indices_ = 0;
+  int sorted_in_ = 0;       // which keys_/values_ holds the last sorted codes
+  std::uint32_t last_n_ = 0;  // active count of the last broadphase
+  int last_bits_ = 32;
+  std::uint32_t pair_capacity_ = 0;
+  // G-buffer.
+  Texture ids_tex_, depth_tex_, normal_tex_, zbuffer_;
+  Framebuffer gbuffer_, empty_fbo_;
+  VertexArray empty_vao_, mesh_vao_;
+  int map_w_ = 0, map_h_ = 0;
+  // Timers: GL_TIMESTAMP pairs per stage, two frames in flight; read one frame late.
+  std::array<std::array<Query, 2 * kStageCount>, 2> timers_;
+  std::array<std::array<bool, kStageCount>, 2> timer_used_{};
+  int timer_frame_ = 0;
+  bool timers_ok_ = false;
+};
+
+}  // namespace viscd::gl

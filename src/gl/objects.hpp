@@ -1,0 +1,106 @@
+#pragma once
+// RAII owners of GL objects (STYLE.md item 10). Each owns one name, cannot be copied, can be
+// moved, and deletes its name on destruction: the context that created it must be current then
+// (GlDetector makes its context current in every entry point and in its destructor).
+// Shaders and passes see plain GLuint names ("views"), never the owners.
+
+#include <epoxy/gl.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <utility>
+
+#include "viscd/assert.hpp"
+
+/// Checks glGetError() after a GL call in builds with asserts on (STYLE.md item 20). Errors are
+/// also reported, with a message, through the debug output callback (see context.hpp).
+#ifdef VISCD_ENABLE_ASSERTS
+#define VISCD_GL_CHECK(call)                                                                      \
+  do {                                                                                            \
+    call;                                                                                         \
+    const GLenum viscd_gl_err = glGetError();                                                     \
+    if (viscd_gl_err != GL_NO_ERROR) {                                                            \
+      std::fprintf(stderr, "%s:%d: GL error 0x%04x in %s\n", __FILE__, __LINE__, viscd_gl_err, #call); \
+      VISCD_ASSERT(false, "GL error");                                                            \
+    }                                                                                             \
+  } while (false)
+#else
+#define VISCD_GL_CHECK(call) call
+#endif
+
+namespace viscd::gl {
+
+/// One owned GL name; `Deleter::destroy(name)` deletes it.
+template <class Deleter>
+class Handle {
+ public:
+  Handle() = default;
+  explicit Handle(GLuint name) : name_(name) {}
+  ~Handle() { reset(); }
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  Handle(Handle&& o) noexcept : name_(std::exchange(o.name_, 0)) {}
+  Handle& operator=(Handle&& o) noexcept {
+    if (this != &o) {
+      reset();
+      name_ = std::exchange(o.name_, 0);
+    }
+    return *this;
+  }
+  /// The non-owning name, for GL calls.
+  [[nodiscard]] GLuint get() const { return name_; }
+  [[nodiscard]] explicit operator bool() const { return name_ != 0; }
+  void reset() {
+    if (name_) Deleter::destroy(name_);
+    name_ = 0;
+  }
+
+ private:
+  GLuint name_ = 0;
+};
+
+struct BufferDeleter { static void destroy(GLuint n) { glDeleteBuffers(1, &n); } };
+struct TextureDeleter { static void destroy(GLuint n) { glDeleteTextures(1, &n); } };
+struct FramebufferDeleter { static void destroy(GLuint n) { glDeleteFramebuffers(1, &n); } };
+struct VertexArrayDeleter { static void destroy(GLuint n) { glDeleteVertexArrays(1, &n); } };
+struct QueryDeleter { static void destroy(GLuint n) { glDeleteQueries(1, &n); } };
+struct ShaderDeleter { static void destroy(GLuint n) { glDeleteShader(n); } };
+struct ProgramDeleter { static void destroy(GLuint n) { glDeleteProgram(n); } };
+
+using Texture = Handle<TextureDeleter>;
+using Framebuffer = Handle<FramebufferDeleter>;
+using VertexArray = Handle<VertexArrayDeleter>;
+using Query = Handle<QueryDeleter>;
+using Shader = Handle<ShaderDeleter>;
+using ProgramHandle = Handle<ProgramDeleter>;
+
+/// A GL buffer with its size in bytes. Storage is immutable-size (glNamedBufferData), regrown on
+/// demand by `reserve` (contents are not kept).
+class Buffer {
+ public:
+  Buffer() = default;
+  /// Makes sure the buffer holds at least `bytes` (at least 16); reallocates when smaller.
+  void reserve(GLsizeiptr bytes) {
+    if (bytes < 16) bytes = 16;
+    if (handle_ && bytes <= size_) return;
+    if (!handle_) {
+      GLuint n = 0;
+      glCreateBuffers(1, &n);
+      handle_ = Handle<BufferDeleter>(n);
+    }
+    // Grow geometrically so that slowly growing scenes reallocate rarely.
+    const GLsizeiptr grown = size_ ? std::max(bytes, size_ + size_ / 2) : bytes;
+    glNamedBufferData(handle_.get(), grown, nullptr, GL_DYNAMIC_COPY);
+    size_ = grown;
+  }
+  [[nodiscard]] GLuint get() const { return handle_.get(); }
+  [[nodiscard]] GLsizeiptr size() const { return size_; }
+  /// Binds the whole buffer to an indexed SSBO binding point.
+  void bind_storage(GLuint binding) const { glBindBufferBase(GL_SHADER_STORAGE_BUFFER, binding, handle_.get()); }
+
+ private:
+  Handle<BufferDeleter> handle_;
+  GLsizeiptr size_ = 0;
+};
+
+}  // namespace viscd::gl

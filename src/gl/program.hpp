@@ -1,0 +1,42 @@
+#pragma once
+// Shader programs built from the embedded sources, every compile and link checked with its log.
+
+#include <array>
+#include <string>
+#include <string_view>
+
+#include "gl/objects.hpp"
+#include "viscd/result.hpp"
+
+namespace viscd::gl {
+
+/// A linked program. Compute programs know their work-group size (GL_COMPUTE_WORK_GROUP_SIZE).
+class Program {
+ public:
+  Program() = default;
+  /// A compute program from one embedded shader. `defines` (e.g. "#define X 3\n") is inserted
+  /// after the #version line.
+  [[nodiscard]] static Result<Program> compute(std::string_view name, std::string_view defines = {});
+  /// A graphics program from an embedded vertex and fragment shader.
+  [[nodiscard]] static Result<Program> graphics(std::string_view vert, std::string_view frag,
+                                                std::string_view defines = {});
+
+  [[nodiscard]] GLuint get() const { return handle_.get(); }
+  [[nodiscard]] explicit operator bool() const { return static_cast<bool>(handle_); }
+  /// Local size x of a compute program.
+  [[nodiscard]] GLuint local_size() const { return local_size_; }
+  /// Work groups covering n elements: ceil(n / local size) (STYLE.md item 19).
+  [[nodiscard]] GLuint groups_for(std::uint64_t n) const {
+    return static_cast<GLuint>((n + local_size_ - 1) / local_size_);
+  }
+  /// Uniform location by name (-1 if the linker removed it).
+  [[nodiscard]] GLint uniform(const char* name) const { return glGetUniformLocation(handle_.get(), name); }
+  /// Binds the program and dispatches ceil(n / local size) groups (nothing when n == 0).
+  void dispatch(std::uint64_t n) const;
+
+ private:
+  ProgramHandle handle_;
+  GLuint local_size_ = 1;
+};
+
+}  // namespace viscd::gl

@@ -1,0 +1,37 @@
+#version 450 core
+// Stage 9, deferred shading from the G-buffer, as core/visibility.cpp shade(): Lambert plus
+// ambient plus a view rim; red colliding, blue free, yellow culled, dark background. Output is
+// packed RGBA8, rows top to bottom (the id texture is bottom-up, GL's convention).
+#include "shared/layout.h"
+layout(local_size_x = VISCD_WG_SIZE) in;
+layout(binding = VISCD_UNIT_IDS) uniform usampler2D u_ids;
+layout(binding = VISCD_UNIT_NORMAL) uniform sampler2D u_normal;
+layout(std430, binding = VISCD_BIND_STATE) readonly buffer State { uint state[]; };
+layout(std430, binding = VISCD_BIND_IMAGE) writeonly buffer Image { uint image[]; };
+uniform ivec2 u_map;
+uniform vec3 u_light;
+uniform vec3 u_view;
+uniform vec3 u_colour[4];  // colliding, free, culled, background (0..255)
+
+void main() {
+  const uint k = gl_GlobalInvocationID.x;
+  if (k >= uint(u_map.x) * uint(u_map.y)) return;
+  const int x = int(k % uint(u_map.x));
+  const int row = int(k / uint(u_map.x));
+  const ivec2 texel = ivec2(x, u_map.y - 1 - row);
+  const uint id = texelFetch(u_ids, texel, 0).r;
+  vec3 c;
+  if (id == 0u) {
+    c = u_colour[3];
+  } else {
+    const uint st = state[id - 1u];
+    const vec3 base = st == VISCD_STATE_COLLIDING ? u_colour[0] : st == VISCD_STATE_FREE ? u_colour[1] : u_colour[2];
+    const vec3 n = texelFetch(u_normal, texel, 0).xyz;
+    const float diffuse = max(0.0, dot(n, u_light));
+    const float facing = max(0.0, dot(n, u_view));
+    const float kk = 0.25 + 0.6 * diffuse + 0.15 * facing;
+    c = min(vec3(255.0), base * kk + 0.5);
+  }
+  const uvec3 b = uvec3(c);
+  image[k] = b.r | (b.g << 8u) | (b.b << 16u) | (255u << 24u);
+}

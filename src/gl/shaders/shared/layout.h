@@ -1,0 +1,112 @@
+// viscd gl backend: the one header shared by C++ and GLSL (STYLE.md items 17-19).
+//
+// Holds the binding indices, the work-group sizes and the std430 structs that both sides read.
+// GLSL sees it textually inlined after `#version` (the build inlines it, see src/gl/CMakeLists.txt);
+// C++ includes it normally and pins every struct's size and offsets with static_assert. Structs
+// use vec4/uvec4 or explicit padding, never a bare vec3 (std430 would pad it differently).
+#ifndef VISCD_GL_LAYOUT_H
+#define VISCD_GL_LAYOUT_H
+
+#ifdef __cplusplus
+#include <cstddef>
+#include <cstdint>
+namespace viscd::gl::shader {
+using uint = std::uint32_t;
+struct vec4 { float x, y, z, w; };
+struct uvec4 { uint x, y, z, w; };
+struct dvec2 { double x, y; };
+#endif
+
+// ---- work-group sizes (local_size_x of each kind of compute shader) ----
+// Element-wise kernels (codes, cull, build, fit, query, states, shading, counting).
+#define VISCD_WG_SIZE 256
+// Radix sort: one work group sorts a tile of this many keys per pass; must equal the digit count
+// (256, 8-bit digits) because one invocation owns one digit in the stable local ranking.
+#define VISCD_SORT_TILE 256
+// Scan: each invocation scans this many consecutive elements, so a block is 256 * 4 elements.
+#define VISCD_SCAN_PER_THREAD 4
+#define VISCD_SCAN_BLOCK (VISCD_WG_SIZE * VISCD_SCAN_PER_THREAD)
+
+// ---- SSBO binding points ----
+#define VISCD_BIND_SPHERES 0      // vec4 spheres[N]: x, y, z, r (viscd::Sphere)
+#define VISCD_BIND_COUNTS 1       // uint counts[N]: map pixels per object (also the atomic_uint buffer)
+#define VISCD_BIND_PIXELS 2       // float pixels[N]: screen-scaled counts
+#define VISCD_BIND_FLAGS 3        // uint flags[N]: 1 = active, scan input
+#define VISCD_BIND_ACTIVE 4       // uint active[n]: active object ids, ascending
+#define VISCD_BIND_INFO 5         // FrameInfo
+#define VISCD_BIND_PARTIALS 6     // BoundsPartial per work group
+#define VISCD_BIND_KEYS_IN 7      // uvec2 keys[n] (x = low 32 bits, y = high 32 bits)
+#define VISCD_BIND_KEYS_OUT 8
+#define VISCD_BIND_VALUES_IN 9    // uint values[n]
+#define VISCD_BIND_VALUES_OUT 10
+#define VISCD_BIND_SCAN_IN 11     // generic scan: input, output, block sums
+#define VISCD_BIND_SCAN_OUT 12
+#define VISCD_BIND_SCAN_BLOCKS 13
+#define VISCD_BIND_NODES 14       // LbvhNode nodes[n - 1]
+#define VISCD_BIND_PARENT 15      // uint parent[n - 1] (internal nodes), then leaf_parent[n]
+#define VISCD_BIND_ARRIVALS 16    // uint arrivals[n - 1]: fit arrival counters
+#define VISCD_BIND_SORTED 17      // vec4 sorted_spheres[n]
+#define VISCD_BIND_LEAF_BOXES 18  // LeafBox leaf_boxes[n]
+#define VISCD_BIND_PAIRS 19       // uvec2 pairs[capacity]: (x = j, y = i), i < j
+#define VISCD_BIND_STATE 20       // uint state[N]: ObjectState
+#define VISCD_BIND_IMAGE 21       // uint rgba8[W * H], rows top to bottom
+// Atomic counter buffer binding of the paper's atomic_uint counting mode.
+#define VISCD_BIND_ATOMIC_COUNTERS 0
+// Texture units.
+#define VISCD_UNIT_IDS 0
+#define VISCD_UNIT_NORMAL 1
+
+// ---- ObjectState values (viscd::ObjectState) ----
+#define VISCD_STATE_CULLED 0u
+#define VISCD_STATE_FREE 1u
+#define VISCD_STATE_COLLIDING 2u
+
+// Leaf flag of LbvhNode child ids (core/lbvh.hpp kLeafBit).
+#define VISCD_LEAF_BIT 0x80000000u
+// Traversal stack entries: the deepest Karras tree over 64-bit keys is 64 + 32 (core/lbvh.hpp).
+#define VISCD_STACK_DEPTH 128
+
+// Per-frame values the CPU reads back once after culling, and the pair counter.
+struct FrameInfo {
+  uint active_count;  // number of active objects n
+  uint total_pixels;  // sum of map pixel counts over all objects
+  uint pair_count;    // pairs found by the query (may exceed the pair buffer's capacity)
+  uint pad0;
+  vec4 lo;            // bounds of the active centres (xyz)
+  vec4 hi;
+  vec4 root_lo;       // root box of the fitted tree (xyz)
+  vec4 root_hi;
+  dvec2 diameter_sum; // x = sum of 2r over the active objects (double, as core/broadphase.cpp)
+};
+
+// Per-work-group partial of the active-centre bounds and the diameter sum.
+struct BoundsPartial {
+  vec4 lo;
+  vec4 hi;
+  dvec2 diameter_sum;  // x = sum of 2r over the group's objects, y unused
+};
+
+// One internal LBVH node, byte for byte core/lbvh.hpp's BvhNode: box[2] as 2 x (lo xyz, hi xyz),
+// then child[2], then last[2].
+struct LbvhNode {
+  float box[12];
+  uint child[2];
+  uint last[2];
+};
+
+// A leaf box, byte for byte core/geometry.hpp's Aabb (lo xyz, hi xyz).
+struct LeafBox {
+  float v[6];
+};
+
+#ifdef __cplusplus
+static_assert(sizeof(FrameInfo) == 96 && offsetof(FrameInfo, lo) == 16 && offsetof(FrameInfo, root_lo) == 48 &&
+              offsetof(FrameInfo, diameter_sum) == 80);
+static_assert(sizeof(BoundsPartial) == 48 && offsetof(BoundsPartial, diameter_sum) == 32);
+static_assert(sizeof(LbvhNode) == 64 && offsetof(LbvhNode, child) == 48 && offsetof(LbvhNode, last) == 56);
+static_assert(sizeof(LeafBox) == 24);
+static_assert(VISCD_SORT_TILE == 256, "one invocation per 8-bit digit");
+}  // namespace viscd::gl::shader
+#endif
+
+#endif  // VISCD_GL_LAYOUT_H

@@ -1,0 +1,214 @@
+// Stages 1, 2 and 9 of the gl backend: G-buffer pass, pixel counting, deferred shading.
+#include <cmath>
+#include <numbers>
+#include <string>
+
+#include "gl/gl_detector.hpp"
+#include "gl/shader_sources.hpp"
+
+namespace viscd::gl {
+namespace {
+
+Texture make_texture(GLenum format, int w, int h) {
+  GLuint t = 0;
+  glCreateTextures(GL_TEXTURE_2D, 1, &t);
+  glTextureStorage2D(t, 1, format, w, h);
+  glTextureParameteri(t, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glTextureParameteri(t, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  return Texture(t);
+}
+
+void set_camera_uniforms(GLuint p, const detail::CameraRig& rig) {
+  auto loc = [p](const char* name) { return glGetUniformLocation(p, name); };
+  glProgramUniform3f(p, loc("u_eye"), rig.eye.x, rig.eye.y, rig.eye.z);
+  glProgramUniform3f(p, loc("u_forward"), rig.forward.x, rig.forward.y, rig.forward.z);
+  glProgramUniform3f(p, loc("u_right"), rig.right.x, rig.right.y, rig.right.z);
+  glProgramUniform3f(p, loc("u_up"), rig.up.x, rig.up.y, rig.up.z);
+  glProgramUniform2f(p, loc("u_tan_half"), rig.tan_half_x, rig.tan_half_y);
+  glProgramUniform2f(p, loc("u_near_far"), rig.near_plane, rig.far_plane);
+  glProgramUniform2i(p, loc("u_map"), rig.map_w, rig.map_h);
+}
+
+}  // namespace
+
+// The G-buffer: ids (R32UI), view depth (R32F), normal (RGBA32F) and a D32F depth buffer.
+void GlDetector::ensure_map(int w, int h) {
+  if (w == map_w_ && h == map_h_ && gbuffer_) return;
+  map_w_ = w;
+  map_h_ = h;
+  ids_tex_ = make_texture(GL_R32UI, w, h);
+  depth_tex_ = make_texture(GL_R32F, w, h);
+  normal_tex_ = make_texture(GL_RGBA32F, w, h);
+  zbuffer_ = make_texture(GL_DEPTH_COMPONENT32F, w, h);
+  GLuint f = 0;
+  glCreateFramebuffers(1, &f);
+  gbuffer_ = Framebuffer(f);
+  glNamedFramebufferTexture(f, GL_COLOR_ATTACHMENT0, ids_tex_.get(), 0);
+  glNamedFramebufferTexture(f, GL_COLOR_ATTACHMENT1, depth_tex_.get(), 0);
+  glNamedFramebufferTexture(f, GL_COLOR_ATTACHMENT2, normal_tex_.get(), 0);
+  glNamedFramebufferTexture(f, GL_DEPTH_ATTACHMENT, zbuffer_.get(), 0);
+  const GLenum draw[] = {GL_COLOR_ATTACHMENT0, GL_COLOR_ATTACHMENT1, GL_COLOR_ATTACHMENT2};
+  glNamedFramebufferDrawBuffers(f, 3, draw);
+  VISCD_ASSERT(glCheckNamedFramebufferStatus(f, GL_FRAMEBUFFER) == GL_FRAMEBUFFER_COMPLETE, "G-buffer incomplete");
+  // The attachment-less framebuffer of the atomic_uint counting pass.
+  glNamedFramebufferParameteri(empty_fbo_.get(), GL_FRAMEBUFFER_DEFAULT_WIDTH, w);
+  glNamedFramebufferParameteri(empty_fbo_.get(), GL_FRAMEBUFFER_DEFAULT_HEIGHT, h);
+}
+
+// A UV sphere of 16 stacks x 32 slices (960 triangles), vertices on the unit sphere.
+void GlDetector::make_mesh() {
+  constexpr int kStacks = 16, kSlices = 32;
+  std::vector<float> v;
+  std::vector<GLuint> idx;
+  for (int i = 0; i <= kStacks; ++i) {
+    const double phi = std::numbers::pi * i / kStacks;
+    for (int j = 0; j <= kSlices; ++j) {
+      const double th = 2 * std::numbers::pi * j / kSlices;
+      v.push_back(static_cast<float>(std::sin(phi) * std::cos(th)));
+      v.push_back(static_cast<float>(std::cos(phi)));
+      v.push_back(static_cast<float>(std::sin(phi) * std::sin(th)));
+    }
+  }
+  for (int i = 0; i < kStacks; ++i)
+    for (int j = 0; j < kSlices; ++j) {
+      const GLuint a = static_cast<GLuint>(i * (kSlices + 1) + j), b = a + kSlices + 1;
+      if (i != 0) idx.insert(idx.end(), {a, b, a + 1});
+      if (i != kStacks - 1) idx.insert(idx.end(), {a + 1, b, b + 1});
+    }
+  mesh_indices_ = static_cast<GLsizei>(idx.size());
+  mesh_vbo_.reserve(static_cast<GLsizeiptr>(v.size() * sizeof(float)));
+  mesh_ibo_.reserve(static_cast<GLsizeiptr>(idx.size() * sizeof(GLuint)));
+  glNamedBufferSubData(mesh_vbo_.get(), 0, static_cast<GLsizeiptr>(v.size() * sizeof(float)), v.data());
+  glNamedBufferSubData(mesh_ibo_.get(), 0, static_cast<GLsizeiptr>(idx.size() * sizeof(GLuint)), idx.data());
+  GLuint vao = 0;
+  glCreateVertexArrays(1, &vao);
+  mesh_vao_ = VertexArray(vao);
+  glVertexArrayVertexBuffer(vao, 0, mesh_vbo_.get(), 0, 3 * sizeof(float));
+  glVertexArrayElementBuffer(vao, mesh_ibo_.get());
+  glEnableVertexArrayAttrib(vao, 0);
+  glVertexArrayAttribFormat(vao, 0, 3, GL_FLOAT, GL_FALSE, 0);
+  glVertexArrayAttribBinding(vao, 0, 0);
+}
+
+// Stage 1: instanced draw of every sphere, ids ascending; depth test LESS keeps the nearest hit
+// and, on equal depth, the first drawn (smaller id), GL's primitive order guarantee.
+void GlDetector::draw_gbuffer(const detail::CameraRig& rig, std::uint32_t n) {
+  const GLuint zero_id[4] = {0, 0, 0, 0};
+  const float far_depth[4] = {rig.far_plane, 0, 0, 0};
+  const float zero[4] = {0, 0, 0, 0};
+  const float one = 1.0f;
+  glClearNamedFramebufferuiv(gbuffer_.get(), GL_COLOR, 0, zero_id);
+  glClearNamedFramebufferfv(gbuffer_.get(), GL_COLOR, 1, far_depth);
+  glClearNamedFramebufferfv(gbuffer_.get(), GL_COLOR, 2, zero);
+  glClearNamedFramebufferfv(gbuffer_.get(), GL_DEPTH, 0, &one);
+  if (n == 0) return;
+  glBindFramebuffer(GL_FRAMEBUFFER, gbuffer_.get());
+  glViewport(0, 0, map_w_, map_h_);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  glDisable(GL_CULL_FACE);  // a camera inside a sphere sees its back faces (CameraRig hit())
+  spheres_.bind_storage(VISCD_BIND_SPHERES);
+  if (options_.geometry == GlGeometry::mesh) {
+    if (!mesh_vao_) make_mesh();
+    set_camera_uniforms(mesh_.get(), rig);
+    glUseProgram(mesh_.get());
+    glBindVertexArray(mesh_vao_.get());
+    glDrawElementsInstanced(GL_TRIANGLES, mesh_indices_, GL_UNSIGNED_INT, nullptr, static_cast<GLsizei>(n));
+  } else {
+    set_camera_uniforms(impostor_.get(), rig);
+    glUseProgram(impostor_.get());
+    glBindVertexArray(empty_vao_.get());
+    glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(n));
+  }
+  glDisable(GL_DEPTH_TEST);
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  glMemoryBarrier(GL_ALL_BARRIER_BITS);
+}
+
+// Stage 2 from ids_tex_ into counts_[0..n).
+Status GlDetector::count_pixels(std::uint32_t n) {
+  counts_.reserve(4 * static_cast<GLsizeiptr>(n));
+  const GLuint zero = 0;
+  glClearNamedBufferSubData(counts_.get(), GL_R32UI, 0, counts_.size(), GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
+  glMemoryBarrier(GL_ALL_BARRIER_BITS);
+  glBindTextureUnit(VISCD_UNIT_IDS, ids_tex_.get());
+  if (options_.counter == GlCounter::atomic_uint) {
+    if (n == 0) return {};
+    if (!count_atomic_ || count_atomic_n_ != n) {
+      auto p = Program::graphics("fullscreen.vert", "count_atomic.frag", "#define VISCD_AC_COUNT " + std::to_string(n) + "\n");
+      if (!p) return Status::failure(p.error());
+      count_atomic_ = std::move(p.value());
+      count_atomic_n_ = n;
+    }
+    // The counts buffer is the atomic counter buffer: no copy afterwards.
+    glBindBufferRange(GL_ATOMIC_COUNTER_BUFFER, VISCD_BIND_ATOMIC_COUNTERS, counts_.get(), 0, 4 * static_cast<GLsizeiptr>(n));
+    glBindFramebuffer(GL_FRAMEBUFFER, empty_fbo_.get());
+    glViewport(0, 0, map_w_, map_h_);
+    glUseProgram(count_atomic_.get());
+    glBindVertexArray(empty_vao_.get());
+    glDrawArrays(GL_TRIANGLES, 0, 3);
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  } else {
+    counts_.bind_storage(VISCD_BIND_COUNTS);
+    glProgramUniform2i(count_.get(), count_.uniform("u_map"), map_w_, map_h_);
+    count_.dispatch(static_cast<std::uint64_t>(map_w_) * static_cast<std::uint64_t>(map_h_));
+  }
+  glMemoryBarrier(GL_ALL_BARRIER_BITS);
+  return {};
+}
+
+// Stage 9: the paper's colours from core/visibility.hpp, the same light and rim as shade().
+void GlDetector::shade(const detail::CameraRig& rig) {
+  const std::size_t pixels = static_cast<std::size_t>(map_w_) * static_cast<std::size_t>(map_h_);
+  image_.reserve(4 * static_cast<GLsizeiptr>(pixels));
+  const float l[3] = {0.4f, 0.8f, 0.45f};
+  const float ll = std::sqrt(l[0] * l[0] + l[1] * l[1] + l[2] * l[2]);
+  const GLuint p = shade_.get();
+  glProgramUniform2i(p, shade_.uniform("u_map"), map_w_, map_h_);
+  glProgramUniform3f(p, shade_.uniform("u_light"), l[0] / ll, l[1] / ll, l[2] / ll);
+  glProgramUniform3f(p, shade_.uniform("u_view"), -rig.forward.x, -rig.forward.y, -rig.forward.z);
+  float colours[12];
+  const std::uint8_t* c[4] = {detail::kColourColliding, detail::kColourFree, detail::kColourCulled,
+                              detail::kColourBackground};
+  for (int k = 0; k < 4; ++k)
+    for (int ch = 0; ch < 3; ++ch) colours[3 * k + ch] = static_cast<float>(c[k][ch]);
+  glProgramUniform3fv(p, shade_.uniform("u_colour"), 4, colours);
+  glBindTextureUnit(VISCD_UNIT_IDS, ids_tex_.get());
+  glBindTextureUnit(VISCD_UNIT_NORMAL, normal_tex_.get());
+  states_.bind_storage(VISCD_BIND_STATE);
+  image_.bind_storage(VISCD_BIND_IMAGE);
+  shade_.dispatch(pixels);
+  glMemoryBarrier(GL_ALL_BARRIER_BITS);
+}
+
+std::vector<std::uint32_t> GlDetector::read_id_map() {
+  (void)ctx_->make_current();
+  const std::size_t w = static_cast<std::size_t>(map_w_), h = static_cast<std::size_t>(map_h_);
+  std::vector<std::uint32_t> bottom_up(w * h), ids(w * h);
+  if (!ids_tex_ || ids.empty()) return ids;
+  glGetTextureImage(ids_tex_.get(), 0, GL_RED_INTEGER, GL_UNSIGNED_INT, static_cast<GLsizei>(4 * w * h), bottom_up.data());
+  for (std::size_t y = 0; y < h; ++y)
+    std::copy_n(&bottom_up[(h - 1 - y) * w], w, &ids[y * w]);
+  return ids;
+}
+
+Result<std::vector<std::uint32_t>> GlDetector::count_id_map(std::span<const std::uint32_t> ids, int width, int height,
+                                                           std::uint32_t objects) {
+  using R = Result<std::vector<std::uint32_t>>;
+  if (!ctx_->make_current()) return R::failure("OpenGL: cannot make the detector's context current");
+  VISCD_ASSERT(ids.size() == static_cast<std::size_t>(width) * static_cast<std::size_t>(height), "id map size");
+  ensure_map(width, height);
+  const std::size_t w = static_cast<std::size_t>(width), h = static_cast<std::size_t>(height);
+  std::vector<std::uint32_t> bottom_up(w * h);
+  for (std::size_t y = 0; y < h; ++y) std::copy_n(&ids[(h - 1 - y) * w], w, &bottom_up[y * w]);
+  glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+  glTextureSubImage2D(ids_tex_.get(), 0, 0, 0, width, height, GL_RED_INTEGER, GL_UNSIGNED_INT, bottom_up.data());
+  glMemoryBarrier(GL_ALL_BARRIER_BITS);
+  if (Status s = count_pixels(objects); !s) return R::failure(s.error());
+  std::vector<std::uint32_t> counts(objects);
+  if (objects) glGetNamedBufferSubData(counts_.get(), 0, 4 * static_cast<GLsizeiptr>(objects), counts.data());
+  if (Status s = gl_errors("count_id_map()"); !s) return R::failure(s.error());
+  return counts;
+}
+
+}  // namespace viscd::gl

@@ -1,0 +1,267 @@
+// Whole frames of the gl backend against the cpu and reference backends: visibility map,
+// counts (both counter modes), culling, mu, pairs, states, shading, timers, errors.
+#include <algorithm>
+#include <cmath>
+
+#include "core/broadphase.hpp"
+#include "cpu/cpu_detector.hpp"
+#include "gl_test_util.hpp"
+
+namespace viscd::test {
+namespace {
+
+Camera small_camera(const Scene& scene, const char* preset) {
+  auto c = camera_preset(preset, scene, 256, 144);
+  EXPECT_TRUE(c.ok());
+  return c.value();
+}
+
+Scene ring_scene(std::uint32_t n, std::uint64_t seed = 3) {
+  SceneParams p;
+  p.objects = n;
+  p.seed = seed;
+  return Scene::make(p);
+}
+
+// Pixels of object k over a map.
+std::vector<std::uint32_t> histogram(std::span<const std::uint32_t> ids, std::size_t n) {
+  std::vector<std::uint32_t> h(n, 0);
+  for (std::uint32_t id : ids)
+    if (id) ++h[id - 1];
+  return h;
+}
+
+TEST(GlContext, DebugOutputTurnsGlErrorsIntoFailures) {
+  VISCD_GL_OR_SKIP(gl);
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 100000, 0);  // invalid index: GL_INVALID_VALUE
+  FrameResult out;
+  const std::vector<Sphere> s = {{0, 0, 0, 1}};
+  const Status st = gl->detect(s, nullptr, out);
+  ASSERT_FALSE(st.ok());
+  EXPECT_NE(st.error().find("OpenGL error"), std::string::npos) << st.error();
+  EXPECT_TRUE(gl->detect(s, nullptr, out).ok());  // the error was reported once, not sticky
+}
+
+TEST(GlContext, FactoryByName) {
+  VISCD_GL_OR_SKIP(gl);
+  auto d = make_detector("gl");
+  ASSERT_TRUE(d.ok()) << d.error();
+  EXPECT_EQ(d.value()->name(), "gl");
+}
+
+TEST(GlFrame, NoCameraPairsEqualReference) {
+  VISCD_GL_OR_SKIP(gl);
+  auto ref = make_reference_detector();
+  for (std::size_t n : {0u, 1u, 2u, 255u, 256u, 257u, 2000u}) {
+    const std::vector<Sphere> s = random_spheres(n, 25.0f, 0.2f, 1.0f, static_cast<unsigned>(n));
+    FrameResult a, b;
+    ASSERT_TRUE(gl->detect(s, nullptr, a).ok());
+    ASSERT_TRUE(ref->detect(s, nullptr, b).ok());
+    EXPECT_TRUE(a.pairs == b.pairs) << "n = " << n;
+    EXPECT_TRUE(a.state == b.state) << "n = " << n;
+    EXPECT_EQ(a.stats.active, n);
+    EXPECT_EQ(a.stats.bits, 32);
+    EXPECT_EQ(a.stats.layout, b.stats.layout);
+    EXPECT_TRUE(a.pixels.empty());
+  }
+}
+
+TEST(GlFrame, CountsFromTheSameIdMapAreExact) {
+  for (GlCounter mode : {GlCounter::ssbo, GlCounter::atomic_uint}) {
+    GlOptions o;
+    o.counter = mode;
+    VISCD_GL_OR_SKIP(gl, Config{}, o);
+    Scene scene = ring_scene(1500);
+    Config cfg;
+    cfg.map_width = 256;
+    cfg.map_height = 144;
+    detail::CpuDetector cpu(cfg);
+    const Camera cam = small_camera(scene, "zoom-out");
+    FrameResult out;
+    ASSERT_TRUE(cpu.detect(scene.spheres(), &cam, out).ok());
+    const auto& map = cpu.visibility_map();
+    auto counts = gl->count_id_map(map.ids, map.width, map.height, 1500);
+    ASSERT_TRUE(counts.ok()) << counts.error();
+    EXPECT_TRUE(counts.value() == histogram(map.ids, 1500)) << "mode " << static_cast<int>(mode);
+  }
+}
+
+TEST(GlFrame, AtomicCounterModeRefusesTooManyObjects) {
+  GlOptions o;
+  o.counter = GlCounter::atomic_uint;
+  VISCD_GL_OR_SKIP(gl, Config{}, o);
+  GLint max_frag = 0;
+  glGetIntegerv(GL_MAX_FRAGMENT_ATOMIC_COUNTERS, &max_frag);
+  Scene scene = ring_scene(static_cast<std::uint32_t>(max_frag) + 1);
+  const Camera cam = small_camera(scene, "zoom-out");
+  FrameResult out;
+  const Status s = gl->detect(scene.spheres(), &cam, out);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.error().find("GL_MAX_FRAGMENT_ATOMIC_COUNTERS"), std::string::npos) << s.error();
+}
+
+// Impostor id maps against the cpu rasterizer: the same ray model, so per object the counts
+// differ by at most a few silhouette pixels (GPU division / sqrt rounding, depth quantised as
+// t / far).
+void compare_counts(GlGeometry geometry, const char* preset, std::uint32_t n, double rel_tol, std::uint32_t abs_tol) {
+  SCOPED_TRACE(preset);
+  GlOptions o;
+  o.geometry = geometry;
+  Config cfg;
+  cfg.map_width = 256;
+  cfg.map_height = 144;
+  VISCD_GL_OR_SKIP(gl, cfg, o);
+  Scene scene = ring_scene(n);
+  scene.step(0.25f);
+  const Camera cam = small_camera(scene, preset);
+  detail::CpuDetector cpu(cfg);
+  FrameResult a, b;
+  ASSERT_TRUE(gl->detect(scene.spheres(), &cam, a).ok());
+  ASSERT_TRUE(cpu.detect(scene.spheres(), &cam, b).ok());
+  const auto gl_ids = gl->read_id_map();
+  const auto& cpu_ids = cpu.visibility_map().ids;
+  ASSERT_EQ(gl_ids.size(), cpu_ids.size());
+  std::size_t differ = 0;
+  for (std::size_t i = 0; i < gl_ids.size(); ++i) differ += gl_ids[i] != cpu_ids[i];
+  const auto hg = histogram(gl_ids, n), hc = histogram(cpu_ids, n);
+  std::uint32_t worst = 0;
+  for (std::uint32_t k = 0; k < n; ++k) {
+    const std::uint32_t d = hg[k] > hc[k] ? hg[k] - hc[k] : hc[k] - hg[k];
+    const double allowed = abs_tol + rel_tol * hc[k];
+    EXPECT_LE(d, allowed) << "object " << k << ": gl " << hg[k] << " vs cpu " << hc[k];
+    worst = std::max(worst, d);
+    // Pixels reported are the counts scaled to the screen.
+    ASSERT_FLOAT_EQ(a.pixels[k], static_cast<float>(hg[k] * (static_cast<double>(cam.width) * cam.height) / (256.0 * 144.0)));
+  }
+  std::printf("[gl] %s %s: %zu of %zu map pixels differ, worst object differs by %u pixels\n",
+              geometry == GlGeometry::mesh ? "mesh" : "impostor", preset, differ, gl_ids.size(), worst);
+  // mu and m from the same rule.
+  EXPECT_NEAR(a.stats.mean_pixels, b.stats.mean_pixels, 0.02 * b.stats.mean_pixels + 1e-9);
+  // Pairs are exact over the gl frame's own active set.
+  std::vector<std::uint32_t> active;
+  for (std::uint32_t k = 0; k < n; ++k)
+    if (a.state[k] != ObjectState::culled) active.push_back(k);
+  EXPECT_EQ(active.size(), a.stats.active);
+  std::vector<Pair> brute;
+  detail::brute_force_pairs(scene.spheres(), active, brute);
+  EXPECT_TRUE(a.pairs == brute);
+  for (std::uint32_t k = 0; k < n; ++k) {
+    const bool is_active = a.pixels[k] >= cfg.lambda;
+    ASSERT_EQ(a.state[k] != ObjectState::culled, is_active) << "object " << k;
+  }
+}
+
+TEST(GlFrame, ImpostorCountsMatchCpuRasterizer) {
+  compare_counts(GlGeometry::impostor, "zoom-out", 2000, 0.0, 4);
+  compare_counts(GlGeometry::impostor, "zoom-in", 2000, 0.0, 4);
+  compare_counts(GlGeometry::impostor, "orbit", 2000, 0.0, 4);
+}
+
+TEST(GlFrame, MeshCountsCloseToCpuRasterizer) {
+  // The inscribed 960-triangle sphere covers up to ~2% less area than the true silhouette.
+  compare_counts(GlGeometry::mesh, "zoom-out", 2000, 0.06, 6);
+  compare_counts(GlGeometry::mesh, "zoom-in", 2000, 0.06, 6);
+}
+
+TEST(GlFrame, CulledFramePairsEqualCpuWithCullingOff) {
+  Config cfg;
+  cfg.culling = false;
+  cfg.map_width = 256;
+  cfg.map_height = 144;
+  VISCD_GL_OR_SKIP(gl, cfg);
+  Scene scene = ring_scene(3000, 9);
+  const Camera cam = small_camera(scene, "orbit");
+  auto cpu = make_cpu_detector(cfg);
+  FrameResult a, b;
+  ASSERT_TRUE(gl->detect(scene.spheres(), &cam, a).ok());
+  ASSERT_TRUE(cpu->detect(scene.spheres(), &cam, b).ok());
+  EXPECT_EQ(a.stats.active, 3000u);
+  EXPECT_TRUE(a.pairs == b.pairs);
+  EXPECT_TRUE(a.state == b.state);
+  EXPECT_EQ(a.stats.bits, b.stats.bits);
+  EXPECT_EQ(a.stats.layout, b.stats.layout);
+}
+
+TEST(GlFrame, ScreenshotHasThePapersColours) {
+  Config cfg;
+  cfg.shade = true;
+  cfg.lambda = 30;
+  VISCD_GL_OR_SKIP(gl, cfg);
+  Scene scene = ring_scene(2000);
+  const Camera cam = small_camera(scene, "zoom-out");
+  FrameResult out;
+  ASSERT_TRUE(gl->detect(scene.spheres(), &cam, out).ok());
+  ASSERT_EQ(out.image_width, 256);
+  ASSERT_EQ(out.image_height, 144);
+  ASSERT_EQ(out.image.size(), 4u * 256 * 144);
+  // Classify pixels by hue against the three colours.
+  const std::uint8_t* colours[3] = {detail::kColourColliding, detail::kColourFree, detail::kColourCulled};
+  int found[3] = {0, 0, 0};
+  const auto ids = gl->read_id_map();
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    const std::uint8_t* px = &out.image[4 * i];
+    if (ids[i] == 0) {
+      ASSERT_EQ(px[0], detail::kColourBackground[0]);
+      continue;
+    }
+    const ObjectState st = out.state[ids[i] - 1];
+    const int expect = st == ObjectState::colliding ? 0 : st == ObjectState::free ? 1 : 2;
+    // Shading scales the base colour by k in [0.25, 1]: the dominant channel stays dominant.
+    const std::uint8_t* base = colours[expect];
+    const int dom = base[0] >= base[1] && base[0] >= base[2] ? 0 : base[1] >= base[2] ? 1 : 2;
+    EXPECT_TRUE(px[dom] >= px[(dom + 1) % 3] && px[dom] >= px[(dom + 2) % 3]) << "pixel " << i;
+    ++found[expect];
+  }
+  EXPECT_GT(found[0], 0) << "no red (colliding) pixels";
+  EXPECT_GT(found[1], 0) << "no blue (free) pixels";
+  EXPECT_GT(found[2], 0) << "no yellow (culled) pixels";
+  if (const char* dir = std::getenv("VISCD_TEST_OUT")) (void)write_png(std::string(dir) + "/gl_screenshot.png", out.image, 256, 144);
+}
+
+TEST(GlFrame, TimersArriveOneFrameLate) {
+  Config cfg;
+  cfg.map_width = 256;
+  cfg.map_height = 144;
+  VISCD_GL_OR_SKIP(gl, cfg);
+  Scene scene = ring_scene(1000);
+  const Camera cam = small_camera(scene, "orbit");
+  FrameResult out;
+  ASSERT_TRUE(gl->detect(scene.spheres(), &cam, out).ok());
+  ASSERT_TRUE(gl->detect(scene.spheres(), &cam, out).ok());
+  EXPECT_GT(out.stats.stage_ms[static_cast<std::size_t>(Stage::visibility)], 0.0);
+  EXPECT_GT(out.stats.stage_ms[static_cast<std::size_t>(Stage::sort)], 0.0);
+  EXPECT_GT(out.stats.total_ms(), 0.0);
+}
+
+TEST(GlFrame, DetectOverflowingPairBufferReturnsEveryPair) {
+  VISCD_GL_OR_SKIP(gl);  // skips when there is no context at all
+  auto fresh = gl::GlDetector::create(Config{}, GlOptions{.debug = true, .initial_pair_capacity = 16});
+  ASSERT_TRUE(fresh.ok()) << fresh.error();
+  const std::vector<Sphere> s = random_spheres(1500, 10.0f, 0.3f, 0.8f, 21);
+  auto ref = make_reference_detector();
+  FrameResult a, b;
+  ASSERT_TRUE(fresh.value()->detect(s, nullptr, a).ok());
+  ASSERT_TRUE(ref->detect(s, nullptr, b).ok());
+  ASSERT_GT(b.pairs.size(), 16u);
+  EXPECT_TRUE(a.pairs == b.pairs);
+  EXPECT_GE(fresh.value()->pair_capacity(), b.pairs.size());
+}
+
+TEST(GlFrame, SteadyStateManyFrames) {
+  Config cfg;
+  cfg.map_width = 256;
+  cfg.map_height = 144;
+  VISCD_GL_OR_SKIP(gl, cfg);
+  Scene scene = ring_scene(1500, 5);
+  auto ref = make_reference_detector(Config{.culling = false});
+  FrameResult a, b;
+  for (int f = 0; f < 5; ++f) {
+    scene.step(0.1f);
+    ASSERT_TRUE(gl->detect(scene.spheres(), nullptr, a).ok());
+    ASSERT_TRUE(ref->detect(scene.spheres(), nullptr, b).ok());
+    ASSERT_TRUE(a.pairs == b.pairs) << "frame " << f;
+  }
+}
+
+}  // namespace
+}  // namespace viscd::test

@@ -1,0 +1,65 @@
+#pragma once
+// Shared helpers of the gl backend tests: one debug-context detector per process (context and
+// program creation on llvmpipe cost about a second), skipped with a logged reason when no
+// OpenGL 4.5 context can be created.
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "gl/gl_detector.hpp"
+#include "viscd/viscd.hpp"
+
+namespace viscd::test {
+
+struct GlHolder {
+  std::unique_ptr<gl::GlDetector> detector;
+  std::string error;
+};
+
+inline GlHolder& gl_holder() {
+  static GlHolder h = [] {
+    GlHolder g;
+    GlOptions o;
+    o.debug = true;  // every GL error makes the call fail with the driver's message
+    auto d = gl::GlDetector::create(Config{}, o);
+    if (d) {
+      g.detector = std::move(d.value());
+      std::fprintf(stderr, "[gl] device: %s\n", g.detector->device().c_str());
+    } else {
+      g.error = d.error();
+    }
+    return g;
+  }();
+  return h;
+}
+
+/// The shared detector with `config` and `options` (debug always on), or nullptr after
+/// GTEST_SKIP-worthy failure (the caller skips).
+inline gl::GlDetector* gl_detector(const Config& config = {}, GlOptions options = {}) {
+  GlHolder& h = gl_holder();
+  if (!h.detector) return nullptr;
+  options.debug = true;
+  h.detector->set_config(config);
+  h.detector->set_options(options);
+  return h.detector.get();
+}
+
+#define VISCD_GL_OR_SKIP(var, ...)                                                     \
+  gl::GlDetector* var = ::viscd::test::gl_detector(__VA_ARGS__);                       \
+  if (!var) GTEST_SKIP() << "no OpenGL 4.5 context: " << ::viscd::test::gl_holder().error
+
+/// Uniform random spheres in a cube of edge `extent`, radii in [rmin, rmax].
+inline std::vector<Sphere> random_spheres(std::size_t n, float extent, float rmin, float rmax, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> pos(-extent / 2, extent / 2), rad(rmin, rmax);
+  std::vector<Sphere> s(n);
+  for (Sphere& x : s) x = {pos(rng), pos(rng), pos(rng), rad(rng)};
+  return s;
+}
+
+}  // namespace viscd::test
