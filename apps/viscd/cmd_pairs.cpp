@@ -23,7 +23,7 @@ int run_pairs(const PairsArgs& a) {
     if (!c) return fail(c.error());
     camera = c.value();
   }
-  auto detector = make_detector(a.pipeline.backend, config.value());
+  auto detector = make_backend(a.pipeline, config.value(), false);
   if (!detector) return fail(detector.error());
   FrameResult frame;
   if (Status s = detector.value()->detect(spheres.value(), camera ? &*camera : nullptr, frame); !s)

@@ -36,12 +36,7 @@ int run_run(RunArgs a) {
   if (a.frames < 1) return fail("--frames: expected at least 1");
   if (!(a.dt >= 0)) return fail("--dt: expected a number >= 0");
 
-  std::string backend = a.pipeline.backend;
-  if (backend == "auto") {
-    backend = "cpu";
-    if (!a.quiet) std::fprintf(stderr, "viscd: backend auto -> cpu (the gl backend is not built into this binary)\n");
-  }
-  auto detector = make_detector(backend, config.value());
+  auto detector = make_backend(a.pipeline, config.value(), a.quiet);
   if (!detector) return fail(detector.error());
   Detector& det = *detector.value();
 

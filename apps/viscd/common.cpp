@@ -22,6 +22,39 @@ void add_pipeline_options(CLI::App& cmd, PipelineOptions& o, bool backend_auto) 
   cmd.add_flag("--no-culling", o.no_culling, "keep every object active (no lambda culling)");
   cmd.add_option("--map-size", o.map_size, "visibility map WxH (default: the screen size); counts are scaled to screen pixels");
   cmd.add_option("--threads", o.threads, "worker threads for the cpu backend (0 = all cores)")->capture_default_str();
+  cmd.add_option("--geometry", o.geometry, "gl backend: sphere geometry in the visibility map, impostor | mesh")
+      ->capture_default_str();
+  cmd.add_option("--counter", o.counter, "gl backend: pixel counting, ssbo (any N) | atomic_uint (the paper's)")
+      ->capture_default_str();
+}
+
+Result<std::unique_ptr<Detector>> make_backend(const PipelineOptions& o, const Config& config, bool quiet) {
+  using R = Result<std::unique_ptr<Detector>>;
+  std::string backend = o.backend;
+  if (backend == "auto") {
+    auto device = gl_device();
+    std::string why;
+    if (!device) {
+      backend = "cpu";
+      why = "no OpenGL 4.5 context (" + device.error() + ")";
+    } else if (is_software_renderer(device.value())) {
+      backend = "cpu";
+      why = "the only OpenGL is a software renderer, " + device.value() + "; --backend gl forces it";
+    } else {
+      backend = "gl";
+      why = "hardware OpenGL: " + device.value();
+    }
+    if (!quiet) std::fprintf(stderr, "viscd: backend auto -> %s: %s\n", backend.c_str(), why.c_str());
+  }
+  if (backend != "gl") return make_detector(backend, config);
+  GlOptions g;
+  if (o.geometry == "impostor") g.geometry = GlGeometry::impostor;
+  else if (o.geometry == "mesh") g.geometry = GlGeometry::mesh;
+  else return R::failure("--geometry: expected impostor or mesh, got '" + o.geometry + "'");
+  if (o.counter == "ssbo") g.counter = GlCounter::ssbo;
+  else if (o.counter == "atomic_uint") g.counter = GlCounter::atomic_uint;
+  else return R::failure("--counter: expected ssbo or atomic_uint, got '" + o.counter + "'");
+  return make_gl_detector(config, g);
 }
 
 Result<std::pair<int, int>> parse_size(std::string_view text, std::string_view option) {

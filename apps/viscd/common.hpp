@@ -20,11 +20,16 @@ struct PipelineOptions {
   bool no_culling = false;
   std::string map_size;  // "WxH" or empty
   int threads = 0;
+  std::string geometry = "impostor";  // gl only
+  std::string counter = "ssbo";       // gl only
 };
 
 void add_pipeline_options(CLI::App& cmd, PipelineOptions& o, bool backend_auto);
 /// Config from the options; the error names the bad option.
 Result<Config> make_config(const PipelineOptions& o);
+/// The detector the options name. "auto" picks gl on a hardware GPU and cpu where the only
+/// OpenGL is a software renderer or there is none, and says which and why on stderr unless quiet.
+Result<std::unique_ptr<Detector>> make_backend(const PipelineOptions& o, const Config& config, bool quiet);
 /// Parses "1280x720".
 Result<std::pair<int, int>> parse_size(std::string_view text, std::string_view option);
 
@@ -51,5 +56,8 @@ double median(std::vector<double> v);
 /// Each subcommand registers itself on the app; its callback stores the exit code in `rc`.
 void add_pairs_command(CLI::App& app, int& rc);
 void add_run_command(CLI::App& app, int& rc);
+#ifdef VISCD_HAVE_VIEWER
+void add_view_command(CLI::App& app, int& rc);
+#endif
 
 }  // namespace viscd::app

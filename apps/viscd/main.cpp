@@ -24,6 +24,9 @@ int main(int argc, char** argv) {
   int rc = 0;
   viscd::app::add_run_command(app, rc);
   viscd::app::add_pairs_command(app, rc);
+#ifdef VISCD_HAVE_VIEWER
+  viscd::app::add_view_command(app, rc);
+#endif
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

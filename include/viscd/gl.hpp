@@ -6,6 +6,8 @@
 
 #include <cstdint>
 #include <memory>
+#include <string>
+#include <string_view>
 
 #include "viscd/config.hpp"
 #include "viscd/detector.hpp"
@@ -42,5 +44,14 @@ struct GlOptions {
 /// not thread-safe. FrameStats::stage_ms holds GPU times read one frame late (the previous
 /// frame's; zero on the first frame), except `layout`, which is host time.
 [[nodiscard]] Result<std::unique_ptr<Detector>> make_gl_detector(const Config& config, const GlOptions& options = {});
+
+/// The OpenGL device the gl backend would run on, as "renderer | version", e.g.
+/// "llvmpipe (LLVM 15.0.6, 256 bits) | 4.5 (Core Profile) Mesa 22.3.6"; fails with the reason
+/// when no OpenGL 4.5 core context can be created or viscd was built without VISCD_ENABLE_GL.
+/// Creates and destroys a context: call it once, not per frame.
+[[nodiscard]] Result<std::string> gl_device();
+/// True for Mesa's CPU renderers (llvmpipe, softpipe, swrast, lavapipe): OpenGL that runs on
+/// the CPU, where the cpu backend is faster.
+[[nodiscard]] bool is_software_renderer(std::string_view device);
 
 }  // namespace viscd

@@ -5,6 +5,7 @@
 #include "viscd/config.hpp"
 #include "viscd/detector.hpp"
 #include "viscd/frame.hpp"
+#include "viscd/gl.hpp"
 #include "viscd/io.hpp"
 #include "viscd/result.hpp"
 #include "viscd/scene.hpp"

@@ -7,12 +7,32 @@
 #include "core/geometry.hpp"
 #include "viscd/assert.hpp"
 #include "viscd/detector.hpp"
+#include "viscd/gl.hpp"
 
 namespace viscd {
 
 #ifdef VISCD_HAVE_GL
 Result<std::unique_ptr<Detector>> make_gl_detector_result(const Config& config);  // src/gl
+Result<std::string> gl_device_description();                                        // src/gl
+#else
+Result<std::unique_ptr<Detector>> make_gl_detector(const Config&, const GlOptions&) {
+  return Result<std::unique_ptr<Detector>>::failure("backend 'gl' is not built in (configure with VISCD_ENABLE_GL=ON)");
+}
 #endif
+
+Result<std::string> gl_device() {
+#ifdef VISCD_HAVE_GL
+  return gl_device_description();
+#else
+  return Result<std::string>::failure("viscd was built without the gl backend (VISCD_ENABLE_GL=OFF)");
+#endif
+}
+
+bool is_software_renderer(std::string_view device) {
+  for (std::string_view soft : {"llvmpipe", "softpipe", "swrast", "lavapipe", "Software Rasterizer"})
+    if (device.find(soft) != std::string_view::npos) return true;
+  return false;
+}
 
 Result<std::unique_ptr<Detector>> make_detector(std::string_view backend, const Config& config) {
   if (backend == "reference") return make_reference_detector(config);

@@ -307,6 +307,12 @@ Result<std::unique_ptr<Detector>> make_gl_detector(const Config& config, const G
   return std::unique_ptr<Detector>(std::move(d.value()));
 }
 
+Result<std::string> gl_device_description() {
+  auto ctx = gl::Context::create(false);
+  if (!ctx) return Result<std::string>::failure(ctx.error());
+  return ctx.value()->description();
+}
+
 Result<std::unique_ptr<Detector>> make_gl_detector_result(const Config& config) {
   return make_gl_detector(config, GlOptions{});
 }
