@@ -56,6 +56,7 @@ double median(std::vector<double> v);
 /// Each subcommand registers itself on the app; its callback stores the exit code in `rc`.
 void add_pairs_command(CLI::App& app, int& rc);
 void add_run_command(CLI::App& app, int& rc);
+void add_bench_command(CLI::App& app, int& rc);
 #ifdef VISCD_HAVE_VIEWER
 void add_view_command(CLI::App& app, int& rc);
 #endif

@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
       "  viscd run --camera zoom-in --frames 60 --screenshot near.png\n"
       "  viscd pairs --spheres scene.xyzr --out pairs.csv --stats stats.json\n"
       "  viscd pairs --spheres scene.csv --camera cam.json --lambda 50\n"
+      "  viscd bench paper --sizes 1000,10000,100000   # the paper's tables and figures\n"
       "\nRun `viscd <command> --help` for a command's options. Docs: docs/usage.md");
   app.require_subcommand(1);
   app.set_version_flag("--version", std::to_string(viscd::kVersionMajor) + "." + std::to_string(viscd::kVersionMinor) +
@@ -24,6 +25,7 @@ int main(int argc, char** argv) {
   int rc = 0;
   viscd::app::add_run_command(app, rc);
   viscd::app::add_pairs_command(app, rc);
+  viscd::app::add_bench_command(app, rc);
 #ifdef VISCD_HAVE_VIEWER
   viscd::app::add_view_command(app, rc);
 #endif

@@ -35,6 +35,11 @@ class Detector {
   /// Backend name: "reference", "cpu", "gl".
   [[nodiscard]] virtual std::string_view name() const = 0;
 
+  /// Working memory the backend holds now, in bytes: visibility map, counts, codes, sort
+  /// buffers, tree, pair buffers (GPU memory for gl; there the driver's own figure, from
+  /// GL_NVX_gpu_memory_info, when it offers one). Grows with the largest frame seen so far.
+  [[nodiscard]] virtual std::uint64_t memory_bytes() const = 0;
+
   [[nodiscard]] const Config& config() const { return config_; }
   /// Changes settings; takes effect on the next detect().
   void set_config(const Config& config) { config_ = config; }

@@ -57,6 +57,17 @@ std::vector<std::uint32_t>& LbvhBroadphase::keys<std::uint32_t>() { return keys3
 template <>
 std::vector<std::uint64_t>& LbvhBroadphase::keys<std::uint64_t>() { return keys64_; }
 
+std::uint64_t LbvhBroadphase::memory_bytes() const {
+  auto bytes = [](const auto& v) { return static_cast<std::uint64_t>(v.capacity()) * sizeof(v[0]); };
+  std::uint64_t b = bytes(keys16_) + bytes(keys32_) + bytes(keys64_) + bytes(scratch16_.keys) + bytes(scratch16_.values) +
+                    bytes(scratch32_.keys) + bytes(scratch32_.values) + bytes(scratch64_.keys) +
+                    bytes(scratch64_.values) + bytes(sorted_ids_) + bytes(sorted_spheres_) + bytes(leaf_boxes_) +
+                    bytes(bvh_.nodes) + bytes(bvh_.parent) + bytes(bvh_.leaf_parent) + bytes(bvh_.arrivals) +
+                    bytes(pair_keys_) + bytes(pair_scratch_.keys);
+  for (const auto& t : thread_pairs_) b += bytes(t);
+  return b;
+}
+
 std::vector<std::uint64_t> LbvhBroadphase::sorted_codes() const {
   switch (bits_) {
     case 16: return {keys16_.begin(), keys16_.begin() + static_cast<std::ptrdiff_t>(sorted_ids_.size())};

@@ -44,6 +44,8 @@ class LbvhBroadphase {
   [[nodiscard]] std::span<const Aabb> leaf_boxes() const { return leaf_boxes_; }
   [[nodiscard]] std::span<const std::uint32_t> sorted_objects() const { return sorted_ids_; }
   [[nodiscard]] const MortonLayout& layout() const { return layout_; }
+  /// Bytes of every buffer held (capacities).
+  [[nodiscard]] std::uint64_t memory_bytes() const;
   /// Sorted codes of the last frame, widened to 64 bits.
   [[nodiscard]] std::vector<std::uint64_t> sorted_codes() const;
 

@@ -6,6 +6,13 @@
 
 namespace viscd::detail {
 
+std::uint64_t PipelineDetector::memory_bytes() const {
+  std::uint64_t b = bytes_of(map_.ids) + bytes_of(map_.depth) + bytes_of(map_.normal) + bytes_of(counts_) +
+                    bytes_of(active_);
+  for (const auto& s : count_scratch_) b += bytes_of(s);
+  return b + backend_memory_bytes();
+}
+
 Status PipelineDetector::detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) {
   if (Status s = validate_spheres(spheres); !s) return s;
   if (camera) {

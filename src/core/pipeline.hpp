@@ -11,9 +11,16 @@
 
 namespace viscd::detail {
 
+/// Capacity of a vector in bytes (what it holds, not what it uses).
+template <class T>
+std::uint64_t bytes_of(const std::vector<T>& v) {
+  return static_cast<std::uint64_t>(v.capacity()) * sizeof(T);
+}
+
 class PipelineDetector : public Detector {
  public:
   [[nodiscard]] Status detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) final;
+  [[nodiscard]] std::uint64_t memory_bytes() const final;
   /// The last frame's visibility map (empty without camera); for tests and tools.
   [[nodiscard]] const VisibilityMap& visibility_map() const { return map_; }
 
@@ -22,6 +29,8 @@ class PipelineDetector : public Detector {
   /// Stage 1 into map_ (already sized).
   virtual void rasterize(const CameraRig& cam, std::span<const Sphere> spheres, int threads) = 0;
   /// Stages 4-8 over the active set; writes sorted pairs and stats (bits, layout, stage times).
+  /// Bytes held by the backend's own stages (raster, broadphase).
+  [[nodiscard]] virtual std::uint64_t backend_memory_bytes() const = 0;
   [[nodiscard]] virtual Status broadphase(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
                                           int bits, int threads, std::vector<Pair>& pairs, FrameStats& stats) = 0;
 

@@ -13,6 +13,7 @@ class ReferenceDetector final : public PipelineDetector {
  public:
   explicit ReferenceDetector(const Config& config) : PipelineDetector(config) {}
   [[nodiscard]] std::string_view name() const override { return "reference"; }
+  [[nodiscard]] std::uint64_t backend_memory_bytes() const override { return 0; }
 
  private:
   void rasterize(const CameraRig& cam, std::span<const Sphere> spheres, int) override {

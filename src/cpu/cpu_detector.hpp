@@ -10,6 +10,9 @@ class CpuDetector final : public PipelineDetector {
  public:
   explicit CpuDetector(const Config& config) : PipelineDetector(config) {}
   [[nodiscard]] std::string_view name() const override { return "cpu"; }
+  [[nodiscard]] std::uint64_t backend_memory_bytes() const override {
+    return raster_.memory_bytes() + broadphase_.memory_bytes();
+  }
   /// The broadphase of the last frame (tree, codes), for tests.
   [[nodiscard]] const LbvhBroadphase& lbvh() const { return broadphase_; }
 

@@ -17,6 +17,11 @@ class TiledRasterizer {
   static constexpr int kTile = 32;
   /// Fills map (already sized to the rig's map) from the spheres. Not thread-safe.
   void run(const CameraRig& cam, std::span<const Sphere> spheres, int threads, VisibilityMap& map);
+  /// Bytes of the binning buffers.
+  [[nodiscard]] std::uint64_t memory_bytes() const {
+    return rects_.capacity() * sizeof(PixelRect) +
+           (tile_count_.capacity() + tile_offset_.capacity() + tile_items_.capacity()) * sizeof(std::uint32_t);
+  }
 
  private:
   std::vector<PixelRect> rects_;

@@ -307,6 +307,26 @@ Result<std::unique_ptr<Detector>> make_gl_detector(const Config& config, const G
   return std::unique_ptr<Detector>(std::move(d.value()));
 }
 
+std::uint64_t gl::GlDetector::memory_bytes() const {
+  if (!ctx_->make_current()) return 0;
+  if (epoxy_has_gl_extension("GL_NVX_gpu_memory_info")) {
+    // The paper's Fig. 8 measure: total minus currently available video memory (KiB).
+    GLint total = 0, available = 0;
+    glGetIntegerv(0x9048 /* GL_GPU_MEMORY_INFO_TOTAL_AVAILABLE_MEMORY_NVX */, &total);
+    glGetIntegerv(0x9049 /* GL_GPU_MEMORY_INFO_CURRENT_AVAILABLE_VIDMEM_NVX */, &available);
+    return static_cast<std::uint64_t>(total - available) * 1024u;
+  }
+  std::uint64_t b = 0;
+  for (const Buffer* buf : {&spheres_, &counts_, &pixels_, &flags_, &scan_out_, &block_sums_, &active_, &info_,
+                            &partials_, &hist_, &hist_scan_, &nodes_, &parent_, &arrivals_, &sorted_, &leaf_boxes_,
+                            &pairs_, &pairs_tmp_, &states_, &image_, &keys_[0], &keys_[1], &values_[0], &values_[1],
+                            &mesh_vbo_, &mesh_ibo_})
+    b += static_cast<std::uint64_t>(buf->size());
+  // G-buffer: R32UI ids, R32F depth, RGBA32F normals, 32-bit float z-buffer.
+  b += static_cast<std::uint64_t>(map_w_) * static_cast<std::uint64_t>(map_h_) * (4 + 4 + 16 + 4);
+  return b;
+}
+
 Result<std::string> gl_device_description() {
   auto ctx = gl::Context::create(false);
   if (!ctx) return Result<std::string>::failure(ctx.error());

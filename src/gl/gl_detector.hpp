@@ -33,6 +33,7 @@ class GlDetector final : public Detector {
 
   [[nodiscard]] Status detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) override;
   [[nodiscard]] std::string_view name() const override { return "gl"; }
+  [[nodiscard]] std::uint64_t memory_bytes() const override;
   [[nodiscard]] const GlOptions& options() const { return options_; }
   void set_options(const GlOptions& options) { options_ = options; }
   /// "llvmpipe (LLVM 15.0.6, 256 bits) | 4.5 (Core Profile) Mesa 22.3.6"
