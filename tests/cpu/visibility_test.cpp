@@ -222,3 +222,20 @@ TEST(Shading, PaperColoursWhereTheSceneSaysSo) {
 
 }  // namespace
 }  // namespace viscd
+
+namespace viscd {
+namespace {
+
+TEST(Memory, TallyCoversTheMapAndGrowsWithN) {
+  const Camera cam = camera_at(0, 5, 40, 0, 0, 0, 320, 180);
+  auto det = make_cpu_detector();
+  EXPECT_EQ(det->memory_bytes(), 0u);
+  test::run_frame(*det, random_spheres(1000, 1), &cam);
+  const std::uint64_t small = det->memory_bytes();
+  EXPECT_GE(small, 320u * 180 * (4 + 4));  // id + depth map at least
+  test::run_frame(*det, random_spheres(50000, 2, 30.0f), &cam);
+  EXPECT_GT(det->memory_bytes(), small + 50000u * (sizeof(Sphere) + 4));  // sorted spheres + ids
+}
+
+}  // namespace
+}  // namespace viscd
