@@ -10,8 +10,8 @@
 // at most m + 32 (delta < m + 32): a traversal stack of kStackDepth >= 96 entries cannot overflow.
 //
 // Node layout: each internal node stores both children's boxes, child ids and the last sorted
-// position of each child's subtree, in one 64-byte cache line, so a traversal step tests both
-// children with one fetch:
+// position of each child's subtree (for validation and the gl backend's traversal), in one
+// 64-byte cache line, so a traversal step tests both children with one fetch:
 //     +---------------+---------------+----------+----------+---------+---------+
 //     | box[0] 24 B   | box[1] 24 B   | child[0] | child[1] | last[0] | last[1] |
 //     +---------------+---------------+----------+----------+---------+---------+
@@ -66,43 +66,28 @@ void fit_lbvh(std::span<const Aabb> leaf_boxes, Lbvh& bvh, int threads);
 /// Depth of the deepest leaf (root = depth 0; a tree of one leaf has depth 0).
 [[nodiscard]] int lbvh_depth(const Lbvh& bvh);
 
+/// Calls f(q) for every leaf of the subtree under internal node `root` whose box overlaps `box`.
+/// The stack holds kStackDepth entries and a Karras tree is at most 96 deep; should a deeper tree
+/// ever come in, the overflowing subtree is finished by recursion, so no leaf is ever dropped.
 template <class F>
-inline void for_each_overlap_in_subtree(const Lbvh& bvh, std::uint32_t root, std::uint32_t p, const Aabb& box, F&& f);
-
-/// Calls f(q) for every leaf q > p whose box overlaps `box`. The stack holds kStackDepth
-/// entries and a Karras tree is at most 96 deep; should a deeper tree ever come in, the
-/// overflowing subtree is finished by recursion, so no pair is ever dropped.
-template <class F>
-inline void for_each_overlap_after(const Lbvh& bvh, std::uint32_t p, const Aabb& box, F&& f) {
-  if (bvh.leaves < 2) return;
-  for_each_overlap_in_subtree(bvh, 0, p, box, f);
-}
-
-template <class F>
-inline void for_each_overlap_in_subtree(const Lbvh& bvh, std::uint32_t root, std::uint32_t p, const Aabb& box, F&& f) {
+inline void for_each_overlap_in_subtree(const Lbvh& bvh, std::uint32_t root, const Aabb& box, F&& f) {
   std::uint32_t stack[kStackDepth];
   int sp = 0;
   std::uint32_t node = root;
   for (;;) {
     const BvhNode& nd = bvh.nodes[node];
-    const bool hit0 = nd.last[0] > p && overlaps(nd.box[0], box);
-    const bool hit1 = nd.last[1] > p && overlaps(nd.box[1], box);
     std::uint32_t next = kNoParent;
-    if (hit0) {
-      if (nd.child[0] & kLeafBit) f(nd.child[0] & ~kLeafBit);
-      else next = nd.child[0];
-    }
-    if (hit1) {
-      if (nd.child[1] & kLeafBit) {
-        f(nd.child[1] & ~kLeafBit);
+    for (int c = 0; c < 2; ++c) {
+      if (!overlaps(nd.box[c], box)) continue;
+      const std::uint32_t ch = nd.child[c];
+      if (ch & kLeafBit) {
+        f(ch & ~kLeafBit);
       } else if (next == kNoParent) {
-        next = nd.child[1];
+        next = ch;
       } else if (sp < kStackDepth) {
-        stack[sp++] = nd.child[1];
+        stack[sp++] = ch;
       } else {
-        // Unreachable for trees built by build_lbvh (depth <= m + 32 < kStackDepth); a tree
-        // from elsewhere still gets every pair: finish this subtree by recursion.
-        for_each_overlap_in_subtree(bvh, nd.child[1], p, box, f);
+        for_each_overlap_in_subtree(bvh, ch, box, f);  // unreachable for build_lbvh's trees
       }
     }
     if (next != kNoParent) {
@@ -112,6 +97,28 @@ inline void for_each_overlap_in_subtree(const Lbvh& bvh, std::uint32_t root, std
     } else {
       return;
     }
+  }
+}
+
+/// Calls f(q) for every leaf q > p whose box overlaps `box`, so that each pair is found once.
+///
+/// Walks up from leaf p: at every ancestor where p lies in the left subtree, the right subtree
+/// holds only positions > p (Karras ranges are contiguous) and is searched; where p lies in the
+/// right subtree, the left one holds only positions < p and is skipped. This tests one box per
+/// such ancestor instead of two per level on a descent from the root, and needs no range checks.
+template <class F>
+inline void for_each_overlap_after(const Lbvh& bvh, std::uint32_t p, const Aabb& box, F&& f) {
+  if (bvh.leaves < 2) return;
+  std::uint32_t child = p | kLeafBit;
+  std::uint32_t node = bvh.leaf_parent[p];
+  while (node != kNoParent) {
+    const BvhNode& nd = bvh.nodes[node];
+    if (nd.child[0] == child && overlaps(nd.box[1], box)) {
+      if (nd.child[1] & kLeafBit) f(nd.child[1] & ~kLeafBit);
+      else for_each_overlap_in_subtree(bvh, nd.child[1], box, f);
+    }
+    child = node;
+    node = bvh.parent[node];
   }
 }
 

@@ -10,19 +10,26 @@ namespace {
 
 constexpr char kAxisName[3] = {'x', 'y', 'z'};
 
-// Fills `position` by interleaving from the top bit of the code in `order`, skipping axes whose
-// bits are used up. The used bits occupy the low sum(axis_bits) positions of the code.
-void assign_positions(MortonLayout& l) {
-  int total = l.axis_bits[0] + l.axis_bits[1] + l.axis_bits[2];
+// Fills `position` from the top bit of the code down; each bit goes to the axis whose current
+// cell is the largest (extent / 2^bits already given), ties in `order`, skipping axes whose bits
+// are used up. The used bits occupy the low sum(axis_bits) positions of the code.
+//
+// With equal extents (the plain layout passes {1, 1, 1}) this is the classic round robin in
+// `order`. For a flat world it keeps the flat axis's few bits for the levels where the other
+// axes' cells have become as thin as it is, so cells stay near cubic all the way down instead of
+// slicing the flat axis at the root (DESIGN.md's step 4 round robin did that; docs/architecture.md,
+// "Morton layout", has the measurement).
+void assign_positions(MortonLayout& l, std::array<double, 3> cell) {
+  const int total = l.axis_bits[0] + l.axis_bits[1] + l.axis_bits[2];
   VISCD_ASSERT(total <= l.bits, "layout uses more bits than the code has");
   std::array<int, 3> left = l.axis_bits;
-  int pos = total - 1;
-  while (pos >= 0) {
-    for (std::uint8_t axis : l.order) {
-      if (left[axis] == 0) continue;
-      --left[axis];
-      l.position[axis][left[axis]] = static_cast<std::int8_t>(pos--);
-    }
+  for (int pos = total - 1; pos >= 0; --pos) {
+    int pick = -1;
+    for (std::uint8_t axis : l.order)
+      if (left[axis] > 0 && (pick < 0 || cell[axis] > cell[pick])) pick = axis;
+    --left[pick];
+    l.position[pick][left[pick]] = static_cast<std::int8_t>(pos);
+    cell[pick] *= 0.5;
   }
 }
 
@@ -60,7 +67,7 @@ MortonLayout extended_layout(int bits, const Aabb& b, float mean_diameter) {
   l.axis_bits[order[0]] = rest - rest / 2;
   l.axis_bits[order[1]] = rest / 2;
   l.axis_bits[order[2]] = smallest;
-  assign_positions(l);
+  assign_positions(l, {extent[0], extent[1], extent[2]});
   return l;
 }
 
@@ -69,7 +76,7 @@ MortonLayout plain_layout(int bits) {
   l.bits = bits;
   l.axis_bits = {bits / 3, bits / 3, bits / 3};
   l.order = {0, 1, 2};
-  assign_positions(l);
+  assign_positions(l, {1.0, 1.0, 1.0});
   return l;
 }
 

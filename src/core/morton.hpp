@@ -4,8 +4,10 @@
 // A layout says which axis supplies each bit of an m-bit code, most significant first. The
 // extended layout (after Vinkler et al. 2017, "Extended Morton Codes", and the paper's Table 2)
 // orders the axes by the extent of the active centres and gives the flattest axis no more bits
-// than resolve an object there; for the paper's flat world it yields
-//   m = 16:  x(7)→z(6)→y(3)    code bits 15..0:  x z y x z y x z y x z x z x z x
+// than resolve an object there; for the paper's flat world (x 200, z 180, y 6 wide) it yields
+//   m = 16:  x(7)→z(6)→y(3)    code bits 15..0:  x z x z x z x z x z x y z x y y
+// Each bit goes to the axis whose cell is then the largest, so y is split only once the x and z
+// cells have become about as thin as the world is flat.
 // Encoding quantises each axis to its bit count over the bounds of the active centres, then
 // scatters the axis bits to their code positions with byte-wise lookup tables (4 bytes x 3 axes).
 

@@ -21,6 +21,11 @@
 
 namespace viscd::detail {
 
+/// Below this many keys the sort runs on one thread: with two threads, scatters to neighbouring
+/// buckets write the same cache lines, and on 2 cores one thread won up to ~100k keys
+/// (bench: viscd_microbench bm_radix_sort, docs/benchmarks.md).
+inline constexpr std::size_t kRadixParallelThreshold = std::size_t{1} << 17;
+
 /// Reusable scratch for radix_sort (one per caller; not thread-safe).
 template <class K>
 struct RadixScratch {
@@ -43,7 +48,7 @@ void radix_sort(std::span<K> keys, std::span<std::uint32_t> values, int key_bits
     scratch.keys.resize(n);
   }
   if (has_values && scratch.values.size() < n) scratch.values.resize(n);
-  const int t_count = threads_for(n, threads);
+  const int t_count = n < kRadixParallelThreshold ? 1 : threads;
   if (scratch.histograms.size() < static_cast<std::size_t>(t_count)) scratch.histograms.resize(t_count);
 
   K* src_k = keys.data();

@@ -48,9 +48,11 @@ TEST(MortonLayout, PlainLayouts) {
 }
 
 TEST(MortonLayout, HandWorkedBitPositions16) {
-  // x(7)→z(6)→y(3), code bits 15..0:  x z y x z y x z y x z x z x z x
+  // x(7)→z(6)→y(3) over x 200, z 180, y 6 wide; each bit to the axis with the largest cell:
+  // x 200 z 180 x 100 z 90 x 50 z 45 x 25 z 22.5 x 12.5 z 11.25 (cells x 6.25, y 6, z 5.6)
+  // x 6.25 y 6 z 5.6 (z done) x 3.1 (x done) y 3 y 1.5, so code bits 15..0 are:
   const MortonLayout l = extended_layout(16, flat_world(), 1.0f);
-  const char want[] = "xzyxzyxzyxzxzxzx";
+  const char want[] = "xzxzxzxzxzxyzxyy";
   for (int pos = 15; pos >= 0; --pos) {
     int owner = -1;
     for (int a = 0; a < 3; ++a)
@@ -61,8 +63,9 @@ TEST(MortonLayout, HandWorkedBitPositions16) {
   }
 }
 
-// Independent encoder: quantise, then place bits one by one walking the layout's order.
-std::uint64_t naive_encode(const MortonLayout& l, const Aabb& b, float x, float y, float z) {
+// Independent encoder: quantise, then emit bits one at a time, each from the axis whose cell is
+// currently largest (equal extents for the plain layout), ties in the layout's order.
+std::uint64_t naive_encode(const MortonLayout& l, const Aabb& b, float x, float y, float z, bool plain) {
   const double v[3] = {x, y, z}, lo[3] = {b.lo.x, b.lo.y, b.lo.z}, hi[3] = {b.hi.x, b.hi.y, b.hi.z};
   std::uint64_t q[3];
   for (int a = 0; a < 3; ++a) {
@@ -74,15 +77,18 @@ std::uint64_t naive_encode(const MortonLayout& l, const Aabb& b, float x, float 
   }
   std::uint64_t code = 0;
   int left[3] = {l.axis_bits[0], l.axis_bits[1], l.axis_bits[2]};
-  int remaining = left[0] + left[1] + left[2];
-  while (remaining > 0)
+  double cell[3] = {hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]};
+  if (plain) cell[0] = cell[1] = cell[2] = 1;
+  for (int remaining = left[0] + left[1] + left[2]; remaining > 0; --remaining) {
+    int a = -1;
     for (int k = 0; k < 3; ++k) {
-      const int a = l.order[k];
-      if (left[a] == 0) continue;
-      --left[a];
-      code = (code << 1) | ((q[a] >> left[a]) & 1);
-      --remaining;
+      const int c = l.order[k];
+      if (left[c] > 0 && (a < 0 || cell[c] > cell[a])) a = c;
     }
+    --left[a];
+    cell[a] /= 2;
+    code = (code << 1) | ((q[a] >> left[a]) & 1);
+  }
   return code;
 }
 
@@ -96,7 +102,7 @@ TEST(MortonEncoder, MatchesNaiveEncoder) {
       const MortonEncoder enc(l, b);
       for (int k = 0; k < 2000; ++k) {
         const float x = u(rng), y = u(rng) / 30, z = u(rng);
-        const std::uint64_t got = enc.encode(x, y, z), want = naive_encode(l, b, x, y, z);
+        const std::uint64_t got = enc.encode(x, y, z), want = naive_encode(l, b, x, y, z, kind == Layout::plain);
         ASSERT_EQ(got, want) << "m=" << bits << " at (" << x << "," << y << "," << z << ")";
         if (bits < 64) {
           ASSERT_LT(got, std::uint64_t{1} << bits);
