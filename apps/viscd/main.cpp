@@ -18,6 +18,7 @@ int main(int argc, char** argv) {
       "  viscd pairs --spheres scene.xyzr --out pairs.csv --stats stats.json\n"
       "  viscd pairs --spheres scene.csv --camera cam.json --lambda 50\n"
       "  viscd bench paper --sizes 1000,10000,100000   # the paper's tables and figures\n"
+      "  viscd view                                 # the same in a window (xvfb-run without a display)\n"
       "\nRun `viscd <command> --help` for a command's options. Docs: docs/usage.md");
   app.require_subcommand(1);
   app.set_version_flag("--version", std::to_string(viscd::kVersionMajor) + "." + std::to_string(viscd::kVersionMinor) +

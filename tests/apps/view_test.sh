@@ -1,0 +1,180 @@
+#!/usr/bin/env bash
+# Window tests of `viscd view` under Xvfb: it opens a window, runs frames, writes a screenshot
+# that shows all three colour classes, and fails clearly without a display.
+# Usage: VISCD=/path/to/viscd bash tests/apps/view_test.sh WORKDIR
+# Exits 77 (ctest: skipped) when xvfb-run or python3 is missing.
+set -euo pipefail
+
+if [[ $# -ne 1 ]]; then
+  echo "usage: VISCD=/path/to/viscd $0 WORKDIR" >&2
+  exit 2
+fi
+: "${VISCD:?set VISCD to the viscd binary}"
+if [[ ! -x "$VISCD" ]]; then
+  echo "FAIL: VISCD=$VISCD is not an executable" >&2
+  exit 1
+fi
+for tool in xvfb-run python3; do
+  if ! command -v "$tool" >/dev/null; then
+    echo "SKIP: $tool is not installed (apt-get install xvfb xauth python3)"
+    exit 77
+  fi
+done
+
+WORK="$1"
+rm -rf "$WORK"
+mkdir -p "$WORK"
+XVFB=(xvfb-run -a -s "-screen 0 1280x800x24")
+
+checks=0
+fail() {
+  echo "FAIL: $*" >&2
+  exit 1
+}
+step() {
+  checks=$((checks + 1))
+  echo "--- [$checks] $*"
+}
+rc=0
+run() {  # run [PREFIX...] -- ARGS...: stdout in $WORK/out, stderr in $WORK/err, status in $rc
+  local prefix=()
+  while [[ "$1" != "--" ]]; do
+    prefix+=("$1")
+    shift
+  done
+  shift
+  set +e
+  "${prefix[@]}" "$VISCD" "$@" >"$WORK/out" 2>"$WORK/err"
+  rc=$?
+  set -e
+}
+show() {
+  echo "    exit status: $rc" >&2
+  echo "    stdout:" >&2
+  sed 's/^/      /' "$WORK/out" >&2 || true
+  echo "    stderr:" >&2
+  sed 's/^/      /' "$WORK/err" >&2 || true
+}
+
+# Checks a PNG: size (WxH or "any") and, with "colours", pixels of all three classes.
+# A small decoder for 8-bit RGB/RGBA non-interlaced PNGs, standard library only.
+check_png() {  # check_png FILE SIZE [colours]
+  python3 - "$@" <<'PY'
+import struct, sys, zlib
+
+path, want_size = sys.argv[1], sys.argv[2]
+want_colours = len(sys.argv) > 3 and sys.argv[3] == "colours"
+data = open(path, "rb").read()
+if data[:8] != b"\x89PNG\r\n\x1a\n":
+    sys.exit(f"{path}: not a PNG (bad signature)")
+pos, idat, ihdr = 8, [], None
+while pos < len(data):
+    length, kind = struct.unpack(">I4s", data[pos:pos + 8])
+    body = data[pos + 8:pos + 8 + length]
+    if zlib.crc32(kind + body) != struct.unpack(">I", data[pos + 8 + length:pos + 12 + length])[0]:
+        sys.exit(f"{path}: bad CRC in chunk {kind!r}")
+    if kind == b"IHDR":
+        ihdr = struct.unpack(">IIBBBBB", body)
+    elif kind == b"IDAT":
+        idat.append(body)
+    elif kind == b"IEND":
+        break
+    pos += 12 + length
+if ihdr is None:
+    sys.exit(f"{path}: no IHDR")
+w, h, depth, ctype, _, _, interlace = ihdr
+if depth != 8 or ctype not in (2, 6) or interlace != 0:
+    sys.exit(f"{path}: decoder handles 8-bit RGB/RGBA non-interlaced only, got depth {depth} type {ctype} interlace {interlace}")
+if want_size != "any" and f"{w}x{h}" != want_size:
+    sys.exit(f"{path}: size {w}x{h}, expected {want_size}")
+bpp = 4 if ctype == 6 else 3
+stride = w * bpp
+raw = zlib.decompress(b"".join(idat))
+if len(raw) != h * (stride + 1):
+    sys.exit(f"{path}: {len(raw)} bytes of image data, expected {h * (stride + 1)}")
+prev = bytearray(stride)
+counts = {"red": 0, "blue": 0, "yellow": 0}
+for y in range(h):
+    f = raw[y * (stride + 1)]
+    line = bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
+    if f == 1:
+        for i in range(bpp, stride):
+            line[i] = (line[i] + line[i - bpp]) & 255
+    elif f == 2:
+        for i in range(stride):
+            line[i] = (line[i] + prev[i]) & 255
+    elif f == 3:
+        for i in range(stride):
+            left = line[i - bpp] if i >= bpp else 0
+            line[i] = (line[i] + ((left + prev[i]) >> 1)) & 255
+    elif f == 4:
+        for i in range(stride):
+            a = line[i - bpp] if i >= bpp else 0
+            b = prev[i]
+            c = prev[i - bpp] if i >= bpp else 0
+            p = a + b - c
+            pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
+            pred = a if pa <= pb and pa <= pc else (b if pb <= pc else c)
+            line[i] = (line[i] + pred) & 255
+    elif f != 0:
+        sys.exit(f"{path}: row {y} has unknown filter {f}")
+    if want_colours:
+        for i in range(0, stride, bpp):
+            r, g, b = line[i], line[i + 1], line[i + 2]
+            if r > 2 * g and r > 2 * b:
+                counts["red"] += 1
+            elif b > r and b > g and b > 80:
+                counts["blue"] += 1
+            elif r > b + 40 and g > b + 40:
+                counts["yellow"] += 1
+    prev = line
+print(f"    {path}: {w}x{h}" + (f", pixels {counts}" if want_colours else ""))
+missing = [k for k, v in counts.items() if v == 0]
+if want_colours and missing:
+    sys.exit(f"{path}: no {', '.join(missing)} pixels (colliding red, free blue, culled yellow expected)")
+PY
+}
+
+step "no display: a clear error naming DISPLAY and xvfb-run, exit 1"
+run env -u DISPLAY -u WAYLAND_DISPLAY -- view --frames 1
+if [[ "$rc" -ne 1 ]]; then
+  show
+  fail "viscd view without a display exited $rc, expected 1"
+fi
+grep -q "DISPLAY" "$WORK/err" || { show; fail "the error does not name DISPLAY"; }
+grep -q "xvfb-run" "$WORK/err" || { show; fail "the error does not suggest xvfb-run"; }
+echo "    ok"
+
+step "a bad option is refused before any window opens"
+run env -u DISPLAY -- view --backend reference
+[[ "$rc" -ne 0 ]] && grep -q -- "--backend" "$WORK/err" || { show; fail "view --backend reference was not refused"; }
+echo "    ok"
+
+step "20 frames in a 640x360 window, screenshot with colliding, free and culled objects"
+run "${XVFB[@]}" -- view --objects 3000 --frames 20 --size 640x360 --lambda 100 --screenshot "$WORK/view.png" \
+  --window-screenshot "$WORK/window.png"
+if [[ "$rc" -ne 0 ]]; then
+  show
+  fail "viscd view exited $rc"
+fi
+[[ -s "$WORK/view.png" ]] || { show; fail "no screenshot at $WORK/view.png"; }
+grep -q "wrote $WORK/view.png" "$WORK/out" || { show; fail "the screenshot path is not printed"; }
+grep -q "20 frames" "$WORK/out" || { show; fail "no summary of the 20 frames"; }
+check_png "$WORK/view.png" 640x360 colours || fail "screenshot check"
+check_png "$WORK/window.png" 640x360 || fail "window screenshot check"
+echo "    ok"
+
+step "gl backend (impostor) in the window, or a clear fallback to cpu"
+run "${XVFB[@]}" -- view --backend gl --objects 2000 --frames 5 --size 480x270 --lambda 60 --map-size 240x135 \
+  --screenshot "$WORK/gl.png"
+if [[ "$rc" -ne 0 ]]; then
+  show
+  fail "viscd view --backend gl exited $rc"
+fi
+if grep -q "gl backend unavailable" "$WORK/err"; then
+  echo "    (gl backend not available here, fell back to cpu: $(head -n 1 "$WORK/err"))"
+fi
+check_png "$WORK/gl.png" 240x135 || fail "gl screenshot check"
+echo "    ok"
+
+echo "view_test: all $checks checks passed"
