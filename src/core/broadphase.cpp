@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <limits>
 
 #include "core/parallel.hpp"
 #include "core/stopwatch.hpp"
@@ -12,29 +13,19 @@ namespace viscd::detail {
 
 ActiveExtent active_extent(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int threads) {
   const std::size_t n = active.size();
-  const int t_count = threads_for(n, threads);
-  std::vector<Aabb> boxes(static_cast<std::size_t>(t_count));
-  std::vector<double> diam(static_cast<std::size_t>(t_count), 0.0);
-#pragma omp parallel num_threads(t_count)
-  {
-    const int t = omp_get_thread_num();
-    const Chunk c = chunk_of(n, t, t_count);
-    Aabb b;
-    double d = 0;
-    for (std::size_t k = c.begin; k < c.end; ++k) {
-      const Sphere& s = spheres[active[k]];
-      b.grow(s.x, s.y, s.z);
-      d += 2.0 * s.r;
-    }
-    boxes[t] = b;
-    diam[t] = d;
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  float lx = kInf, ly = kInf, lz = kInf, hx = -kInf, hy = -kInf, hz = -kInf;
+  double d = 0;
+#pragma omp parallel for num_threads(threads_for(n, threads)) schedule(static) \
+    reduction(min : lx, ly, lz) reduction(max : hx, hy, hz) reduction(+ : d)
+  for (std::size_t k = 0; k < n; ++k) {
+    const Sphere& s = spheres[active[k]];
+    lx = std::min(lx, s.x), ly = std::min(ly, s.y), lz = std::min(lz, s.z);
+    hx = std::max(hx, s.x), hy = std::max(hy, s.y), hz = std::max(hz, s.z);
+    d += 2.0 * s.r;
   }
   ActiveExtent e;
-  double d = 0;
-  for (int t = 0; t < t_count; ++t) {
-    e.bounds.grow(boxes[t]);
-    d += diam[t];
-  }
+  e.bounds = Aabb{{lx, ly, lz}, {hx, hy, hz}};
   e.mean_diameter = n ? static_cast<float>(d / static_cast<double>(n)) : 0.f;
   return e;
 }
@@ -85,7 +76,7 @@ Status LbvhBroadphase::run(std::span<const Sphere> spheres, std::span<const std:
   layout_ = make_layout(layout, bits, extent.bounds, extent.mean_diameter);
   bits_ = bits;
   stats.bits = bits;
-  stats.layout = layout_.to_string();
+  layout_.write(stats.layout);
   stats.stage_ms[static_cast<std::size_t>(Stage::layout)] = sw.lap();
   switch (bits) {
     case 16: return run_keys<std::uint16_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);

@@ -37,14 +37,23 @@ void assign_positions(MortonLayout& l, std::array<double, 3> cell) {
 
 std::string MortonLayout::to_string() const {
   std::string s;
+  write(s);
+  return s;
+}
+
+void MortonLayout::write(std::string& s) const {
+  s.clear();
   for (int k = 0; k < 3; ++k) {
     const int axis = order[k];
     if (axis_bits[axis] == 0) continue;
     if (!s.empty()) s += "→";
     s += kAxisName[axis];
-    s += "(" + std::to_string(axis_bits[axis]) + ")";
+    s += '(';
+    const int b = axis_bits[axis];
+    if (b >= 10) s += static_cast<char>('0' + b / 10);
+    s += static_cast<char>('0' + b % 10);
+    s += ')';
   }
-  return s;
 }
 
 MortonLayout extended_layout(int bits, const Aabb& b, float mean_diameter) {
@@ -53,7 +62,9 @@ MortonLayout extended_layout(int bits, const Aabb& b, float mean_diameter) {
   const std::array<float, 3> extent = {std::max(0.f, b.hi.x - b.lo.x), std::max(0.f, b.hi.y - b.lo.y),
                                        std::max(0.f, b.hi.z - b.lo.z)};
   std::array<std::uint8_t, 3> order{0, 1, 2};
-  std::stable_sort(order.begin(), order.end(), [&](int p, int q) { return extent[p] > extent[q]; });
+  // Stable insertion sort by extent, largest first (std::stable_sort would allocate a buffer).
+  for (int i = 1; i < 3; ++i)
+    for (int k = i; k > 0 && extent[order[k]] > extent[order[k - 1]]; --k) std::swap(order[k], order[k - 1]);
   l.order = order;
 
   // Bits finer than an object are wasted on the flattest axis.

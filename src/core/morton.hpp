@@ -29,6 +29,8 @@ struct MortonLayout {
 
   /// "x(7)→z(6)→y(3)"
   [[nodiscard]] std::string to_string() const;
+  /// Writes to_string() into `out`, reusing its buffer.
+  void write(std::string& out) const;
 };
 
 /// DESIGN.md's rule: axes by extent (ties x, y, z); the smallest gets

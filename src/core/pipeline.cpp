@@ -1,5 +1,7 @@
 #include "core/pipeline.hpp"
 
+#include <optional>
+
 #include "core/broadphase.hpp"
 #include "core/parallel.hpp"
 #include "core/stopwatch.hpp"
@@ -23,18 +25,20 @@ Status PipelineDetector::detect(std::span<const Sphere> spheres, const Camera* c
   const int threads = resolve_threads(config_.threads);
   const std::size_t n = spheres.size();
   FrameStats& stats = out.stats;
+  std::string layout = std::move(stats.layout);  // keep its buffer: no allocation per frame
   stats = FrameStats{};
+  stats.layout = std::move(layout);
   stats.objects = static_cast<std::uint32_t>(n);
   stats.has_camera = camera != nullptr;
   auto ms = [&](Stage s) -> double& { return stats.stage_ms[static_cast<std::size_t>(s)]; };
   Stopwatch sw;
 
   int bits = 32;  // without a camera mu is undefined; adaptive falls back to the paper's 32 bits
-  std::unique_ptr<CameraRig> rig;
+  std::optional<CameraRig> rig;
   if (camera) {
     const int mw = config_.map_width ? config_.map_width : camera->width;
     const int mh = config_.map_height ? config_.map_height : camera->height;
-    rig = std::make_unique<CameraRig>(*camera, mw, mh);
+    rig.emplace(*camera, mw, mh);
     map_.resize(mw, mh, config_.shade);
     rasterize(*rig, spheres, threads);
     ms(Stage::visibility) = sw.lap();
