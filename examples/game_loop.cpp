@@ -10,10 +10,10 @@ int main() {
   // Your engine's objects: here 20 000 spheres on a ring, moving in circles.
   viscd::Scene world = viscd::Scene::make({.kind = viscd::SceneKind::ring, .objects = 20000});
 
-  viscd::Config config;      // the paper's defaults: lambda = 200 px, adaptive 16/32/64-bit codes
-  config.lambda = 100;       // cull objects covering fewer than 100 screen pixels
+  viscd::Config config;  // the paper's defaults: lambda = 200 px, adaptive 16/32/64-bit codes
+  config.lambda = 100;   // cull objects covering fewer than 100 screen pixels
   auto detector = viscd::make_cpu_detector(config);  // or make_gl_detector(config) for the GPU
-  viscd::FrameResult frame;  // reused every frame: no allocations once warmed up
+  viscd::FrameResult frame;                          // reused every frame: no allocations once warmed up
 
   for (int tick = 0; tick < 120; ++tick) {
     world.step(1.0f / 60.0f);  // your physics moves the objects
@@ -32,9 +32,9 @@ int main() {
       (void)p;  // resolve the contact between objects p.i and p.j (p.i < p.j)
     }
     if (tick % 40 == 0)
-      std::printf("tick %3d: %u of %u objects visible enough, %llu pairs, %d-bit codes %s\n", tick,
-                  frame.stats.active, frame.stats.objects, static_cast<unsigned long long>(frame.stats.pairs),
-                  frame.stats.bits, frame.stats.layout.c_str());
+      std::printf("tick %3d: %u of %u objects visible enough, %llu pairs, %d-bit codes %s\n", tick, frame.stats.active,
+                  frame.stats.objects, static_cast<unsigned long long>(frame.stats.pairs), frame.stats.bits,
+                  frame.stats.layout.c_str());
   }
   return 0;
 }

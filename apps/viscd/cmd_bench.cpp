@@ -36,8 +36,8 @@ struct Point {
 };
 
 // Runs `frames` frames (after warm-up) of the ring scene and returns medians.
-Result<Point> measure(const std::string& backend, Config config, std::uint32_t n, const std::string& camera,
-                      int frames, int warmup) {
+Result<Point> measure(const std::string& backend, Config config, std::uint32_t n, const std::string& camera, int frames,
+                      int warmup) {
   PipelineOptions o;
   o.backend = backend;
   auto det = make_backend(o, config, true);
@@ -161,7 +161,8 @@ int run_paper(const BenchArgs& a) {
            << ',' << pt.last.active << ',' << pt.last.mean_pixels << ',' << pt.last.bits << '\n';
         f8 << be << ',' << n << ',' << (culling ? "on" : "off") << ',' << pt.memory << '\n';
         if (culling)  // the adaptive point of Fig. 7 is the culled frame with adaptive bits
-          f7 << be << ',' << n << ",adaptive," << pt.frame_ms << ',' << 1000.0 / pt.frame_ms << ',' << pt.last.bits << '\n';
+          f7 << be << ',' << n << ",adaptive," << pt.frame_ms << ',' << 1000.0 / pt.frame_ms << ',' << pt.last.bits
+             << '\n';
         tick(be + " N=" + std::to_string(n));
       }
       for (Bits bits : {Bits::b32, Bits::b64}) {
@@ -207,14 +208,16 @@ int run_peers(const BenchArgs& a) {
     execv(argv[0], argv.data());
     return fail("cannot run " + candidate.string());
   }
-  return fail("viscd_peers not found next to viscd: build with -DVISCD_BUILD_BENCH=ON (needs libbullet-dev, libfcl-dev)");
+  return fail(
+      "viscd_peers not found next to viscd: build with -DVISCD_BUILD_BENCH=ON (needs libbullet-dev, libfcl-dev)");
 }
 
 }  // namespace
 
 void add_bench_command(CLI::App& app, int& rc) {
   auto args = std::make_shared<BenchArgs>();
-  CLI::App* bench = app.add_subcommand("bench", "The paper's experiments and the peer comparison, as CSV and PNG plots.");
+  CLI::App* bench =
+      app.add_subcommand("bench", "The paper's experiments and the peer comparison, as CSV and PNG plots.");
   bench->require_subcommand(1);
   CLI::App* paper = bench->add_subcommand(
       "paper",
@@ -231,8 +234,9 @@ void add_bench_command(CLI::App& app, int& rc) {
   paper->add_flag("--no-plots", args->no_plots, "write CSVs only");
   paper->callback([args, &rc] { rc = run_paper(*args); });
   CLI::App* peers = bench->add_subcommand(
-      "peers", "viscd against Bullet (btDbvtBroadphase, bt32BitAxisSweep3) and FCL (DynamicAABBTree) on the\n"
-               "same moving scene, in one process; arguments after -- go to the driver (try -- --help).");
+      "peers",
+      "viscd against Bullet (btDbvtBroadphase, bt32BitAxisSweep3) and FCL (DynamicAABBTree) on the\n"
+      "same moving scene, in one process; arguments after -- go to the driver (try -- --help).");
   peers->allow_extras();
   peers->callback([args, peers, &rc] {
     args->peer_args = peers->remaining();

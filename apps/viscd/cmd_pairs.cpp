@@ -58,12 +58,15 @@ void add_pairs_command(CLI::App& app, int& rc) {
       "One frame from files: read spheres (and optionally a camera for culling), write the colliding\n"
       "pairs as CSV (header i,j; 0-based; sorted; i < j) and the frame's stats as JSON.\n"
       "Without --camera every object is active and adaptive bits use 32.");
-  cmd->add_option("--spheres", args->spheres, "sphere file: XYZR text (x y z r per line, # comments) or .csv with header x,y,z,r")
+  cmd->add_option("--spheres", args->spheres,
+                  "sphere file: XYZR text (x y z r per line, # comments) or .csv with header x,y,z,r")
       ->required();
-  cmd->add_option("--camera", args->camera, "camera JSON {eye, target, up, fov_y_deg, near, far, width, height}: enables culling");
+  cmd->add_option("--camera", args->camera,
+                  "camera JSON {eye, target, up, fov_y_deg, near, far, width, height}: enables culling");
   cmd->add_option("--out", args->out, "pairs CSV to write")->capture_default_str();
   cmd->add_option("--stats", args->stats, "stats JSON to write (N, active, mu, m, layout, pairs, per-stage ms)");
-  cmd->add_option("--validate-hash", args->validate_hash, "expected FNV-1a hash of the pairs (16 hex digits); exit 3 if different");
+  cmd->add_option("--validate-hash", args->validate_hash,
+                  "expected FNV-1a hash of the pairs (16 hex digits); exit 3 if different");
   add_pipeline_options(*cmd, args->pipeline, false);
   cmd->callback([args, &rc] { rc = run_pairs(*args); });
 }

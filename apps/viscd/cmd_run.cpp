@@ -55,7 +55,8 @@ int run_run(RunArgs a) {
   if (auto c = camera_now(); !c) return fail(c.error());
 
   const std::filesystem::path out(a.out_dir);
-  const std::filesystem::path shot = a.screenshot.empty() ? out / "screenshot.png" : std::filesystem::path(a.screenshot);
+  const std::filesystem::path shot =
+      a.screenshot.empty() ? out / "screenshot.png" : std::filesystem::path(a.screenshot);
   const std::filesystem::path csv = a.csv.empty() ? out / "frames.csv" : std::filesystem::path(a.csv);
   const std::filesystem::path json = a.json.empty() ? out / "summary.json" : std::filesystem::path(a.json);
 
@@ -97,8 +98,8 @@ int run_run(RunArgs a) {
     }
     sim_ms.push_back(sim);
     frame_ms.push_back(total);
-    rows << f << ',' << scene.time() << ',' << st.objects << ',' << st.active << ',' << st.mean_pixels << ','
-         << st.bits << ',' << st.layout << ',' << st.pairs << ',' << sim;
+    rows << f << ',' << scene.time() << ',' << st.objects << ',' << st.active << ',' << st.mean_pixels << ',' << st.bits
+         << ',' << st.layout << ',' << st.pairs << ',' << sim;
     for (std::size_t s = 0; s < kStageCount; ++s) rows << ',' << st.stage_ms[s];
     rows << ',' << total << '\n';
     char note[64];
@@ -117,7 +118,8 @@ int run_run(RunArgs a) {
   summary["culling"] = !a.pipeline.no_culling;
   summary["median_ms"]["simulate"] = median(sim_ms);
   for (std::size_t s = 0; s < kStageCount; ++s)
-    if (static_cast<Stage>(s) != Stage::shade) summary["median_ms"][std::string(stage_name(static_cast<Stage>(s)))] = median(stage_ms[s]);
+    if (static_cast<Stage>(s) != Stage::shade)
+      summary["median_ms"][std::string(stage_name(static_cast<Stage>(s)))] = median(stage_ms[s]);
   summary["median_frame_ms"] = med_frame;
   summary["fps"] = med_frame > 0 ? 1000.0 / med_frame : 0.0;
   summary["last_frame"] = nlohmann::ordered_json::parse(stats_json(st, det.name()));
@@ -129,8 +131,10 @@ int run_run(RunArgs a) {
       if (static_cast<Stage>(s) == Stage::shade) continue;
       std::printf("  %-12s %10.3f\n", std::string(stage_name(static_cast<Stage>(s))).c_str(), median(stage_ms[s]));
     }
-    std::printf("  %-12s %10.3f   (%.0f frames per second)\n", "frame", med_frame, med_frame > 0 ? 1000.0 / med_frame : 0.0);
-    std::printf("  (shading ran on the screenshot frame only: %.3f ms)\n\n", st.stage_ms[static_cast<std::size_t>(Stage::shade)]);
+    std::printf("  %-12s %10.3f   (%.0f frames per second)\n", "frame", med_frame,
+                med_frame > 0 ? 1000.0 / med_frame : 0.0);
+    std::printf("  (shading ran on the screenshot frame only: %.3f ms)\n\n",
+                st.stage_ms[static_cast<std::size_t>(Stage::shade)]);
     std::printf("last frame: %u of %u objects active (%.1f %%), mu = %.1f px, m = %d bits %s, %" PRIu64 " pairs\n",
                 st.active, st.objects, st.objects ? 100.0 * st.active / st.objects : 0.0, st.mean_pixels, st.bits,
                 st.layout.c_str(), st.pairs);

@@ -8,11 +8,12 @@
 namespace viscd::app {
 
 void add_pipeline_options(CLI::App& cmd, PipelineOptions& o, bool backend_auto) {
-  cmd.add_option("--backend", o.backend,
-                 backend_auto ? "cpu | reference | gl | auto (auto: gl on a hardware GPU, else cpu)"
-                              : "cpu | reference | gl")
+  cmd.add_option(
+         "--backend", o.backend,
+         backend_auto ? "cpu | reference | gl | auto (auto: gl on a hardware GPU, else cpu)" : "cpu | reference | gl")
       ->capture_default_str();
-  cmd.add_option("--bits", o.bits, "Morton width: adaptive (Eq. 1 from mu, a, b) | 16 | 32 | 64")->capture_default_str();
+  cmd.add_option("--bits", o.bits, "Morton width: adaptive (Eq. 1 from mu, a, b) | 16 | 32 | 64")
+      ->capture_default_str();
   cmd.add_option("--layout", o.layout, "Morton layout: extended (paper Table 2) | plain (10/10/10 style)")
       ->capture_default_str();
   cmd.add_option("--lambda", o.lambda, "culling threshold in screen pixels")->capture_default_str();
@@ -20,7 +21,8 @@ void add_pipeline_options(CLI::App& cmd, PipelineOptions& o, bool backend_auto) 
   cmd.add_option("-b", o.b, "adaptive bits: m = 64 from this mean pixel count (32 between a and b)")
       ->capture_default_str();
   cmd.add_flag("--no-culling", o.no_culling, "keep every object active (no lambda culling)");
-  cmd.add_option("--map-size", o.map_size, "visibility map WxH (default: the screen size); counts are scaled to screen pixels");
+  cmd.add_option("--map-size", o.map_size,
+                 "visibility map WxH (default: the screen size); counts are scaled to screen pixels");
   cmd.add_option("--threads", o.threads, "worker threads for the cpu backend (0 = all cores)")->capture_default_str();
   cmd.add_option("--geometry", o.geometry, "gl backend: sphere geometry in the visibility map, impostor | mesh")
       ->capture_default_str();
@@ -48,12 +50,18 @@ Result<std::unique_ptr<Detector>> make_backend(const PipelineOptions& o, const C
   }
   if (backend != "gl") return make_detector(backend, config);
   GlOptions g;
-  if (o.geometry == "impostor") g.geometry = GlGeometry::impostor;
-  else if (o.geometry == "mesh") g.geometry = GlGeometry::mesh;
-  else return R::failure("--geometry: expected impostor or mesh, got '" + o.geometry + "'");
-  if (o.counter == "ssbo") g.counter = GlCounter::ssbo;
-  else if (o.counter == "atomic_uint") g.counter = GlCounter::atomic_uint;
-  else return R::failure("--counter: expected ssbo or atomic_uint, got '" + o.counter + "'");
+  if (o.geometry == "impostor")
+    g.geometry = GlGeometry::impostor;
+  else if (o.geometry == "mesh")
+    g.geometry = GlGeometry::mesh;
+  else
+    return R::failure("--geometry: expected impostor or mesh, got '" + o.geometry + "'");
+  if (o.counter == "ssbo")
+    g.counter = GlCounter::ssbo;
+  else if (o.counter == "atomic_uint")
+    g.counter = GlCounter::atomic_uint;
+  else
+    return R::failure("--counter: expected ssbo or atomic_uint, got '" + o.counter + "'");
   return make_gl_detector(config, g);
 }
 
@@ -65,21 +73,29 @@ Result<std::pair<int, int>> parse_size(std::string_view text, std::string_view o
     return ec == std::errc() && p == s.data() + s.size() && v >= 1 && v <= 65536;
   };
   if (x == std::string_view::npos || !num(text.substr(0, x), w) || !num(text.substr(x + 1), h))
-    return Result<std::pair<int, int>>::failure(std::string(option) + ": expected WIDTHxHEIGHT such as 1280x720, got '" +
-                                                std::string(text) + "'");
+    return Result<std::pair<int, int>>::failure(
+        std::string(option) + ": expected WIDTHxHEIGHT such as 1280x720, got '" + std::string(text) + "'");
   return std::pair{w, h};
 }
 
 Result<Config> make_config(const PipelineOptions& o) {
   Config c;
-  if (o.bits == "adaptive") c.bits = Bits::adaptive;
-  else if (o.bits == "16") c.bits = Bits::b16;
-  else if (o.bits == "32") c.bits = Bits::b32;
-  else if (o.bits == "64") c.bits = Bits::b64;
-  else return Result<Config>::failure("--bits: expected adaptive, 16, 32 or 64, got '" + o.bits + "'");
-  if (o.layout == "extended") c.layout = Layout::extended;
-  else if (o.layout == "plain") c.layout = Layout::plain;
-  else return Result<Config>::failure("--layout: expected extended or plain, got '" + o.layout + "'");
+  if (o.bits == "adaptive")
+    c.bits = Bits::adaptive;
+  else if (o.bits == "16")
+    c.bits = Bits::b16;
+  else if (o.bits == "32")
+    c.bits = Bits::b32;
+  else if (o.bits == "64")
+    c.bits = Bits::b64;
+  else
+    return Result<Config>::failure("--bits: expected adaptive, 16, 32 or 64, got '" + o.bits + "'");
+  if (o.layout == "extended")
+    c.layout = Layout::extended;
+  else if (o.layout == "plain")
+    c.layout = Layout::plain;
+  else
+    return Result<Config>::failure("--layout: expected extended or plain, got '" + o.layout + "'");
   if (!(o.lambda >= 0)) return Result<Config>::failure("--lambda: expected a number >= 0");
   if (!(o.a >= 0 && o.b >= o.a)) return Result<Config>::failure("-a/-b: expected 0 <= a <= b");
   c.lambda = o.lambda;

@@ -20,8 +20,8 @@ bool assert_failed(const char* expr, const char* message, const char* file, int 
 #endif
 
 #ifdef VISCD_ENABLE_ASSERTS
-#define VISCD_ASSERT(cond, msg)                                                        \
-  do {                                                                                 \
+#define VISCD_ASSERT(cond, msg)                                                               \
+  do {                                                                                        \
     if (!(cond) && !::viscd::assert_failed(#cond, msg, __FILE__, __LINE__)) __builtin_trap(); \
   } while (false)
 /// Code that exists only when asserts are on.

@@ -29,8 +29,7 @@ class Detector {
   /// Fails (and leaves `out` unspecified) on invalid spheres (non-finite, negative radius,
   /// beyond kMaxCoordinate), an invalid camera, more than 2^31 - 1 objects, or pairs beyond
   /// Config::pair_memory_cap.
-  [[nodiscard]] virtual Status detect(std::span<const Sphere> spheres, const Camera* camera,
-                                      FrameResult& out) = 0;
+  [[nodiscard]] virtual Status detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) = 0;
 
   /// Backend name: "reference", "cpu", "gl".
   [[nodiscard]] virtual std::string_view name() const = 0;
@@ -54,8 +53,7 @@ class Detector {
 /// The fast CPU backend: LBVH on all cores (OpenMP), tiled sphere rasterizer.
 [[nodiscard]] std::unique_ptr<Detector> make_cpu_detector(const Config& config = {});
 /// A backend by name ("reference", "cpu", or "gl" when built with VISCD_ENABLE_GL).
-[[nodiscard]] Result<std::unique_ptr<Detector>> make_detector(std::string_view backend,
-                                                              const Config& config = {});
+[[nodiscard]] Result<std::unique_ptr<Detector>> make_detector(std::string_view backend, const Config& config = {});
 
 /// Largest number of pairs N objects can produce, N(N-1)/2: the capacity that always suffices.
 [[nodiscard]] constexpr std::uint64_t max_pairs_bound(std::uint64_t n) { return n < 2 ? 0 : n * (n - 1) / 2; }

@@ -33,13 +33,13 @@ inline constexpr std::size_t kStageCount = static_cast<std::size_t>(Stage::count
 
 /// Numbers describing one frame.
 struct FrameStats {
-  std::uint32_t objects = 0;   ///< N, all input spheres
-  std::uint32_t active = 0;    ///< objects given to the broadphase (N when culling is off)
-  bool has_camera = false;     ///< false: no visibility stages ran and mu is undefined
-  double mean_pixels = 0;      ///< mu: total covered screen pixels / N (0 without camera)
-  int bits = 0;                ///< Morton width m used this frame: 16, 32 or 64
-  std::string layout;          ///< e.g. "x(7)→z(6)→y(3)"
-  std::uint64_t pairs = 0;     ///< number of colliding pairs
+  std::uint32_t objects = 0;                   ///< N, all input spheres
+  std::uint32_t active = 0;                    ///< objects given to the broadphase (N when culling is off)
+  bool has_camera = false;                     ///< false: no visibility stages ran and mu is undefined
+  double mean_pixels = 0;                      ///< mu: total covered screen pixels / N (0 without camera)
+  int bits = 0;                                ///< Morton width m used this frame: 16, 32 or 64
+  std::string layout;                          ///< e.g. "x(7)→z(6)→y(3)"
+  std::uint64_t pairs = 0;                     ///< number of colliding pairs
   std::array<double, kStageCount> stage_ms{};  ///< wall (cpu) or GPU (gl) milliseconds per stage
   [[nodiscard]] double total_ms() const;
 };

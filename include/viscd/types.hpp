@@ -36,14 +36,14 @@ enum class ObjectState : std::uint8_t {
 /// A pinhole camera: right-handed look-at, OpenGL clip space (the view looks down -z).
 /// `width` x `height` is the screen in pixels; pixel counts are always given in screen pixels.
 struct Camera {
-  float eye[3] = {0, 0, 10};     ///< position, world units
-  float target[3] = {0, 0, 0};   ///< point looked at, world units
-  float up[3] = {0, 1, 0};       ///< up direction (need not be unit length)
-  float fov_y_deg = 60;          ///< vertical field of view, degrees, in (0, 180)
-  float near_plane = 0.1f;       ///< distance of the near plane along the view direction, > 0
-  float far_plane = 1000;        ///< distance of the far plane, > near_plane
-  int width = 1280;              ///< screen width in pixels, >= 1
-  int height = 720;              ///< screen height in pixels, >= 1
+  float eye[3] = {0, 0, 10};    ///< position, world units
+  float target[3] = {0, 0, 0};  ///< point looked at, world units
+  float up[3] = {0, 1, 0};      ///< up direction (need not be unit length)
+  float fov_y_deg = 60;         ///< vertical field of view, degrees, in (0, 180)
+  float near_plane = 0.1f;      ///< distance of the near plane along the view direction, > 0
+  float far_plane = 1000;       ///< distance of the far plane, > near_plane
+  int width = 1280;             ///< screen width in pixels, >= 1
+  int height = 720;             ///< screen height in pixels, >= 1
 };
 
 }  // namespace viscd

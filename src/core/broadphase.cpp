@@ -42,28 +42,37 @@ void sort_pair_keys(std::vector<std::uint64_t>& keys, std::uint32_t max_index, i
 }
 
 template <>
-std::vector<std::uint16_t>& LbvhBroadphase::keys<std::uint16_t>() { return keys16_; }
+std::vector<std::uint16_t>& LbvhBroadphase::keys<std::uint16_t>() {
+  return keys16_;
+}
 template <>
-std::vector<std::uint32_t>& LbvhBroadphase::keys<std::uint32_t>() { return keys32_; }
+std::vector<std::uint32_t>& LbvhBroadphase::keys<std::uint32_t>() {
+  return keys32_;
+}
 template <>
-std::vector<std::uint64_t>& LbvhBroadphase::keys<std::uint64_t>() { return keys64_; }
+std::vector<std::uint64_t>& LbvhBroadphase::keys<std::uint64_t>() {
+  return keys64_;
+}
 
 std::uint64_t LbvhBroadphase::memory_bytes() const {
   auto bytes = [](const auto& v) { return static_cast<std::uint64_t>(v.capacity()) * sizeof(v[0]); };
-  std::uint64_t b = bytes(keys16_) + bytes(keys32_) + bytes(keys64_) + bytes(scratch16_.keys) + bytes(scratch16_.values) +
-                    bytes(scratch32_.keys) + bytes(scratch32_.values) + bytes(scratch64_.keys) +
-                    bytes(scratch64_.values) + bytes(sorted_ids_) + bytes(sorted_spheres_) + bytes(leaf_boxes_) +
-                    bytes(bvh_.nodes) + bytes(bvh_.parent) + bytes(bvh_.leaf_parent) + bytes(bvh_.arrivals) +
-                    bytes(pair_keys_) + bytes(pair_scratch_.keys);
+  std::uint64_t b = bytes(keys16_) + bytes(keys32_) + bytes(keys64_) + bytes(scratch16_.keys) +
+                    bytes(scratch16_.values) + bytes(scratch32_.keys) + bytes(scratch32_.values) +
+                    bytes(scratch64_.keys) + bytes(scratch64_.values) + bytes(sorted_ids_) + bytes(sorted_spheres_) +
+                    bytes(leaf_boxes_) + bytes(bvh_.nodes) + bytes(bvh_.parent) + bytes(bvh_.leaf_parent) +
+                    bytes(bvh_.arrivals) + bytes(pair_keys_) + bytes(pair_scratch_.keys);
   for (const auto& t : thread_pairs_) b += bytes(t);
   return b;
 }
 
 std::vector<std::uint64_t> LbvhBroadphase::sorted_codes() const {
   switch (bits_) {
-    case 16: return {keys16_.begin(), keys16_.begin() + static_cast<std::ptrdiff_t>(sorted_ids_.size())};
-    case 32: return {keys32_.begin(), keys32_.begin() + static_cast<std::ptrdiff_t>(sorted_ids_.size())};
-    default: return {keys64_.begin(), keys64_.begin() + static_cast<std::ptrdiff_t>(sorted_ids_.size())};
+    case 16:
+      return {keys16_.begin(), keys16_.begin() + static_cast<std::ptrdiff_t>(sorted_ids_.size())};
+    case 32:
+      return {keys32_.begin(), keys32_.begin() + static_cast<std::ptrdiff_t>(sorted_ids_.size())};
+    default:
+      return {keys64_.begin(), keys64_.begin() + static_cast<std::ptrdiff_t>(sorted_ids_.size())};
   }
 }
 
@@ -79,16 +88,19 @@ Status LbvhBroadphase::run(std::span<const Sphere> spheres, std::span<const std:
   layout_.write(stats.layout);
   stats.stage_ms[static_cast<std::size_t>(Stage::layout)] = sw.lap();
   switch (bits) {
-    case 16: return run_keys<std::uint16_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);
-    case 32: return run_keys<std::uint32_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);
-    default: return run_keys<std::uint64_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);
+    case 16:
+      return run_keys<std::uint16_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);
+    case 32:
+      return run_keys<std::uint32_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);
+    default:
+      return run_keys<std::uint64_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);
   }
 }
 
 template <class K>
 Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
-                                const Aabb& bounds, int threads, std::size_t pair_memory_cap,
-                                std::vector<Pair>& pairs, FrameStats& stats) {
+                                const Aabb& bounds, int threads, std::size_t pair_memory_cap, std::vector<Pair>& pairs,
+                                FrameStats& stats) {
   auto ms = [&](Stage s) -> double& { return stats.stage_ms[static_cast<std::size_t>(s)]; };
   Stopwatch sw;
   const std::size_t n = active.size();
@@ -110,9 +122,12 @@ Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const
 
   // Stage 6: sort.
   RadixScratch<K>* scratch = nullptr;
-  if constexpr (sizeof(K) == 2) scratch = &scratch16_;
-  else if constexpr (sizeof(K) == 4) scratch = &scratch32_;
-  else scratch = &scratch64_;
+  if constexpr (sizeof(K) == 2)
+    scratch = &scratch16_;
+  else if constexpr (sizeof(K) == 4)
+    scratch = &scratch32_;
+  else
+    scratch = &scratch64_;
   radix_sort<K>(std::span<K>(key.data(), n), std::span<std::uint32_t>(sorted_ids_.data(), n), 8 * sizeof(K), threads,
                 *scratch);
   ms(Stage::sort) = sw.lap();

@@ -13,7 +13,7 @@ namespace viscd {
 
 #ifdef VISCD_HAVE_GL
 Result<std::unique_ptr<Detector>> make_gl_detector_result(const Config& config);  // src/gl
-Result<std::string> gl_device_description();                                        // src/gl
+Result<std::string> gl_device_description();                                      // src/gl
 #else
 Result<std::unique_ptr<Detector>> make_gl_detector(const Config&, const GlOptions&) {
   return Result<std::unique_ptr<Detector>>::failure("backend 'gl' is not built in (configure with VISCD_ENABLE_GL=ON)");
@@ -41,7 +41,8 @@ Result<std::unique_ptr<Detector>> make_detector(std::string_view backend, const 
 #ifdef VISCD_HAVE_GL
     return make_gl_detector_result(config);
 #else
-    return Result<std::unique_ptr<Detector>>::failure("backend 'gl' is not built in (configure with VISCD_ENABLE_GL=ON)");
+    return Result<std::unique_ptr<Detector>>::failure(
+        "backend 'gl' is not built in (configure with VISCD_ENABLE_GL=ON)");
 #endif
   }
   return Result<std::unique_ptr<Detector>>::failure("unknown backend '" + std::string(backend) +
@@ -70,7 +71,8 @@ Status validate_spheres(std::span<const Sphere> spheres) {
 
 Status validate_camera(const Camera& c) {
   auto finite3 = [](const float* v) { return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]); };
-  if (!finite3(c.eye) || !finite3(c.target) || !finite3(c.up)) return Status::failure("camera: eye, target and up must be finite");
+  if (!finite3(c.eye) || !finite3(c.target) || !finite3(c.up))
+    return Status::failure("camera: eye, target and up must be finite");
   if (c.width < 1 || c.height < 1) return Status::failure("camera: width and height must be at least 1 pixel");
   if (!(c.fov_y_deg > 0 && c.fov_y_deg < 180)) return Status::failure("camera: fov_y_deg must be in (0, 180)");
   if (!(c.near_plane > 0 && c.far_plane > c.near_plane && std::isfinite(c.far_plane)))
@@ -81,7 +83,8 @@ Status validate_camera(const Camera& c) {
   const double u[3] = {c.up[0], c.up[1], c.up[2]};
   const double cx = f[1] * u[2] - f[2] * u[1], cy = f[2] * u[0] - f[0] * u[2], cz = f[0] * u[1] - f[1] * u[0];
   const double ul = std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
-  if (!(std::sqrt(cx * cx + cy * cy + cz * cz) > 1e-6 * fl * ul)) return Status::failure("camera: up is zero or parallel to the view direction");
+  if (!(std::sqrt(cx * cx + cy * cy + cz * cz) > 1e-6 * fl * ul))
+    return Status::failure("camera: up is zero or parallel to the view direction");
   return {};
 }
 

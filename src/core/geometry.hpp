@@ -29,8 +29,7 @@ struct Aabb {
     hi = {std::max(hi.x, x), std::max(hi.y, y), std::max(hi.z, z)};
   }
   [[nodiscard]] bool contains(const Aabb& b) const {
-    return lo.x <= b.lo.x && lo.y <= b.lo.y && lo.z <= b.lo.z && hi.x >= b.hi.x && hi.y >= b.hi.y &&
-           hi.z >= b.hi.z;
+    return lo.x <= b.lo.x && lo.y <= b.lo.y && lo.z <= b.lo.z && hi.x >= b.hi.x && hi.y >= b.hi.y && hi.z >= b.hi.z;
   }
 };
 

@@ -110,7 +110,8 @@ void fit_lbvh(std::span<const Aabb> leaf_boxes, Lbvh& bvh, int threads) {
       BvhNode& nd = bvh.nodes[node];
       nd.box[nd.child[0] == child ? 0 : 1] = box;
       // acq_rel: the first arrival's box write is visible to the second arrival, which merges.
-      const std::uint32_t before = std::atomic_ref<std::uint32_t>(bvh.arrivals[node]).fetch_add(1, std::memory_order_acq_rel);
+      const std::uint32_t before =
+          std::atomic_ref<std::uint32_t>(bvh.arrivals[node]).fetch_add(1, std::memory_order_acq_rel);
       if (before == 0) break;
       box = nd.box[0];
       box.grow(nd.box[1]);
@@ -176,8 +177,11 @@ std::string validate_lbvh(const Lbvh& bvh, std::span<const Aabb> leaf_boxes) {
       const std::uint32_t ch = nd.child[c];
       const Aabb& cb = (ch & kLeafBit) ? leaf_boxes[ch & ~kLeafBit] : box[ch];
       const std::uint32_t cl = (ch & kLeafBit) ? (ch & ~kLeafBit) : last[ch];
-      if (!nd.box[c].contains(cb)) return "box of child " + std::to_string(c) + " of node " + std::to_string(*it) + " does not contain its subtree";
-      if (nd.last[c] != cl) return "last position of child " + std::to_string(c) + " of node " + std::to_string(*it) + " is wrong";
+      if (!nd.box[c].contains(cb))
+        return "box of child " + std::to_string(c) + " of node " + std::to_string(*it) +
+               " does not contain its subtree";
+      if (nd.last[c] != cl)
+        return "last position of child " + std::to_string(c) + " of node " + std::to_string(*it) + " is wrong";
       b.grow(cb);
       l = std::max(l, cl);
     }
@@ -196,8 +200,10 @@ int lbvh_depth(const Lbvh& bvh) {
     auto [node, d] = stack.back();
     stack.pop_back();
     for (std::uint32_t ch : bvh.nodes[node].child) {
-      if (ch & kLeafBit) deepest = std::max(deepest, d + 1);
-      else stack.push_back({ch, d + 1});
+      if (ch & kLeafBit)
+        deepest = std::max(deepest, d + 1);
+      else
+        stack.push_back({ch, d + 1});
     }
   }
   return deepest;

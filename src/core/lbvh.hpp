@@ -47,10 +47,10 @@ static_assert(sizeof(BvhNode) == 64);
 
 struct Lbvh {
   std::uint32_t leaves = 0;
-  std::vector<BvhNode> nodes;             // leaves - 1 internal nodes, root = 0
-  std::vector<std::uint32_t> parent;      // parent of each internal node (root: kNoParent)
-  std::vector<std::uint32_t> leaf_parent; // parent of each leaf
-  std::vector<std::uint32_t> arrivals;    // fit: arrival counters, one per internal node
+  std::vector<BvhNode> nodes;              // leaves - 1 internal nodes, root = 0
+  std::vector<std::uint32_t> parent;       // parent of each internal node (root: kNoParent)
+  std::vector<std::uint32_t> leaf_parent;  // parent of each leaf
+  std::vector<std::uint32_t> arrivals;     // fit: arrival counters, one per internal node
   Aabb root_box;
 };
 
@@ -114,8 +114,10 @@ inline void for_each_overlap_after(const Lbvh& bvh, std::uint32_t p, const Aabb&
   while (node != kNoParent) {
     const BvhNode& nd = bvh.nodes[node];
     if (nd.child[0] == child && overlaps(nd.box[1], box)) {
-      if (nd.child[1] & kLeafBit) f(nd.child[1] & ~kLeafBit);
-      else for_each_overlap_in_subtree(bvh, nd.child[1], box, f);
+      if (nd.child[1] & kLeafBit)
+        f(nd.child[1] & ~kLeafBit);
+      else
+        for_each_overlap_in_subtree(bvh, nd.child[1], box, f);
     }
     child = node;
     node = bvh.parent[node];

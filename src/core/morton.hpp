@@ -21,8 +21,8 @@
 namespace viscd::detail {
 
 struct MortonLayout {
-  int bits = 32;                           ///< m: code width, 16, 32 or 64
-  std::array<int, 3> axis_bits{};          ///< bits given to x, y, z (sum <= bits)
+  int bits = 32;                               ///< m: code width, 16, 32 or 64
+  std::array<int, 3> axis_bits{};              ///< bits given to x, y, z (sum <= bits)
   std::array<std::uint8_t, 3> order{0, 1, 2};  ///< axes, the one that gets the first (highest) bit first
   /// Code bit position (0 = least significant) of each axis bit, indexed [axis][bit of axis value].
   std::array<std::array<std::int8_t, 32>, 3> position{};

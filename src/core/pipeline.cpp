@@ -9,19 +9,24 @@
 namespace viscd::detail {
 
 std::uint64_t PipelineDetector::memory_bytes() const {
-  std::uint64_t b = bytes_of(map_.ids) + bytes_of(map_.depth) + bytes_of(map_.normal) + bytes_of(counts_) +
-                    bytes_of(active_);
+  std::uint64_t b =
+      bytes_of(map_.ids) + bytes_of(map_.depth) + bytes_of(map_.normal) + bytes_of(counts_) + bytes_of(active_);
   for (const auto& s : count_scratch_) b += bytes_of(s);
   return b + backend_memory_bytes();
 }
 
-Status PipelineDetector::detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) {
+Status validate_frame(std::span<const Sphere> spheres, const Camera* camera, const Config& config) {
   if (Status s = validate_spheres(spheres); !s) return s;
   if (camera) {
     if (Status s = validate_camera(*camera); !s) return s;
-    if (config_.map_width < 0 || config_.map_height < 0 || (config_.map_width == 0) != (config_.map_height == 0))
+    if (config.map_width < 0 || config.map_height < 0 || (config.map_width == 0) != (config.map_height == 0))
       return Status::failure("visibility map size must be W x H with both positive, or 0 x 0 for the screen size");
   }
+  return {};
+}
+
+Status PipelineDetector::detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) {
+  if (Status s = validate_frame(spheres, camera, config_); !s) return s;
   const int threads = resolve_threads(config_.threads);
   const std::size_t n = spheres.size();
   FrameStats& stats = out.stats;

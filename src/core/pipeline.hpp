@@ -17,6 +17,9 @@ std::uint64_t bytes_of(const std::vector<T>& v) {
   return static_cast<std::uint64_t>(v.capacity()) * sizeof(T);
 }
 
+/// The checks every backend makes on a frame's input: spheres, camera, and the map size.
+[[nodiscard]] Status validate_frame(std::span<const Sphere> spheres, const Camera* camera, const Config& config);
+
 class PipelineDetector : public Detector {
  public:
   [[nodiscard]] Status detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) final;

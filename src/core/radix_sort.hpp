@@ -34,8 +34,8 @@ struct RadixScratch {
   std::vector<std::array<std::uint32_t, 256>> histograms;  // per thread
 };
 
-/// Sorts keys[0..n) ascending, carrying values along (pass an empty `values` to sort keys only). `key_bits` (<= 8 * sizeof(K)) bounds the
-/// bits that may be non-zero; passes above it are not run. Uses up to `threads` threads.
+/// Sorts keys[0..n) ascending, carrying values along (pass an empty `values` to sort keys only). `key_bits` (<= 8 *
+/// sizeof(K)) bounds the bits that may be non-zero; passes above it are not run. Uses up to `threads` threads.
 template <class K>
 void radix_sort(std::span<K> keys, std::span<std::uint32_t> values, int key_bits, int threads,
                 RadixScratch<K>& scratch) {

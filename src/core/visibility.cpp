@@ -48,7 +48,8 @@ void VisibilityMap::resize(int w, int h, bool with_normals) {
 }
 
 void write_normal(const CameraRig& cam, std::span<const Sphere> spheres, VisibilityMap& map, int px, int py) {
-  const std::size_t i = static_cast<std::size_t>(py) * static_cast<std::size_t>(map.width) + static_cast<std::size_t>(px);
+  const std::size_t i =
+      static_cast<std::size_t>(py) * static_cast<std::size_t>(map.width) + static_cast<std::size_t>(px);
   float* n = &map.normal[3 * i];
   const std::uint32_t id = map.ids[i];
   if (id == 0) {
@@ -80,7 +81,8 @@ void rasterize_reference(const CameraRig& cam, std::span<const Sphere> spheres, 
           best_id = static_cast<std::uint32_t>(k + 1);
         }
       }
-      const std::size_t i = static_cast<std::size_t>(py) * static_cast<std::size_t>(map.width) + static_cast<std::size_t>(px);
+      const std::size_t i =
+          static_cast<std::size_t>(py) * static_cast<std::size_t>(map.width) + static_cast<std::size_t>(px);
       map.ids[i] = best_id;
       map.depth[i] = best_id ? best : cam.far_plane;
       if (!map.normal.empty()) write_normal(cam, spheres, map, px, py);
@@ -180,8 +182,8 @@ void shade(const CameraRig& cam, const VisibilityMap& map, std::span<const Objec
       continue;
     }
     const std::uint8_t* base = state[id - 1] == ObjectState::colliding ? kColourColliding
-                               : state[id - 1] == ObjectState::free     ? kColourFree
-                                                                        : kColourCulled;
+                               : state[id - 1] == ObjectState::free    ? kColourFree
+                                                                       : kColourCulled;
     const Vec3 nrm = {map.normal[3 * i], map.normal[3 * i + 1], map.normal[3 * i + 2]};
     // Lambert plus a little ambient and a rim from the view direction, so spheres read as round.
     const float diffuse = std::max(0.0f, dot(nrm, light));

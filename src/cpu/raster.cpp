@@ -43,8 +43,9 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
     if (r.x0 >= r.x1 || r.y0 >= r.y1) continue;
     for (int ty = r.y0 / kTile; ty <= (r.y1 - 1) / kTile; ++ty)
       for (int tx = r.x0 / kTile; tx <= (r.x1 - 1) / kTile; ++tx) {
-        const std::uint32_t slot = std::atomic_ref<std::uint32_t>(tile_count_[static_cast<std::size_t>(ty * tiles_x + tx)])
-                                       .fetch_add(1, std::memory_order_relaxed);
+        const std::uint32_t slot =
+            std::atomic_ref<std::uint32_t>(tile_count_[static_cast<std::size_t>(ty * tiles_x + tx)])
+                .fetch_add(1, std::memory_order_relaxed);
         tile_items_[slot] = static_cast<std::uint32_t>(k);
       }
   }
@@ -52,9 +53,10 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
   // Rasterise tiles in parallel; every pixel belongs to exactly one tile.
   const bool normals = !map.normal.empty();
   const std::size_t W = static_cast<std::size_t>(map.width);
-#pragma omp parallel for num_threads(threads_for(tiles * kTile * kTile, threads)) schedule(dynamic, 1)
+#pragma omp parallel for num_threads(threads_for(tiles* kTile* kTile, threads)) schedule(dynamic, 1)
   for (std::size_t t = 0; t < tiles; ++t) {
-    const int tx = static_cast<int>(t % static_cast<std::size_t>(tiles_x)), ty = static_cast<int>(t / static_cast<std::size_t>(tiles_x));
+    const int tx = static_cast<int>(t % static_cast<std::size_t>(tiles_x)),
+              ty = static_cast<int>(t / static_cast<std::size_t>(tiles_x));
     const int x0 = tx * kTile, y0 = ty * kTile;
     const int x1 = std::min(x0 + kTile, map.width), y1 = std::min(y0 + kTile, map.height);
     float best[kTile * kTile];
@@ -95,7 +97,8 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
         // Branch-free body (vectorises): both roots, then the same choice hit() makes.
         for (int i = xa; i < xb; ++i) {
           const float nx = nxs[i];
-          const float dx = f.x + rt.x * nx + up.x * ny, dy = f.y + rt.y * nx + up.y * ny, dz = f.z + rt.z * nx + up.z * ny;
+          const float dx = f.x + rt.x * nx + up.x * ny, dy = f.y + rt.y * nx + up.y * ny,
+                      dz = f.z + rt.z * nx + up.z * ny;
           const float a = dx * dx + dy * dy + dz * dz;
           const float b = ox * dx + oy * dy + oz * dz;
           const float disc = b * b - a * c;

@@ -70,8 +70,10 @@ std::string parse_sphere(const std::vector<std::string_view>& f, Sphere& s) {
     }
     if (ec != std::errc() || ptr != t.data() + t.size() || t.empty())
       return std::string(kName[c]) + ": expected a number, found '" + std::string(f[c]) + "'";
-    if (!std::isfinite(v[c])) return std::string(kName[c]) + " = " + std::string(f[c]) + " is not finite (NaN and infinity are not allowed)";
-    if (std::fabs(v[c]) > kMaxCoordinate) return std::string(kName[c]) + " = " + std::string(f[c]) + " exceeds the supported magnitude 1e18";
+    if (!std::isfinite(v[c]))
+      return std::string(kName[c]) + " = " + std::string(f[c]) + " is not finite (NaN and infinity are not allowed)";
+    if (std::fabs(v[c]) > kMaxCoordinate)
+      return std::string(kName[c]) + " = " + std::string(f[c]) + " exceeds the supported magnitude 1e18";
   }
   if (v[3] < 0) return "r = " + std::string(f[3]) + " is negative (a radius must be >= 0)";
   s = Sphere{v[0], v[1], v[2], v[3]};
@@ -168,8 +170,8 @@ Result<Camera> parse_camera(std::string_view text, std::string_view source) {
     for (std::size_t i = 0; i < std::min<std::size_t>(e.byte, text.size()); ++i) line += text[i] == '\n';
     std::string what = e.what();
     const auto colon = what.rfind(": ");
-    return Result<Camera>::failure(where(source, line) + "invalid JSON: " +
-                                   (colon == std::string::npos ? what : what.substr(colon + 2)));
+    return Result<Camera>::failure(where(source, line) +
+                                   "invalid JSON: " + (colon == std::string::npos ? what : what.substr(colon + 2)));
   }
   auto fail = [&](const std::string& m) { return Result<Camera>::failure(std::string(source) + ": " + m); };
   if (!j.is_object()) return fail("expected a JSON object {\"eye\": [x,y,z], ...}");
@@ -195,15 +197,24 @@ Result<Camera> parse_camera(std::string_view text, std::string_view source) {
       return {};
     };
     std::string e;
-    if (key == "eye") e = vec3(c.eye);
-    else if (key == "target") e = vec3(c.target);
-    else if (key == "up") e = vec3(c.up);
-    else if (key == "fov_y_deg") e = number(c.fov_y_deg);
-    else if (key == "near") e = number(c.near_plane);
-    else if (key == "far") e = number(c.far_plane);
-    else if (key == "width") e = integer(c.width);
-    else if (key == "height") e = integer(c.height);
-    else e = "unknown key \"" + key + "\" (expected eye, target, up, fov_y_deg, near, far, width, height)";
+    if (key == "eye")
+      e = vec3(c.eye);
+    else if (key == "target")
+      e = vec3(c.target);
+    else if (key == "up")
+      e = vec3(c.up);
+    else if (key == "fov_y_deg")
+      e = number(c.fov_y_deg);
+    else if (key == "near")
+      e = number(c.near_plane);
+    else if (key == "far")
+      e = number(c.far_plane);
+    else if (key == "width")
+      e = integer(c.width);
+    else if (key == "height")
+      e = integer(c.height);
+    else
+      e = "unknown key \"" + key + "\" (expected eye, target, up, fov_y_deg, near, far, width, height)";
     if (!e.empty()) return fail(e);
   }
   if (Status s = validate_camera(c); !s) return fail(s.error().substr(s.error().find(": ") + 2));

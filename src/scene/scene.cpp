@@ -121,9 +121,12 @@ Result<SceneKind> parse_scene_kind(std::string_view name) {
 
 std::string_view scene_kind_name(SceneKind kind) {
   switch (kind) {
-    case SceneKind::ring: return "ring";
-    case SceneKind::box: return "box";
-    case SceneKind::clusters: return "clusters";
+    case SceneKind::ring:
+      return "ring";
+    case SceneKind::box:
+      return "box";
+    case SceneKind::clusters:
+      return "clusters";
   }
   return "?";
 }

@@ -33,8 +33,8 @@ void check_exact(const std::vector<Sphere>& spheres, const std::string& what) {
     c.threads = v.threads;
     detail::CpuDetector det(c);
     FrameResult f = test::run_frame(det, spheres);
-    ASSERT_TRUE(same_pairs(f.pairs, want)) << what << ", m=" << static_cast<int>(v.bits)
-                                           << (v.layout == Layout::plain ? " plain" : " extended");
+    ASSERT_TRUE(same_pairs(f.pairs, want))
+        << what << ", m=" << static_cast<int>(v.bits) << (v.layout == Layout::plain ? " plain" : " extended");
     EXPECT_EQ(f.stats.pairs, want.size());
     EXPECT_EQ(f.stats.bits, static_cast<int>(v.bits));
     const auto& bp = det.lbvh();
@@ -206,10 +206,11 @@ TEST(CpuBroadphase, PairMemoryCapIsAnError) {
 
 TEST(CpuBroadphase, InvalidSpheresAreErrors) {
   const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
-  const std::vector<std::pair<Sphere, std::string>> bad = {
-      {{nan, 0, 0, 1}, "x is not a finite"}, {{0, inf, 0, 1}, "y is not a finite"},
-      {{0, 0, 0, -1}, "negative radius"},     {{0, 0, 2e18f, 1}, "exceeds"},
-      {{0, 0, 0, nan}, "r is not a finite"}};
+  const std::vector<std::pair<Sphere, std::string>> bad = {{{nan, 0, 0, 1}, "x is not a finite"},
+                                                           {{0, inf, 0, 1}, "y is not a finite"},
+                                                           {{0, 0, 0, -1}, "negative radius"},
+                                                           {{0, 0, 2e18f, 1}, "exceeds"},
+                                                           {{0, 0, 0, nan}, "r is not a finite"}};
   for (const auto& [sphere, phrase] : bad) {
     std::vector<Sphere> s = random_spheres(10, 1);
     s[7] = sphere;

@@ -48,8 +48,10 @@ void check_against_reference(const std::vector<Sphere>& s, const Camera& cam, Co
   EXPECT_TRUE(same_pairs(fr.pairs, want)) << what;
   for (std::uint32_t k = 0; k < s.size(); ++k) {
     const bool is_active = std::binary_search(active.begin(), active.end(), k);
-    if (!is_active) ASSERT_EQ(fc.state[k], ObjectState::culled) << what << " object " << k;
-    else ASSERT_NE(fc.state[k], ObjectState::culled) << what << " object " << k;
+    if (!is_active)
+      ASSERT_EQ(fc.state[k], ObjectState::culled) << what << " object " << k;
+    else
+      ASSERT_NE(fc.state[k], ObjectState::culled) << what << " object " << k;
   }
 }
 
@@ -106,9 +108,9 @@ TEST(Visibility, CameraInsideASphereSeesItsInside) {
 }
 
 TEST(Visibility, BehindTheCameraAndBeyondFarAreInvisible) {
-  const std::vector<Sphere> s = {{0, 0, 20, 1},      // behind the eye (looking down -z)
-                                 {0, 0, -600, 5},    // beyond far = 500
-                                 {0, 0, -20, 1}};    // visible
+  const std::vector<Sphere> s = {{0, 0, 20, 1},    // behind the eye (looking down -z)
+                                 {0, 0, -600, 5},  // beyond far = 500
+                                 {0, 0, -20, 1}};  // visible
   const Camera cam = camera_at(0, 0, 0, 0, 0, -1, 64, 48);
   Config c;
   c.lambda = 1;
@@ -132,10 +134,10 @@ TEST(Visibility, MeanPixelsAndBitsAtTheThresholds) {
     EXPECT_DOUBLE_EQ(f.stats.mean_pixels, 100.0);
     return f.stats.bits;
   };
-  EXPECT_EQ(bits_for(100, 400), 32);     // mu == a
-  EXPECT_EQ(bits_for(100.01f, 400), 16); // mu just below a
-  EXPECT_EQ(bits_for(50, 100), 64);      // mu == b
-  EXPECT_EQ(bits_for(50, 100.01f), 32);  // mu just below b
+  EXPECT_EQ(bits_for(100, 400), 32);      // mu == a
+  EXPECT_EQ(bits_for(100.01f, 400), 16);  // mu just below a
+  EXPECT_EQ(bits_for(50, 100), 64);       // mu == b
+  EXPECT_EQ(bits_for(50, 100.01f), 32);   // mu just below b
   Config fixed;
   fixed.bits = Bits::b64;
   EXPECT_EQ(test::run_frame(*make_cpu_detector(fixed), s, &cam).stats.bits, 64);
