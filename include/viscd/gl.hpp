@@ -36,6 +36,18 @@ struct GlOptions {
   bool debug = false;
   /// Pairs the pair buffer holds before its first growth. Default 65536 (512 KiB).
   std::uint32_t initial_pair_capacity = 1u << 16;
+  /// Where m and the Morton layout (axis order, bits per axis, quantisation bounds) come from.
+  /// false (default): from the PREVIOUS frame's active count, centre bounds, mean diameter and
+  /// mu, read back with that frame's results, so the frame has no host wait before its final
+  /// readback (every dispatch after culling is sized by N and reads the active count n on the
+  /// GPU). Centres outside the previous bounds clamp to the border cells: pairs stay exact
+  /// (the tree is exact for any key order), only the codes and the tree's quality may differ
+  /// from the cpu backend's. The first frame, and a frame whose N or camera presence differs
+  /// from the previous frame's, use this frame's values as with true.
+  /// true: one mid-frame readback of this frame's values after culling; m, the layout and the
+  /// codes then equal the cpu backend's bit for bit. FrameStats::bits/layout report what was
+  /// used in both modes.
+  bool sync_layout = false;
 };
 
 /// Creates the gl backend: an EGL surfaceless OpenGL 4.5 core context of its own and the

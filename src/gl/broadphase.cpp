@@ -41,8 +41,10 @@ void GlDetector::scan(GLuint in, GLuint out, std::uint32_t n) {
 
 // LSD radix sort of uvec2 keys (and uint values) in keys[0]/values[0], 8-bit digits, stable:
 // ceil(key_bits / 8) passes (the pass count follows m), each histogram -> scan -> scatter.
-int GlDetector::radix_sort(Buffer* keys, Buffer* values, std::uint32_t n, int key_bits) {
-  if (n < 2) return 0;
+int GlDetector::radix_sort(Buffer* keys, Buffer* values, std::uint32_t n, int key_bits, bool n_from_info) {
+  if (n < 2) return 0;  // also with n_from_info: the GPU count is <= n, nothing to sort
+  // With n_from_info the tiles cover n (>= the GPU count): tiles past the count histogram zero
+  // keys, so the offsets, and the result, are the same as over the exact count.
   const std::uint32_t tiles = (n + VISCD_SORT_TILE - 1) / VISCD_SORT_TILE;
   const auto hist_bytes = static_cast<GLsizeiptr>(4) * 256 * tiles;
   hist_.reserve(hist_bytes);
@@ -51,6 +53,9 @@ int GlDetector::radix_sort(Buffer* keys, Buffer* values, std::uint32_t n, int ke
   const int passes = (key_bits + 7) / 8;
   glProgramUniform1ui(radix_hist_.get(), radix_hist_.uniform("u_n"), n);
   glProgramUniform1ui(radix_scatter_.get(), radix_scatter_.uniform("u_n"), n);
+  glProgramUniform1ui(radix_hist_.get(), radix_hist_.uniform("u_n_from_info"), n_from_info ? 1u : 0u);
+  glProgramUniform1ui(radix_scatter_.get(), radix_scatter_.uniform("u_n_from_info"), n_from_info ? 1u : 0u);
+  info_.bind_storage(VISCD_BIND_INFO);
   glProgramUniform1ui(radix_scatter_.get(), radix_scatter_.uniform("u_has_values"), values ? 1u : 0u);
   for (int pass = 0; pass < passes; ++pass) {
     const auto shift = static_cast<GLuint>(8 * pass);
@@ -90,11 +95,15 @@ void GlDetector::reserve_broadphase(std::uint32_t n) {
   leaf_boxes_.reserve(bytes(24));
 }
 
-Status GlDetector::broadphase(std::uint32_t n, std::uint32_t objects, const detail::MortonLayout& layout,
+// n = FrameInfo.active_count is read on the GPU by every pass (codes, sort, build, fit, query);
+// the host only knows the bound n_bound >= n, which sizes the dispatches and the buffers. In the
+// default mode n_bound is N; in sync mode, and in run_broadphase, it is n itself.
+Status GlDetector::broadphase(std::uint32_t n_bound, std::uint32_t objects, const detail::MortonLayout& layout,
                               const detail::Aabb& bounds, std::vector<Pair>& pairs, FrameStats& stats) {
+  const std::uint32_t n = n_bound;  // dispatch sizes below: shaders early-out at info.active_count
   reserve_broadphase(n);
-  last_n_ = n;
   last_bits_ = layout.bits;
+  info_.bind_storage(VISCD_BIND_INFO);
 
   // Stage 5: codes. The encoder parameters are MortonEncoder's, computed the same way in double.
   stage_begin(Stage::codes);
@@ -112,11 +121,11 @@ Status GlDetector::broadphase(std::uint32_t n, std::uint32_t objects, const deta
       for (int b = 0; b < layout.axis_bits[a]; ++b) position[32 * a + b] = layout.position[a][b];
     }
     const GLuint p = morton_.get();
-    glProgramUniform1ui(p, morton_.uniform("u_n"), n);
     glProgramUniform3dv(p, morton_.uniform("u_lo"), 1, lo_d);
     glProgramUniform3dv(p, morton_.uniform("u_scale"), 1, scale);
     glProgramUniform3dv(p, morton_.uniform("u_max_cell"), 1, max_cell);
-    glProgramUniform3i(p, morton_.uniform("u_axis_bits"), layout.axis_bits[0], layout.axis_bits[1], layout.axis_bits[2]);
+    glProgramUniform3i(p, morton_.uniform("u_axis_bits"), layout.axis_bits[0], layout.axis_bits[1],
+                       layout.axis_bits[2]);
     glProgramUniform1iv(p, morton_.uniform("u_position"), 96, position);
     spheres_.bind_storage(VISCD_BIND_SPHERES);
     active_.bind_storage(VISCD_BIND_ACTIVE);
@@ -129,7 +138,7 @@ Status GlDetector::broadphase(std::uint32_t n, std::uint32_t objects, const deta
 
   // Stage 6: sort (key, object index); values start ascending, the sort is stable.
   stage_begin(Stage::sort);
-  sorted_in_ = radix_sort(keys_, values_, n, layout.bits);
+  sorted_in_ = radix_sort(keys_, values_, n, layout.bits, true);
   stage_end(Stage::sort);
 
   // Stage 7: build, then fit.
@@ -137,7 +146,6 @@ Status GlDetector::broadphase(std::uint32_t n, std::uint32_t objects, const deta
   keys_[sorted_in_].bind_storage(VISCD_BIND_KEYS_IN);
   nodes_.bind_storage(VISCD_BIND_NODES);
   parent_.bind_storage(VISCD_BIND_PARENT);
-  glProgramUniform1i(build_.get(), build_.uniform("u_n"), static_cast<GLint>(n));
   glProgramUniform1i(build_.get(), build_.uniform("u_bits"), layout.bits);
   if (n >= 2) build_.dispatch(n - 1);
   barrier();
@@ -155,7 +163,6 @@ Status GlDetector::broadphase(std::uint32_t n, std::uint32_t objects, const deta
   leaf_boxes_.bind_storage(VISCD_BIND_LEAF_BOXES);
   arrivals_.bind_storage(VISCD_BIND_ARRIVALS);
   info_.bind_storage(VISCD_BIND_INFO);
-  glProgramUniform1ui(fit_.get(), fit_.uniform("u_n"), n);
   fit_.dispatch(n);
   barrier();
   stage_end(Stage::fit);
@@ -168,11 +175,14 @@ Status GlDetector::broadphase(std::uint32_t n, std::uint32_t objects, const deta
     const GLuint zero = 0;
     glNamedBufferSubData(info_.get(), offsetof(shader::FrameInfo, pair_count), 4, &zero);
     pairs_.bind_storage(VISCD_BIND_PAIRS);
-    glProgramUniform1ui(query_.get(), query_.uniform("u_n"), n);
     glProgramUniform1ui(query_.get(), query_.uniform("u_capacity"), pair_capacity_);
     query_.dispatch(n);
     barrier();
-    glGetNamedBufferSubData(info_.get(), offsetof(shader::FrameInfo, pair_count), 4, &count);  // wait 2
+    // The frame's one wait (both modes): the whole FrameInfo, i.e. the pair count and this
+    // frame's n, bounds, diameter sum and pixel total (the next frame's layout inputs).
+    glGetNamedBufferSubData(info_.get(), 0, sizeof frame_info_, &frame_info_);
+    count = frame_info_.pair_count;
+    last_n_ = frame_info_.active_count;
     if (config_.pair_memory_cap != 0 && static_cast<std::size_t>(count) * sizeof(Pair) > config_.pair_memory_cap)
       return Status::failure("frame has " + std::to_string(count) + " colliding pairs, which need " +
                              std::to_string(static_cast<std::size_t>(count) * sizeof(Pair)) +
@@ -193,7 +203,7 @@ Status GlDetector::broadphase(std::uint32_t n, std::uint32_t objects, const deta
   tmp[1] = std::move(pairs_tmp_);
   pair_bufs = tmp;
   const int key_bits = 32 + std::bit_width(objects ? objects - 1 : 0u);
-  const int in = radix_sort(pair_bufs, nullptr, count, key_bits);
+  const int in = radix_sort(pair_bufs, nullptr, count, key_bits, false);
   // Keep the sorted pairs in pairs_ (the state pass reads them).
   pairs_ = std::move(tmp[in]);
   pairs_tmp_ = std::move(tmp[1 - in]);
@@ -217,7 +227,8 @@ Status GlDetector::run_broadphase(std::span<const Sphere> spheres, std::span<con
   active_.reserve(4 * static_cast<GLsizeiptr>(n));
   states_.reserve(4 * static_cast<GLsizeiptr>(spheres.size()));
   if (n) glNamedBufferSubData(active_.get(), 0, 4 * static_cast<GLsizeiptr>(n), active.data());
-  const shader::FrameInfo zero_info{};
+  shader::FrameInfo zero_info{};
+  zero_info.active_count = n;  // the shaders read n from FrameInfo
   glNamedBufferSubData(info_.get(), 0, sizeof zero_info, &zero_info);
   const detail::ActiveExtent e = detail::active_extent(spheres, active, 1);
   const detail::MortonLayout layout = detail::make_layout(config_.layout, bits, e.bounds, e.mean_diameter);
@@ -225,7 +236,8 @@ Status GlDetector::run_broadphase(std::span<const Sphere> spheres, std::span<con
   stats.layout = layout.to_string();
   stats.active = n;
   stats.objects = static_cast<std::uint32_t>(spheres.size());
-  if (Status s = broadphase(n, static_cast<std::uint32_t>(spheres.size()), layout, e.bounds, pairs, stats); !s) return s;
+  if (Status s = broadphase(n, static_cast<std::uint32_t>(spheres.size()), layout, e.bounds, pairs, stats); !s)
+    return s;
   return gl_errors("run_broadphase()");
 }
 

@@ -25,17 +25,22 @@ Result<std::unique_ptr<Context>> Context::create(bool debug) {
   if (!client || std::string_view(client).find("EGL_MESA_platform_surfaceless") == std::string_view::npos)
     return R::failure("OpenGL: EGL has no surfaceless platform (EGL_MESA_platform_surfaceless; install libegl-mesa0)");
   ctx->display_ = eglGetPlatformDisplayEXT(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
-  if (ctx->display_ == EGL_NO_DISPLAY) return R::failure("OpenGL: " + egl_error("eglGetPlatformDisplayEXT(surfaceless)"));
+  if (ctx->display_ == EGL_NO_DISPLAY)
+    return R::failure("OpenGL: " + egl_error("eglGetPlatformDisplayEXT(surfaceless)"));
   EGLint major = 0, minor = 0;
   if (!eglInitialize(ctx->display_, &major, &minor)) {
     ctx->display_ = EGL_NO_DISPLAY;
     return R::failure("OpenGL: " + egl_error("eglInitialize"));
   }
   if (!eglBindAPI(EGL_OPENGL_API)) return R::failure("OpenGL: " + egl_error("eglBindAPI(EGL_OPENGL_API)"));
-  const EGLint attribs[] = {EGL_CONTEXT_MAJOR_VERSION, 4,
-                            EGL_CONTEXT_MINOR_VERSION, 5,
-                            EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
-                            EGL_CONTEXT_OPENGL_DEBUG, debug ? EGL_TRUE : EGL_FALSE,
+  const EGLint attribs[] = {EGL_CONTEXT_MAJOR_VERSION,
+                            4,
+                            EGL_CONTEXT_MINOR_VERSION,
+                            5,
+                            EGL_CONTEXT_OPENGL_PROFILE_MASK,
+                            EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
+                            EGL_CONTEXT_OPENGL_DEBUG,
+                            debug ? EGL_TRUE : EGL_FALSE,
                             EGL_NONE};
   // EGL_KHR_no_config_context: surfaceless contexts need no config.
   ctx->context_ = eglCreateContext(ctx->display_, EGL_NO_CONFIG_KHR, EGL_NO_CONTEXT, attribs);
@@ -81,8 +86,8 @@ void GLAPIENTRY Context::on_debug(GLenum, GLenum type, GLuint id, GLenum severit
   auto* self = static_cast<Context*>(const_cast<void*>(user));
   const bool error = type == GL_DEBUG_TYPE_ERROR || severity == GL_DEBUG_SEVERITY_HIGH;
   if (!error) return;  // performance and other notes are not failures
-  std::string text = "GL debug (id " + std::to_string(id) + "): " +
-                     std::string(message, length > 0 ? static_cast<std::size_t>(length) : std::strlen(message));
+  std::string text = "GL debug (id " + std::to_string(id) +
+                     "): " + std::string(message, length > 0 ? static_cast<std::size_t>(length) : std::strlen(message));
   std::fprintf(stderr, "viscd: %s\n", text.c_str());
   std::lock_guard lock(self->mutex_);
   self->errors_.push_back(std::move(text));

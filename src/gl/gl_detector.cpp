@@ -4,6 +4,7 @@
 #include <cstring>
 
 #include "core/broadphase.hpp"
+#include "core/pipeline.hpp"
 #include "core/stopwatch.hpp"
 
 namespace viscd {
@@ -29,13 +30,20 @@ Status GlDetector::init() {
     Program* program;
     const char* name;
   };
-  const Entry computes[] = {{&scan_local_, "scan_local.comp"}, {&scan_blocks_, "scan_blocks.comp"},
-                            {&scan_add_, "scan_add.comp"},     {&count_, "count.comp"},
-                            {&cull_, "cull.comp"},             {&bounds_, "bounds.comp"},
-                            {&morton_, "morton.comp"},         {&radix_hist_, "radix_hist.comp"},
-                            {&radix_scatter_, "radix_scatter.comp"}, {&build_, "lbvh_build.comp"},
-                            {&fit_, "lbvh_fit.comp"},          {&query_, "lbvh_query.comp"},
-                            {&state_, "state.comp"},           {&shade_, "shade.comp"}};
+  const Entry computes[] = {{&scan_local_, "scan_local.comp"},
+                            {&scan_blocks_, "scan_blocks.comp"},
+                            {&scan_add_, "scan_add.comp"},
+                            {&count_, "count.comp"},
+                            {&cull_, "cull.comp"},
+                            {&bounds_, "bounds.comp"},
+                            {&morton_, "morton.comp"},
+                            {&radix_hist_, "radix_hist.comp"},
+                            {&radix_scatter_, "radix_scatter.comp"},
+                            {&build_, "lbvh_build.comp"},
+                            {&fit_, "lbvh_fit.comp"},
+                            {&query_, "lbvh_query.comp"},
+                            {&state_, "state.comp"},
+                            {&shade_, "shade.comp"}};
   for (const Entry& e : computes) {
     auto p = Program::compute(e.name);
     if (!p) return Status::failure(p.error());
@@ -90,7 +98,8 @@ Status GlDetector::gl_errors(const char* where) {
 
 void GlDetector::upload_spheres(std::span<const Sphere> spheres) {
   spheres_.reserve(static_cast<GLsizeiptr>(spheres.size_bytes()));
-  if (!spheres.empty()) glNamedBufferSubData(spheres_.get(), 0, static_cast<GLsizeiptr>(spheres.size_bytes()), spheres.data());
+  if (!spheres.empty())
+    glNamedBufferSubData(spheres_.get(), 0, static_cast<GLsizeiptr>(spheres.size_bytes()), spheres.data());
 }
 
 // ---- timers: a GL_TIMESTAMP before and after each stage, read back one frame later ----
@@ -130,12 +139,7 @@ void GlDetector::read_timers(FrameStats& stats) {
 // ---- the frame ----
 
 Status GlDetector::detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) {
-  if (Status s = validate_spheres(spheres); !s) return s;
-  if (camera) {
-    if (Status s = validate_camera(*camera); !s) return s;
-    if (config_.map_width < 0 || config_.map_height < 0 || (config_.map_width == 0) != (config_.map_height == 0))
-      return Status::failure("visibility map size must be W x H with both positive, or 0 x 0 for the screen size");
-  }
+  if (Status s = detail::validate_frame(spheres, camera, config_); !s) return s;
   if (spheres.size() >= (1u << 29)) return Status::failure("the gl backend handles at most 2^29 - 1 objects");
   if (!ctx_->make_current()) return Status::failure("OpenGL: cannot make the detector's context current");
   if (Status s = gl_errors("an earlier call"); !s) return s;
@@ -166,12 +170,14 @@ Status GlDetector::detect(std::span<const Sphere> spheres, const Camera* camera,
       GLint max_frag = 0, max_size = 0;
       glGetIntegerv(GL_MAX_FRAGMENT_ATOMIC_COUNTERS, &max_frag);
       glGetIntegerv(GL_MAX_ATOMIC_COUNTER_BUFFER_SIZE, &max_size);
-      const std::uint32_t limit = std::min<std::uint32_t>(static_cast<std::uint32_t>(max_frag), static_cast<std::uint32_t>(max_size) / 4);
+      const std::uint32_t limit =
+          std::min<std::uint32_t>(static_cast<std::uint32_t>(max_frag), static_cast<std::uint32_t>(max_size) / 4);
       if (n_all > limit)
-        return Status::failure("atomic_uint counting supports at most " + std::to_string(limit) +
-                               " objects on this driver (GL_MAX_FRAGMENT_ATOMIC_COUNTERS = " + std::to_string(max_frag) +
-                               ", GL_MAX_ATOMIC_COUNTER_BUFFER_SIZE = " + std::to_string(max_size) + " bytes); the frame has " +
-                               std::to_string(n_all) + ": use the ssbo counter mode");
+        return Status::failure(
+            "atomic_uint counting supports at most " + std::to_string(limit) +
+            " objects on this driver (GL_MAX_FRAGMENT_ATOMIC_COUNTERS = " + std::to_string(max_frag) +
+            ", GL_MAX_ATOMIC_COUNTER_BUFFER_SIZE = " + std::to_string(max_size) + " bytes); the frame has " +
+            std::to_string(n_all) + ": use the ssbo counter mode");
     }
     stage_begin(Stage::visibility);
     ensure_map(mw, mh);
@@ -210,7 +216,9 @@ Status GlDetector::detect(std::span<const Sphere> spheres, const Camera* camera,
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
   stage_end(Stage::cull);
 
-  // Stage 4 inputs on the GPU (sized by N, n read on the GPU), then wait 1: FrameInfo.
+  // Stage 4 inputs on the GPU (sized by N, n read on the GPU): this frame's active-centre
+  // bounds and diameter sum into FrameInfo. Sync mode reads them back now (its mid-frame
+  // wait); the default mode leaves them for the next frame (read with the final readback).
   stage_begin(Stage::layout);
   spheres_.bind_storage(VISCD_BIND_SPHERES);
   active_.bind_storage(VISCD_BIND_ACTIVE);
@@ -225,31 +233,59 @@ Status GlDetector::detect(std::span<const Sphere> spheres, const Camera* camera,
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
   stage_end(Stage::layout);
   detail::Stopwatch sw;
-  shader::FrameInfo info{};
-  glGetNamedBufferSubData(info_.get(), 0, sizeof info, &info);
-  const std::uint32_t n = info.active_count;
-  stats.active = n;
-  int bits = 32;  // without a camera mu is undefined; adaptive falls back to 32 (as PipelineDetector)
-  if (camera) {
+  // The default mode needs a previous frame of the same N (and camera presence: mu exists only
+  // with a camera); otherwise this frame runs as sync_layout.
+  const bool use_prev =
+      !options_.sync_layout && have_prev_ && prev_objects_ == n_all && prev_camera_ == (camera != nullptr);
+  // `layout_info` is the FrameInfo whose active count, bounds and diameter sum choose the layout,
+  // `mu` the mean pixels that choose m: this frame's (sync) or the previous frame's (default).
+  shader::FrameInfo layout_info{};
+  double mu = 0.0;
+  std::uint32_t n_bound = n_all;  // dispatch size of stages 5-8 and of the state pass
+  if (use_prev) {
+    layout_info = prev_info_;  // PREVIOUS frame's n, active-centre bounds and diameter sum
+    mu = prev_mean_pixels_;    // PREVIOUS frame's mu (same N, camera in both frames)
+  } else {
+    glGetNamedBufferSubData(info_.get(), 0, sizeof layout_info, &layout_info);  // the sync mode's wait
+    ++mid_frame_waits_;
+    n_bound = layout_info.active_count;
     // mu over all N (DESIGN.md). The cpu backend sums count * scale in double; with scale 1
     // (map = screen) both sums are exact and equal, otherwise they may differ in the last ulp.
-    stats.mean_pixels = n_all ? static_cast<double>(info.total_pixels) * rig->pixel_scale / n_all : 0.0;
-    bits = config_.bits == Bits::adaptive ? detail::bits_for_mean_pixels(stats.mean_pixels, config_.a, config_.b)
+    if (camera) mu = n_all ? static_cast<double>(layout_info.total_pixels) * rig->pixel_scale / n_all : 0.0;
+  }
+  int bits = 32;  // without a camera mu is undefined; adaptive falls back to 32 (as PipelineDetector)
+  if (camera) {
+    bits = config_.bits == Bits::adaptive ? detail::bits_for_mean_pixels(mu, config_.a, config_.b)
                                           : static_cast<int>(config_.bits);
   } else if (config_.bits != Bits::adaptive) {
     bits = static_cast<int>(config_.bits);
   }
   detail::Aabb bounds;
-  bounds.lo = {info.lo.x, info.lo.y, info.lo.z};
-  bounds.hi = {info.hi.x, info.hi.y, info.hi.z};
-  const float mean_diameter = n ? static_cast<float>(info.diameter_sum.x / static_cast<double>(n)) : 0.f;
+  bounds.lo = {layout_info.lo.x, layout_info.lo.y, layout_info.lo.z};
+  bounds.hi = {layout_info.hi.x, layout_info.hi.y, layout_info.hi.z};
+  const std::uint32_t layout_n = layout_info.active_count;
+  const float mean_diameter =
+      layout_n ? static_cast<float>(layout_info.diameter_sum.x / static_cast<double>(layout_n)) : 0.f;
+  // With the previous frame's bounds a centre may lie outside them: morton.comp clamps it to the
+  // border cell, so the codes are valid keys and the pairs stay exact.
   const detail::MortonLayout layout = detail::make_layout(config_.layout, bits, bounds, mean_diameter);
   stats.bits = bits;
   stats.layout = layout.to_string();
   const double layout_ms = sw.lap();
 
-  if (Status s = broadphase(n, n_all, layout, bounds, out.pairs, stats); !s) return s;
+  if (Status s = broadphase(n_bound, n_all, layout, bounds, out.pairs, stats); !s) return s;
   stats.pairs = out.pairs.size();
+  // This frame's values, read back by the broadphase's final wait.
+  const std::uint32_t n = frame_info_.active_count;
+  stats.active = n;
+  if (camera)
+    stats.mean_pixels = n_all ? static_cast<double>(frame_info_.total_pixels) * rig->pixel_scale / n_all : 0.0;
+  // They become the next frame's layout inputs in the default mode.
+  have_prev_ = true;
+  prev_info_ = frame_info_;
+  prev_mean_pixels_ = stats.mean_pixels;
+  prev_objects_ = n_all;
+  prev_camera_ = camera != nullptr;
 
   // Object states on the GPU (the shading pass reads them), then read back.
   stage_begin(Stage::query);
@@ -261,8 +297,8 @@ Status GlDetector::detect(std::span<const Sphere> spheres, const Camera* camera,
   state_.dispatch(n_all);
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
   glProgramUniform1ui(state_.get(), state_.uniform("u_phase"), 1);
-  glProgramUniform1ui(state_.get(), state_.uniform("u_n"), n);
-  state_.dispatch(n);
+  info_.bind_storage(VISCD_BIND_INFO);
+  state_.dispatch(n_bound);  // phase 1 reads n from FrameInfo
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
   glProgramUniform1ui(state_.get(), state_.uniform("u_phase"), 2);
   glProgramUniform1ui(state_.get(), state_.uniform("u_n"), static_cast<GLuint>(out.pairs.size()));
@@ -317,10 +353,10 @@ std::uint64_t gl::GlDetector::memory_bytes() const {
     return static_cast<std::uint64_t>(total - available) * 1024u;
   }
   std::uint64_t b = 0;
-  for (const Buffer* buf : {&spheres_, &counts_, &pixels_, &flags_, &scan_out_, &block_sums_, &active_, &info_,
-                            &partials_, &hist_, &hist_scan_, &nodes_, &parent_, &arrivals_, &sorted_, &leaf_boxes_,
-                            &pairs_, &pairs_tmp_, &states_, &image_, &keys_[0], &keys_[1], &values_[0], &values_[1],
-                            &mesh_vbo_, &mesh_ibo_})
+  for (const Buffer* buf :
+       {&spheres_, &counts_,    &pixels_,  &flags_,   &scan_out_,  &block_sums_, &active_,     &info_,    &partials_,
+        &hist_,    &hist_scan_, &nodes_,   &parent_,  &arrivals_,  &sorted_,     &leaf_boxes_, &pairs_,   &pairs_tmp_,
+        &states_,  &image_,     &keys_[0], &keys_[1], &values_[0], &values_[1],  &mesh_vbo_,   &mesh_ibo_})
     b += static_cast<std::uint64_t>(buf->size());
   // G-buffer: R32UI ids, R32F depth, RGBA32F normals, 32-bit float z-buffer.
   b += static_cast<std::uint64_t>(map_w_) * static_cast<std::uint64_t>(map_h_) * (4 + 4 + 16 + 4);

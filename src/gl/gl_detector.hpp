@@ -1,13 +1,18 @@
 #pragma once
 // The gl backend (DESIGN.md): every stage of the frame runs in OpenGL 4.5 compute shaders (and
-// one instanced draw for the visibility map). The host waits for the GPU twice per frame:
-//   1. after stage 3, for a 96-byte FrameInfo (active count, pixel total, active bounds,
-//      diameter sum): m and the Morton layout are then decided on the host with the very
-//      functions the cpu backend uses (core/morton.hpp), so that both backends choose the same
-//      m and layout and produce bit-identical codes; all later dispatch sizes use the count.
-//   2. after the query, for the pair count (to grow the pair buffer and re-run on overflow) and
-//      then for the results the caller asked for (pairs, states, pixels, image).
-// Everything before wait 1 is sized by N and reads n from the GPU (no wait).
+// one instanced draw for the visibility map). Two modes (GlOptions::sync_layout, docs/gl.md):
+//   default (sync_layout = false): no host wait between the start of the frame and its final
+//      readback. m and the Morton layout are chosen on the host (core/morton.hpp, as the cpu
+//      backend) from the PREVIOUS frame's FrameInfo (active count, active-centre bounds,
+//      diameter sum, pixel total), which the host read with that frame's pair count. Every
+//      dispatch after culling is sized by N and reads this frame's active count n from
+//      FrameInfo on the GPU (early-out `k >= info.active_count`). The first frame, and a frame
+//      whose N or camera presence differs from the previous frame's, run as sync_layout.
+//   sync_layout = true: one wait after stage 3 for this frame's FrameInfo; m and the layout are
+//      then exactly the cpu backend's (bit-identical codes) and dispatches are sized by n.
+// In both modes the frame ends with one wait, for FrameInfo (the pair count: grow the pair
+// buffer and re-run on overflow; n and the values the next frame uses), then the results the
+// caller asked for (pairs, states, pixels, image) are read back.
 
 #include <array>
 #include <memory>
@@ -51,6 +56,9 @@ class GlDetector final : public Detector {
   [[nodiscard]] std::vector<std::uint32_t> read_sorted_ids();
   void read_tree(detail::Lbvh& bvh, std::vector<detail::Aabb>& leaf_boxes);
   [[nodiscard]] std::uint32_t pair_capacity() const { return pair_capacity_; }
+  /// Frames so far that waited mid-frame for their own FrameInfo (sync_layout, a first frame,
+  /// or a change of N or camera presence); default-mode frames do not count.
+  [[nodiscard]] std::uint64_t mid_frame_waits() const { return mid_frame_waits_; }
   /// After a frame with a camera: the id map, rows top to bottom (object index + 1, 0 = none).
   [[nodiscard]] std::vector<std::uint32_t> read_id_map();
   /// Stage 2 alone on a given id map (rows top to bottom) of `objects` objects, in the current
@@ -73,10 +81,14 @@ class GlDetector final : public Detector {
 
   // broadphase.cpp
   void scan(GLuint in, GLuint out, std::uint32_t n);
-  /// Sorts keys_[0] (+ values_[0]) by their low key_bits; returns which of the two buffers
-  /// holds the result.
-  int radix_sort(Buffer* keys, Buffer* values, std::uint32_t n, int key_bits);
-  [[nodiscard]] Status broadphase(std::uint32_t n, std::uint32_t objects, const detail::MortonLayout& layout,
+  /// Sorts keys[0] (+ values[0]) by their low key_bits; returns which of the two buffers
+  /// holds the result. n_from_info: the key count is FrameInfo.active_count on the GPU and n
+  /// only bounds it (dispatch size); otherwise it is n.
+  int radix_sort(Buffer* keys, Buffer* values, std::uint32_t n, int key_bits, bool n_from_info);
+  /// Stages 5-8 over FrameInfo.active_count active objects (on the GPU); `n_bound` >= that
+  /// count sizes the dispatches and buffers (n itself in sync mode, N in the default mode).
+  /// Ends with the frame's one wait: frame_info_ holds this frame's FrameInfo afterwards.
+  [[nodiscard]] Status broadphase(std::uint32_t n_bound, std::uint32_t objects, const detail::MortonLayout& layout,
                                   const detail::Aabb& bounds, std::vector<Pair>& pairs, FrameStats& stats);
   void reserve_broadphase(std::uint32_t n);
 
@@ -88,8 +100,8 @@ class GlDetector final : public Detector {
   GlOptions options_;
   std::unique_ptr<Context> ctx_;
   // Programs.
-  Program scan_local_, scan_blocks_, scan_add_, count_, cull_, bounds_, morton_, radix_hist_, radix_scatter_,
-      build_, fit_, query_, state_, shade_, impostor_, mesh_, count_atomic_;
+  Program scan_local_, scan_blocks_, scan_add_, count_, cull_, bounds_, morton_, radix_hist_, radix_scatter_, build_,
+      fit_, query_, state_, shade_, impostor_, mesh_, count_atomic_;
   std::uint32_t count_atomic_n_ = 0;  // N the atomic_uint program was built for
   // Buffers (see shaders/shared/layout.h for their contents).
   Buffer spheres_, counts_, pixels_, flags_, scan_out_, block_sums_, active_, info_, partials_, hist_, hist_scan_,
@@ -97,10 +109,19 @@ class GlDetector final : public Detector {
   Buffer keys_[2], values_[2];
   Buffer mesh_vbo_, mesh_ibo_;
   GLsizei mesh_indices_ = 0;
-  int sorted_in_ = 0;       // which keys_/values_ holds the last sorted codes
+  int sorted_in_ = 0;         // which keys_/values_ holds the last sorted codes
   std::uint32_t last_n_ = 0;  // active count of the last broadphase
   int last_bits_ = 32;
   std::uint32_t pair_capacity_ = 0;
+  // This frame's FrameInfo, read back once at the end of the broadphase (with the pair count).
+  shader::FrameInfo frame_info_{};
+  // The previous frame's values, the default mode's source of m, the layout and the bounds.
+  bool have_prev_ = false;
+  shader::FrameInfo prev_info_{};   // its active count, active-centre bounds, diameter sum
+  double prev_mean_pixels_ = 0.0;   // its mu
+  std::uint32_t prev_objects_ = 0;  // its N
+  bool prev_camera_ = false;
+  std::uint64_t mid_frame_waits_ = 0;
   // G-buffer.
   Texture ids_tex_, depth_tex_, normal_tex_, zbuffer_;
   Framebuffer gbuffer_, empty_fbo_;

@@ -15,14 +15,14 @@
 /// Checks glGetError() after a GL call in builds with asserts on (STYLE.md item 20). Errors are
 /// also reported, with a message, through the debug output callback (see context.hpp).
 #ifdef VISCD_ENABLE_ASSERTS
-#define VISCD_GL_CHECK(call)                                                                      \
-  do {                                                                                            \
-    call;                                                                                         \
-    const GLenum viscd_gl_err = glGetError();                                                     \
-    if (viscd_gl_err != GL_NO_ERROR) {                                                            \
+#define VISCD_GL_CHECK(call)                                                                           \
+  do {                                                                                                 \
+    call;                                                                                              \
+    const GLenum viscd_gl_err = glGetError();                                                          \
+    if (viscd_gl_err != GL_NO_ERROR) {                                                                 \
       std::fprintf(stderr, "%s:%d: GL error 0x%04x in %s\n", __FILE__, __LINE__, viscd_gl_err, #call); \
-      VISCD_ASSERT(false, "GL error");                                                            \
-    }                                                                                             \
+      VISCD_ASSERT(false, "GL error");                                                                 \
+    }                                                                                                  \
   } while (false)
 #else
 #define VISCD_GL_CHECK(call) call
@@ -59,13 +59,27 @@ class Handle {
   GLuint name_ = 0;
 };
 
-struct BufferDeleter { static void destroy(GLuint n) { glDeleteBuffers(1, &n); } };
-struct TextureDeleter { static void destroy(GLuint n) { glDeleteTextures(1, &n); } };
-struct FramebufferDeleter { static void destroy(GLuint n) { glDeleteFramebuffers(1, &n); } };
-struct VertexArrayDeleter { static void destroy(GLuint n) { glDeleteVertexArrays(1, &n); } };
-struct QueryDeleter { static void destroy(GLuint n) { glDeleteQueries(1, &n); } };
-struct ShaderDeleter { static void destroy(GLuint n) { glDeleteShader(n); } };
-struct ProgramDeleter { static void destroy(GLuint n) { glDeleteProgram(n); } };
+struct BufferDeleter {
+  static void destroy(GLuint n) { glDeleteBuffers(1, &n); }
+};
+struct TextureDeleter {
+  static void destroy(GLuint n) { glDeleteTextures(1, &n); }
+};
+struct FramebufferDeleter {
+  static void destroy(GLuint n) { glDeleteFramebuffers(1, &n); }
+};
+struct VertexArrayDeleter {
+  static void destroy(GLuint n) { glDeleteVertexArrays(1, &n); }
+};
+struct QueryDeleter {
+  static void destroy(GLuint n) { glDeleteQueries(1, &n); }
+};
+struct ShaderDeleter {
+  static void destroy(GLuint n) { glDeleteShader(n); }
+};
+struct ProgramDeleter {
+  static void destroy(GLuint n) { glDeleteProgram(n); }
+};
 
 using Texture = Handle<TextureDeleter>;
 using Framebuffer = Handle<FramebufferDeleter>;

@@ -45,7 +45,9 @@ Result<Shader> compile(GLenum stage, std::string_view name, std::string_view def
   glCompileShader(s.get());
   GLint ok = GL_FALSE;
   glGetShaderiv(s.get(), GL_COMPILE_STATUS, &ok);
-  if (ok != GL_TRUE) return Result<Shader>::failure("OpenGL: shader " + std::string(name) + " does not compile:\n" + shader_log(s.get()));
+  if (ok != GL_TRUE)
+    return Result<Shader>::failure("OpenGL: shader " + std::string(name) + " does not compile:\n" +
+                                   shader_log(s.get()));
   return s;
 }
 
@@ -56,7 +58,9 @@ Result<ProgramHandle> link(std::initializer_list<GLuint> shaders, std::string_vi
   GLint ok = GL_FALSE;
   glGetProgramiv(p.get(), GL_LINK_STATUS, &ok);
   for (GLuint s : shaders) glDetachShader(p.get(), s);
-  if (ok != GL_TRUE) return Result<ProgramHandle>::failure("OpenGL: program " + std::string(what) + " does not link:\n" + program_log(p.get()));
+  if (ok != GL_TRUE)
+    return Result<ProgramHandle>::failure("OpenGL: program " + std::string(what) + " does not link:\n" +
+                                          program_log(p.get()));
   return p;
 }
 

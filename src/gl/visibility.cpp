@@ -135,13 +135,15 @@ Status GlDetector::count_pixels(std::uint32_t n) {
   if (options_.counter == GlCounter::atomic_uint) {
     if (n == 0) return {};
     if (!count_atomic_ || count_atomic_n_ != n) {
-      auto p = Program::graphics("fullscreen.vert", "count_atomic.frag", "#define VISCD_AC_COUNT " + std::to_string(n) + "\n");
+      auto p = Program::graphics("fullscreen.vert", "count_atomic.frag",
+                                 "#define VISCD_AC_COUNT " + std::to_string(n) + "\n");
       if (!p) return Status::failure(p.error());
       count_atomic_ = std::move(p.value());
       count_atomic_n_ = n;
     }
     // The counts buffer is the atomic counter buffer: no copy afterwards.
-    glBindBufferRange(GL_ATOMIC_COUNTER_BUFFER, VISCD_BIND_ATOMIC_COUNTERS, counts_.get(), 0, 4 * static_cast<GLsizeiptr>(n));
+    glBindBufferRange(GL_ATOMIC_COUNTER_BUFFER, VISCD_BIND_ATOMIC_COUNTERS, counts_.get(), 0,
+                      4 * static_cast<GLsizeiptr>(n));
     glBindFramebuffer(GL_FRAMEBUFFER, empty_fbo_.get());
     glViewport(0, 0, map_w_, map_h_);
     glUseProgram(count_atomic_.get());
@@ -186,14 +188,14 @@ std::vector<std::uint32_t> GlDetector::read_id_map() {
   const std::size_t w = static_cast<std::size_t>(map_w_), h = static_cast<std::size_t>(map_h_);
   std::vector<std::uint32_t> bottom_up(w * h), ids(w * h);
   if (!ids_tex_ || ids.empty()) return ids;
-  glGetTextureImage(ids_tex_.get(), 0, GL_RED_INTEGER, GL_UNSIGNED_INT, static_cast<GLsizei>(4 * w * h), bottom_up.data());
-  for (std::size_t y = 0; y < h; ++y)
-    std::copy_n(&bottom_up[(h - 1 - y) * w], w, &ids[y * w]);
+  glGetTextureImage(ids_tex_.get(), 0, GL_RED_INTEGER, GL_UNSIGNED_INT, static_cast<GLsizei>(4 * w * h),
+                    bottom_up.data());
+  for (std::size_t y = 0; y < h; ++y) std::copy_n(&bottom_up[(h - 1 - y) * w], w, &ids[y * w]);
   return ids;
 }
 
 Result<std::vector<std::uint32_t>> GlDetector::count_id_map(std::span<const std::uint32_t> ids, int width, int height,
-                                                           std::uint32_t objects) {
+                                                            std::uint32_t objects) {
   using R = Result<std::vector<std::uint32_t>>;
   if (!ctx_->make_current()) return R::failure("OpenGL: cannot make the detector's context current");
   VISCD_ASSERT(ids.size() == static_cast<std::size_t>(width) * static_cast<std::size_t>(height), "id map size");

@@ -99,7 +99,7 @@ TEST(GlBroadphase, TouchingAndPointSpheres) {
   VISCD_GL_OR_SKIP(gl);
   std::vector<Sphere> s;
   for (int k = 0; k < 40; ++k) s.push_back({static_cast<float>(k), 0, 0, 0.5f});  // touching chain
-  for (int k = 0; k < 10; ++k) s.push_back({3.0f, 5.0f, 0, 0.0f});               // coincident points
+  for (int k = 0; k < 10; ++k) s.push_back({3.0f, 5.0f, 0, 0.0f});                // coincident points
   s.push_back({0, 0, 0, 1000.0f});                                                // huge radius
   check(*gl, all_active(s), 32);
 }

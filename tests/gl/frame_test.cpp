@@ -50,7 +50,8 @@ TEST(GlContext, FactoryByName) {
 }
 
 TEST(GlFrame, NoCameraPairsEqualReference) {
-  VISCD_GL_OR_SKIP(gl);
+  // sync_layout: this frame's layout, so the layout equals the reference's exactly.
+  VISCD_GL_OR_SKIP(gl, Config{}, GlOptions{.sync_layout = true});
   auto ref = make_reference_detector();
   for (std::size_t n : {0u, 1u, 2u, 255u, 256u, 257u, 2000u}) {
     const std::vector<Sphere> s = random_spheres(n, 25.0f, 0.2f, 1.0f, static_cast<unsigned>(n));
@@ -131,7 +132,8 @@ void compare_counts(GlGeometry geometry, const char* preset, std::uint32_t n, do
     EXPECT_LE(d, allowed) << "object " << k << ": gl " << hg[k] << " vs cpu " << hc[k];
     worst = std::max(worst, d);
     // Pixels reported are the counts scaled to the screen.
-    ASSERT_FLOAT_EQ(a.pixels[k], static_cast<float>(hg[k] * (static_cast<double>(cam.width) * cam.height) / (256.0 * 144.0)));
+    ASSERT_FLOAT_EQ(a.pixels[k],
+                    static_cast<float>(hg[k] * (static_cast<double>(cam.width) * cam.height) / (256.0 * 144.0)));
   }
   std::printf("[gl] %s %s: %zu of %zu map pixels differ, worst object differs by %u pixels\n",
               geometry == GlGeometry::mesh ? "mesh" : "impostor", preset, differ, gl_ids.size(), worst);
@@ -168,7 +170,7 @@ TEST(GlFrame, CulledFramePairsEqualCpuWithCullingOff) {
   cfg.culling = false;
   cfg.map_width = 256;
   cfg.map_height = 144;
-  VISCD_GL_OR_SKIP(gl, cfg);
+  VISCD_GL_OR_SKIP(gl, cfg, GlOptions{.sync_layout = true});  // m and layout equal the cpu's
   Scene scene = ring_scene(3000, 9);
   const Camera cam = small_camera(scene, "orbit");
   auto cpu = make_cpu_detector(cfg);
@@ -215,7 +217,8 @@ TEST(GlFrame, ScreenshotHasThePapersColours) {
   EXPECT_GT(found[0], 0) << "no red (colliding) pixels";
   EXPECT_GT(found[1], 0) << "no blue (free) pixels";
   EXPECT_GT(found[2], 0) << "no yellow (culled) pixels";
-  if (const char* dir = std::getenv("VISCD_TEST_OUT")) (void)write_png(std::string(dir) + "/gl_screenshot.png", out.image, 256, 144);
+  if (const char* dir = std::getenv("VISCD_TEST_OUT"))
+    (void)write_png(std::string(dir) + "/gl_screenshot.png", out.image, 256, 144);
 }
 
 TEST(GlFrame, TimersArriveOneFrameLate) {

@@ -49,8 +49,8 @@ inline gl::GlDetector* gl_detector(const Config& config = {}, GlOptions options 
   return h.detector.get();
 }
 
-#define VISCD_GL_OR_SKIP(var, ...)                                                     \
-  gl::GlDetector* var = ::viscd::test::gl_detector(__VA_ARGS__);                       \
+#define VISCD_GL_OR_SKIP(var, ...)                               \
+  gl::GlDetector* var = ::viscd::test::gl_detector(__VA_ARGS__); \
   if (!var) GTEST_SKIP() << "no OpenGL 4.5 context: " << ::viscd::test::gl_holder().error
 
 /// Uniform random spheres in a cube of edge `extent`, radii in [rmin, rmax].

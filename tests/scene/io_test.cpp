@@ -25,8 +25,8 @@ namespace {
 namespace fs = std::filesystem;
 
 // gmock is not linked: a substring expectation of our own.
-#define EXPECT_CONTAINS(text, part)                                                   \
-  EXPECT_NE(std::string(text).find(part), std::string::npos)                          \
+#define EXPECT_CONTAINS(text, part)                          \
+  EXPECT_NE(std::string(text).find(part), std::string::npos) \
       << "expected '" << (text) << "' to contain '" << (part) << "'"
 
 // A fresh folder per test, removed afterwards.
@@ -558,8 +558,8 @@ TEST(CameraJson, WrongTypeForNumbers) {
 }
 
 TEST(CameraJson, WidthAndHeightMustBePositiveIntegers) {
-  for (const char* text : {R"({"width": 0})", R"({"width": -5})", R"({"width": 1.5})", R"({"width": "640"})",
-                           R"({"width": 100000})"}) {
+  for (const char* text :
+       {R"({"width": 0})", R"({"width": -5})", R"({"width": 1.5})", R"({"width": "640"})", R"({"width": 100000})"}) {
     const std::string e = camera_error(text, "cam.json");
     EXPECT_CONTAINS(e, "\"width\"") << text;
     EXPECT_CONTAINS(e, "integer") << text;
@@ -568,8 +568,8 @@ TEST(CameraJson, WidthAndHeightMustBePositiveIntegers) {
 }
 
 TEST(CameraJson, NearMustBeBelowFar) {
-  for (const char* text : {R"({"near": 10, "far": 10})", R"({"near": 20, "far": 10})", R"({"near": 0})",
-                           R"({"near": -1})"}) {
+  for (const char* text :
+       {R"({"near": 10, "far": 10})", R"({"near": 20, "far": 10})", R"({"near": 0})", R"({"near": -1})"}) {
     const std::string e = camera_error(text, "cam.json");
     EXPECT_CONTAINS(e, "cam.json") << text;
     EXPECT_CONTAINS(e, "near") << text;
@@ -699,8 +699,8 @@ TEST(WriteSpheresCsv, RoundTripsBitExactly) {
     if (!bits_equal(back.value()[k], spheres[k]) && ++mismatches <= 10) {
       const Sphere& a = spheres[k];
       const Sphere& b = back.value()[k];
-      ADD_FAILURE() << "sphere " << k << ": wrote " << a.x << ' ' << a.y << ' ' << a.z << ' ' << a.r << ", read "
-                    << b.x << ' ' << b.y << ' ' << b.z << ' ' << b.r;
+      ADD_FAILURE() << "sphere " << k << ": wrote " << a.x << ' ' << a.y << ' ' << a.z << ' ' << a.r << ", read " << b.x
+                    << ' ' << b.y << ' ' << b.z << ' ' << b.r;
     }
   }
   EXPECT_EQ(mismatches, 0);
@@ -835,9 +835,7 @@ std::uint64_t fnv1a_oracle(const std::vector<Pair>& pairs) {
   return h;
 }
 
-TEST(PairsHash, EmptyListIsTheOffsetBasis) {
-  EXPECT_EQ(pairs_hash({}), 0xcbf29ce484222325ull);
-}
+TEST(PairsHash, EmptyListIsTheOffsetBasis) { EXPECT_EQ(pairs_hash({}), 0xcbf29ce484222325ull); }
 
 TEST(PairsHash, EqualListsEqualHashes) {
   const std::vector<Pair> a = {{0, 1}, {2, 3}, {5, 900}};

@@ -287,7 +287,8 @@ TEST(Scene, AngularSpeedsDiffer) {
   const std::vector<Sphere> s0(s.spheres().begin(), s.spheres().end());
   s.step(0.05f);
   std::vector<double> omega;
-  for (std::size_t k = 0; k < s0.size(); ++k) omega.push_back(angle_diff(angle_of(s0[k]), angle_of(s.spheres()[k])) / 0.05);
+  for (std::size_t k = 0; k < s0.size(); ++k)
+    omega.push_back(angle_diff(angle_of(s0[k]), angle_of(s.spheres()[k])) / 0.05);
   const auto [lo, hi] = std::minmax_element(omega.begin(), omega.end());
   EXPECT_GT(*hi, 1.5 * *lo);
 }

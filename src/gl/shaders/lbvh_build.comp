@@ -9,11 +9,12 @@ layout(local_size_x = VISCD_WG_SIZE) in;
 layout(std430, binding = VISCD_BIND_KEYS_IN) readonly buffer Keys { uvec2 keys[]; };
 layout(std430, binding = VISCD_BIND_NODES) writeonly buffer Nodes { LbvhNode nodes[]; };
 layout(std430, binding = VISCD_BIND_PARENT) writeonly buffer Parent { uint parent[]; };
-uniform int u_n;
+layout(std430, binding = VISCD_BIND_INFO) readonly buffer Info { FrameInfo info; };
+int g_n;  // n = FrameInfo.active_count (the host may dispatch N - 1 invocations)
 uniform int u_bits;
 
 int delta(int i, int j) {
-  if (j < 0 || j >= u_n) return -1;
+  if (j < 0 || j >= g_n) return -1;
   const uvec2 a = keys[i], b = keys[j];
   if (a != b) {
     const uvec2 x = a ^ b;
@@ -24,8 +25,9 @@ int delta(int i, int j) {
 }
 
 void main() {
+  g_n = int(info.active_count);
   const int i = int(gl_GlobalInvocationID.x);
-  if (i >= u_n - 1) return;
+  if (i >= g_n - 1) return;
   const int d = delta(i, i + 1) - delta(i, i - 1) > 0 ? 1 : -1;
   const int delta_min = delta(i, i - d);
   int lmax = 2;
@@ -43,7 +45,7 @@ void main() {
   } while (t > 1);
   const int gamma = i + s * d + min(d, 0);
   const int first = min(i, j), last = max(i, j);
-  const uint leaf_base = uint(u_n - 1);
+  const uint leaf_base = uint(g_n - 1);
   if (first == gamma) {
     nodes[i].child[0] = uint(gamma) | VISCD_LEAF_BIT;
     parent[leaf_base + uint(gamma)] = uint(i);

@@ -15,11 +15,11 @@ layout(std430, binding = VISCD_BIND_NODES) coherent buffer Nodes { LbvhNode node
 layout(std430, binding = VISCD_BIND_PARENT) readonly buffer Parent { uint parent[]; };
 layout(std430, binding = VISCD_BIND_ARRIVALS) coherent buffer Arrivals { uint arrivals[]; };
 layout(std430, binding = VISCD_BIND_INFO) buffer Info { FrameInfo info; };
-uniform uint u_n;
 
 void main() {
+  const uint n = info.active_count;  // from the GPU: the host may dispatch over N
   const uint p = gl_GlobalInvocationID.x;
-  if (p >= u_n) return;
+  if (p >= n) return;
   const vec4 s = spheres[sorted_ids[p]];
   sorted_spheres[p] = s;
   // conservative_box: r + (max|c| + r) * 2^-19 + 1e-21, evaluated in the same order.
@@ -29,13 +29,13 @@ void main() {
   precise vec3 hi = vec3(s.x + r, s.y + r, s.z + r);
   leaf_boxes[p].v[0] = lo.x; leaf_boxes[p].v[1] = lo.y; leaf_boxes[p].v[2] = lo.z;
   leaf_boxes[p].v[3] = hi.x; leaf_boxes[p].v[4] = hi.y; leaf_boxes[p].v[5] = hi.z;
-  if (u_n == 1u) {
+  if (n == 1u) {
     info.root_lo = vec4(lo, 0.0);
     info.root_hi = vec4(hi, 0.0);
     return;
   }
   uint child = p | VISCD_LEAF_BIT;
-  uint node = parent[u_n - 1u + p];
+  uint node = parent[n - 1u + p];
   for (;;) {
     const uint side = nodes[node].child[0] == child ? 0u : 6u;
     nodes[node].box[side + 0u] = lo.x; nodes[node].box[side + 1u] = lo.y; nodes[node].box[side + 2u] = lo.z;

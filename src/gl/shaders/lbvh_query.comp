@@ -13,7 +13,6 @@ layout(std430, binding = VISCD_BIND_LEAF_BOXES) readonly buffer LeafBoxes { Leaf
 layout(std430, binding = VISCD_BIND_NODES) readonly buffer Nodes { LbvhNode nodes[]; };
 layout(std430, binding = VISCD_BIND_PAIRS) writeonly buffer Pairs { uvec2 pairs[]; };
 layout(std430, binding = VISCD_BIND_INFO) buffer Info { FrameInfo info; };
-uniform uint u_n;
 uniform uint u_capacity;
 
 bool overlap_exact(vec4 a, vec4 b) {
@@ -32,8 +31,9 @@ bool box_overlap(uint node, uint side, vec3 lo, vec3 hi) {
 }
 
 void main() {
+  const uint n = info.active_count;  // from the GPU: the host may dispatch over N
   const uint p = gl_GlobalInvocationID.x;
-  if (p >= u_n || u_n < 2u) return;
+  if (p >= n || n < 2u) return;
   const vec4 a = sorted_spheres[p];
   const uint ia = sorted_ids[p];
   const vec3 lo = vec3(leaf_boxes[p].v[0], leaf_boxes[p].v[1], leaf_boxes[p].v[2]);

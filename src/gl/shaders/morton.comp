@@ -4,13 +4,17 @@
 // max_cell (the host computes them exactly as MortonEncoder does), and each axis bit b goes to
 // code bit u_position[axis * 32 + b]. Keys are uvec2 (x = low 32 bits, y = high 32 bits) for
 // every width m, so 16/32/64-bit codes share one sort.
+// n is read from FrameInfo.active_count (written on the GPU by the compaction): the host may
+// dispatch over N without knowing n. With a previous frame's lo/scale (GlOptions::sync_layout
+// false) a centre may lie outside the bounds: quantize() clamps it to the border cell
+// (q <= 0 or NaN -> 0, q >= max_cell -> max_cell), as MortonEncoder does.
 #include "shared/layout.h"
 layout(local_size_x = VISCD_WG_SIZE) in;
 layout(std430, binding = VISCD_BIND_SPHERES) readonly buffer Spheres { vec4 spheres[]; };
 layout(std430, binding = VISCD_BIND_ACTIVE) readonly buffer Active { uint active_ids[]; };
 layout(std430, binding = VISCD_BIND_KEYS_OUT) writeonly buffer Keys { uvec2 keys[]; };
 layout(std430, binding = VISCD_BIND_VALUES_OUT) writeonly buffer Values { uint values[]; };
-uniform uint u_n;
+layout(std430, binding = VISCD_BIND_INFO) readonly buffer Info { FrameInfo info; };
 uniform dvec3 u_lo;
 uniform dvec3 u_scale;
 uniform dvec3 u_max_cell;
@@ -34,7 +38,7 @@ void scatter(int axis, uint q, inout uvec2 key) {
 
 void main() {
   const uint k = gl_GlobalInvocationID.x;
-  if (k >= u_n) return;
+  if (k >= info.active_count) return;
   const uint id = active_ids[k];
   const vec4 s = spheres[id];
   uvec2 key = uvec2(0u);

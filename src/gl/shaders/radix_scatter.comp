@@ -9,7 +9,11 @@ layout(std430, binding = VISCD_BIND_KEYS_OUT) writeonly buffer KeysOut { uvec2 k
 layout(std430, binding = VISCD_BIND_VALUES_IN) readonly buffer ValuesIn { uint values_in[]; };
 layout(std430, binding = VISCD_BIND_VALUES_OUT) writeonly buffer ValuesOut { uint values_out[]; };
 layout(std430, binding = VISCD_BIND_SCAN_OUT) readonly buffer Offsets { uint offsets[]; };
+layout(std430, binding = VISCD_BIND_INFO) readonly buffer Info { FrameInfo info; };
 uniform uint u_n;
+// 1: the key count is FrameInfo.active_count (the Morton sort, dispatched over N tiles);
+// 0: it is u_n (the pair sort, whose count the host has read back).
+uniform uint u_n_from_info;
 uniform uint u_shift;
 uniform uint u_has_values;
 shared uint s_digit[VISCD_SORT_TILE];
@@ -18,10 +22,11 @@ shared uint s_rank[VISCD_SORT_TILE];
 uint digit(uvec2 k) { return (u_shift < 32u ? k.x >> u_shift : k.y >> (u_shift - 32u)) & 0xFFu; }
 
 void main() {
+  const uint n = u_n_from_info != 0u ? info.active_count : u_n;
   const uint t = gl_LocalInvocationID.x;
   const uint idx = gl_WorkGroupID.x * VISCD_SORT_TILE + t;
-  const uvec2 key = idx < u_n ? keys_in[idx] : uvec2(0u);
-  const uint d = idx < u_n ? digit(key) : 256u;  // 256: no key (matches no invocation)
+  const uvec2 key = idx < n ? keys_in[idx] : uvec2(0u);
+  const uint d = idx < n ? digit(key) : 256u;  // 256: no key (matches no invocation)
   s_digit[t] = d;
   barrier();
   uint r = 0u;
@@ -32,7 +37,7 @@ void main() {
     }
   }
   barrier();
-  if (idx >= u_n) return;
+  if (idx >= n) return;
   const uint dst = offsets[d * gl_NumWorkGroups.x + gl_WorkGroupID.x] + s_rank[t];
   keys_out[dst] = key;
   if (u_has_values != 0u) values_out[dst] = values_in[idx];

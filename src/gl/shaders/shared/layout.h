@@ -12,9 +12,15 @@
 #include <cstdint>
 namespace viscd::gl::shader {
 using uint = std::uint32_t;
-struct vec4 { float x, y, z, w; };
-struct uvec4 { uint x, y, z, w; };
-struct dvec2 { double x, y; };
+struct vec4 {
+  float x, y, z, w;
+};
+struct uvec4 {
+  uint x, y, z, w;
+};
+struct dvec2 {
+  double x, y;
+};
 #endif
 
 // ---- work-group sizes (local_size_x of each kind of compute shader) ----
@@ -28,18 +34,18 @@ struct dvec2 { double x, y; };
 #define VISCD_SCAN_BLOCK (VISCD_WG_SIZE * VISCD_SCAN_PER_THREAD)
 
 // ---- SSBO binding points ----
-#define VISCD_BIND_SPHERES 0      // vec4 spheres[N]: x, y, z, r (viscd::Sphere)
-#define VISCD_BIND_COUNTS 1       // uint counts[N]: map pixels per object (also the atomic_uint buffer)
-#define VISCD_BIND_PIXELS 2       // float pixels[N]: screen-scaled counts
-#define VISCD_BIND_FLAGS 3        // uint flags[N]: 1 = active, scan input
-#define VISCD_BIND_ACTIVE 4       // uint active[n]: active object ids, ascending
-#define VISCD_BIND_INFO 5         // FrameInfo
-#define VISCD_BIND_PARTIALS 6     // BoundsPartial per work group
-#define VISCD_BIND_KEYS_IN 7      // uvec2 keys[n] (x = low 32 bits, y = high 32 bits)
+#define VISCD_BIND_SPHERES 0   // vec4 spheres[N]: x, y, z, r (viscd::Sphere)
+#define VISCD_BIND_COUNTS 1    // uint counts[N]: map pixels per object (also the atomic_uint buffer)
+#define VISCD_BIND_PIXELS 2    // float pixels[N]: screen-scaled counts
+#define VISCD_BIND_FLAGS 3     // uint flags[N]: 1 = active, scan input
+#define VISCD_BIND_ACTIVE 4    // uint active[n]: active object ids, ascending
+#define VISCD_BIND_INFO 5      // FrameInfo
+#define VISCD_BIND_PARTIALS 6  // BoundsPartial per work group
+#define VISCD_BIND_KEYS_IN 7   // uvec2 keys[n] (x = low 32 bits, y = high 32 bits)
 #define VISCD_BIND_KEYS_OUT 8
-#define VISCD_BIND_VALUES_IN 9    // uint values[n]
+#define VISCD_BIND_VALUES_IN 9  // uint values[n]
 #define VISCD_BIND_VALUES_OUT 10
-#define VISCD_BIND_SCAN_IN 11     // generic scan: input, output, block sums
+#define VISCD_BIND_SCAN_IN 11  // generic scan: input, output, block sums
 #define VISCD_BIND_SCAN_OUT 12
 #define VISCD_BIND_SCAN_BLOCKS 13
 #define VISCD_BIND_NODES 14       // LbvhNode nodes[n - 1]
@@ -72,11 +78,11 @@ struct FrameInfo {
   uint total_pixels;  // sum of map pixel counts over all objects
   uint pair_count;    // pairs found by the query (may exceed the pair buffer's capacity)
   uint pad0;
-  vec4 lo;            // bounds of the active centres (xyz)
+  vec4 lo;  // bounds of the active centres (xyz)
   vec4 hi;
-  vec4 root_lo;       // root box of the fitted tree (xyz)
+  vec4 root_lo;  // root box of the fitted tree (xyz)
   vec4 root_hi;
-  dvec2 diameter_sum; // x = sum of 2r over the active objects (double, as core/broadphase.cpp)
+  dvec2 diameter_sum;  // x = sum of 2r over the active objects (double, as core/broadphase.cpp)
 };
 
 // Per-work-group partial of the active-centre bounds and the diameter sum.
