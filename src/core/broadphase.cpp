@@ -173,6 +173,10 @@ Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const
   }
   std::size_t total = 0;
   for (int t = 0; t < t_q; ++t) total += thread_pairs_[static_cast<std::size_t>(t)].size();
+  // The dynamic schedule splits the pairs between threads differently every frame; sizing every
+  // thread's list for the whole frame's pairs means a later frame allocates only if it has more
+  // pairs in total, not when its split changes.
+  for (int t = 0; t < t_q; ++t) thread_pairs_[static_cast<std::size_t>(t)].reserve(total);
   if (pair_memory_cap != 0 && total * sizeof(Pair) > pair_memory_cap) {
     return Status::failure("frame has " + std::to_string(total) + " colliding pairs, which need " +
                            std::to_string(total * sizeof(Pair)) + " bytes, over the pair memory cap of " +
