@@ -11,12 +11,6 @@
 namespace viscd::test {
 namespace {
 
-Camera small_camera(const Scene& scene, const char* preset) {
-  auto c = camera_preset(preset, scene, 256, 144);
-  EXPECT_TRUE(c.ok());
-  return c.value();
-}
-
 Config map_config(bool culling = true, float lambda = 200.0f) {
   Config cfg;
   cfg.lambda = lambda;

@@ -10,12 +10,6 @@
 namespace viscd::test {
 namespace {
 
-Camera small_camera(const Scene& scene, const char* preset) {
-  auto c = camera_preset(preset, scene, 256, 144);
-  EXPECT_TRUE(c.ok());
-  return c.value();
-}
-
 Scene ring_scene(std::uint32_t n, std::uint64_t seed = 3) {
   SceneParams p;
   p.objects = n;

@@ -54,6 +54,13 @@ inline gl::GlDetector* gl_detector(const Config& config = {}, GlOptions options 
   if (!var) GTEST_SKIP() << "no OpenGL 4.5 context: " << ::viscd::test::gl_holder().error
 
 /// Uniform random spheres in a cube of edge `extent`, radii in [rmin, rmax].
+/// A preset camera over a small 256 x 144 screen, which keeps llvmpipe frames fast.
+inline Camera small_camera(const Scene& scene, const char* preset) {
+  auto c = camera_preset(preset, scene, 256, 144);
+  EXPECT_TRUE(c.ok());
+  return c.value();
+}
+
 inline std::vector<Sphere> random_spheres(std::size_t n, float extent, float rmin, float rmax, unsigned seed) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> pos(-extent / 2, extent / 2), rad(rmin, rmax);
