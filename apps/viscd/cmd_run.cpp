@@ -12,13 +12,10 @@ namespace {
 
 struct RunArgs {
   PipelineOptions pipeline;
-  std::uint32_t objects = 10000;
+  SceneOptions world;
   int frames = 300;
-  std::string scene = "ring";
-  std::uint64_t seed = 1;
   std::string camera = "zoom-out";
   std::string size = "1280x720";
-  float dt = 1.0f / 60.0f;
   std::string out_dir = "viscd-out";
   std::string screenshot, csv, json;
   bool quiet = false;
@@ -29,18 +26,17 @@ using Clock = std::chrono::steady_clock;
 int run_run(RunArgs a) {
   auto config = make_config(a.pipeline);
   if (!config) return fail(config.error());
-  auto kind = parse_scene_kind(a.scene);
-  if (!kind) return fail(kind.error());
+  auto params = make_scene_params(a.world);
+  if (!params) return fail(params.error());
   auto size = parse_size(a.size, "--size");
   if (!size) return fail(size.error());
   if (a.frames < 1) return fail("--frames: expected at least 1");
-  if (!(a.dt >= 0)) return fail("--dt: expected a number >= 0");
 
   auto detector = make_backend(a.pipeline, config.value(), a.quiet);
   if (!detector) return fail(detector.error());
   Detector& det = *detector.value();
 
-  Scene scene = Scene::make({.kind = kind.value(), .objects = a.objects, .seed = a.seed});
+  Scene scene = Scene::make(params.value());
   const bool file_camera = a.camera.size() > 5 && a.camera.ends_with(".json");
   Camera camera;
   if (file_camera) {
@@ -62,8 +58,8 @@ int run_run(RunArgs a) {
 
   if (!a.quiet)
     std::printf("viscd run: %s backend, %u objects (%s scene, seed %" PRIu64 "), %dx%d, camera %s, %d frames\n",
-                std::string(det.name()).c_str(), a.objects, a.scene.c_str(), a.seed, camera_now().value().width,
-                camera_now().value().height, a.camera.c_str(), a.frames);
+                std::string(det.name()).c_str(), a.world.objects, a.world.kind.c_str(), a.world.seed,
+                camera_now().value().width, camera_now().value().height, a.camera.c_str(), a.frames);
 
   std::ostringstream rows;
   rows << "frame,time_s,objects,active,mean_pixels,bits,layout,pairs,simulate_ms";
@@ -82,7 +78,7 @@ int run_run(RunArgs a) {
       det.set_config(c);
     }
     const auto t0 = Clock::now();
-    scene.step(a.dt);
+    scene.step(a.world.dt);
     const double sim = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
     const Camera cam = camera_now().value();
     if (Status s = det.detect(scene.spheres(), &cam, frame); !s) {
@@ -112,7 +108,7 @@ int run_run(RunArgs a) {
   const double med_frame = median(frame_ms);
   nlohmann::ordered_json summary;
   summary["backend"] = det.name();
-  summary["objects"] = a.objects;
+  summary["objects"] = a.world.objects;
   summary["frames"] = a.frames;
   summary["camera"] = a.camera;
   summary["culling"] = !a.pipeline.no_culling;
@@ -158,13 +154,10 @@ void add_run_command(CLI::App& app, int& rc) {
       "below lambda, choose the Morton width from the mean pixel count and find every colliding pair\n"
       "among the rest. Prints per-stage median times and frames per second; writes a screenshot\n"
       "(red colliding, blue visible and free, yellow culled), a CSV of frames and a JSON summary.");
-  cmd->add_option("--objects,-n", args->objects, "number of objects N")->capture_default_str();
+  add_scene_options(*cmd, args->world);
   cmd->add_option("--frames", args->frames, "frames to simulate")->capture_default_str();
-  cmd->add_option("--scene", args->scene, "ring (the paper's flat world) | box | clusters")->capture_default_str();
-  cmd->add_option("--seed", args->seed, "scene seed (same seed, same scene)")->capture_default_str();
   cmd->add_option("--camera", args->camera, "zoom-out | zoom-in | orbit | FILE.json")->capture_default_str();
   cmd->add_option("--size", args->size, "screen WxH for the preset cameras")->capture_default_str();
-  cmd->add_option("--dt", args->dt, "simulated seconds per frame")->capture_default_str();
   cmd->add_option("--out", args->out_dir, "output folder for the screenshot, CSV and summary")->capture_default_str();
   cmd->add_option("--screenshot", args->screenshot, "screenshot PNG path (default OUT/screenshot.png)");
   cmd->add_option("--csv", args->csv, "per-frame CSV path (default OUT/frames.csv)");

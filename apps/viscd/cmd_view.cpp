@@ -36,12 +36,9 @@ using Clock = std::chrono::steady_clock;
 
 struct ViewArgs {
   PipelineOptions pipeline;
-  std::uint32_t objects = 10000;
-  std::string scene = "ring";
-  std::uint64_t seed = 1;
+  SceneOptions world;
   std::string camera = "zoom-out";
   std::string size = "1280x720";
-  float dt = 1.0f / 60.0f;
   int frames = 0;
   std::string screenshot;
   std::string window_screenshot;
@@ -204,7 +201,7 @@ Config Viewer::current_config() const {
 }
 
 void Viewer::rebuild_scene() {
-  scene_ = Scene::make({.kind = kind_, .objects = static_cast<std::uint32_t>(objects_), .seed = args_.seed});
+  scene_ = Scene::make({.kind = kind_, .objects = static_cast<std::uint32_t>(objects_), .seed = args_.world.seed});
   reset_camera();
 }
 
@@ -221,9 +218,8 @@ Result<std::unique_ptr<Detector>> Viewer::create_detector(Backend b, bool mesh) 
   using R = Result<std::unique_ptr<Detector>>;
   if (b == Backend::cpu) return R(make_cpu_detector(current_config()));
   DetectorGuard guard(window_, true);
-  GlOptions o;
-  o.geometry = mesh ? GlGeometry::mesh : GlGeometry::impostor;
-  o.counter = args_.pipeline.counter == "atomic_uint" ? GlCounter::atomic_uint : GlCounter::ssbo;
+  GlOptions o = make_gl_options(args_.pipeline).value();        // checked in setup()
+  o.geometry = mesh ? GlGeometry::mesh : GlGeometry::impostor;  // the panel's live toggle
   return make_gl_detector(current_config(), o);
 }
 
@@ -261,17 +257,14 @@ Status Viewer::setup() {
   fixed_bits_index_ = base_.bits == Bits::b16 ? 0 : base_.bits == Bits::b64 ? 2 : 1;
   map_width_ = base_.map_width;
   map_height_ = base_.map_height;
-  if (args_.objects < 1 || args_.objects > (1u << 29)) return Status::failure("--objects: expected 1 to 536870912");
-  objects_ = static_cast<int>(args_.objects);
-  auto kind = parse_scene_kind(args_.scene);
-  if (!kind) return Status::failure(kind.error());
-  kind_ = kind.value();
+  if (args_.world.objects < 1 || args_.world.objects > (1u << 29))
+    return Status::failure("--objects: expected 1 to 536870912");
+  objects_ = static_cast<int>(args_.world.objects);
+  auto params = make_scene_params(args_.world);
+  if (!params) return Status::failure(params.error());
+  kind_ = params.value().kind;
   if (args_.frames < 0) return Status::failure("--frames: expected 0 (until the window closes) or more");
-  if (!(args_.dt >= 0)) return Status::failure("--dt: expected a number >= 0");
-  if (args_.pipeline.geometry != "impostor" && args_.pipeline.geometry != "mesh")
-    return Status::failure("--geometry: expected impostor or mesh, got '" + args_.pipeline.geometry + "'");
-  if (args_.pipeline.counter != "ssbo" && args_.pipeline.counter != "atomic_uint")
-    return Status::failure("--counter: expected ssbo or atomic_uint, got '" + args_.pipeline.counter + "'");
+  if (auto g = make_gl_options(args_.pipeline); !g) return Status::failure(g.error());
   const std::string& be = args_.pipeline.backend;
   if (be != "cpu" && be != "gl")
     return Status::failure("--backend: viscd view runs cpu or gl, got '" + be +
@@ -507,7 +500,7 @@ void Viewer::panel() {
 
 Status Viewer::frame() {
   const auto t0 = Clock::now();
-  if (!paused_) scene_.step(args_.dt);
+  if (!paused_) scene_.step(args_.world.dt);
   const double sim_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   const Camera cam = orbit_.camera(fb_w_, fb_h_);
   Status s;
@@ -583,7 +576,7 @@ int Viewer::run() {
   detector_ = make_cpu_detector(current_config());
   if (args_.pipeline.backend == "gl") switch_backend(Backend::gl, mesh_);
   std::printf("viscd view: %s backend, %d objects (%s scene), window %dx%d%s\n", backend_ == Backend::gl ? "gl" : "cpu",
-              objects_, args_.scene.c_str(), fb_w_, fb_h_,
+              objects_, args_.world.kind.c_str(), fb_w_, fb_h_,
               args_.frames > 0 ? (", " + std::to_string(args_.frames) + " frames").c_str() : "");
   std::fflush(stdout);
 
@@ -680,12 +673,9 @@ void add_view_command(CLI::App& app, int& rc) {
                          "visibility-map size, toggles for culling and adaptive bits, the cpu or gl backend, and live\n"
                          "per-stage timings. Mouse: left drag orbits, right or middle drag pans, wheel zooms.\n"
                          "Keys: S screenshot, Space pause, R reset camera, Esc quit. Needs a display (or xvfb-run).");
-  cmd->add_option("--objects,-n", args->objects, "number of objects N")->capture_default_str();
-  cmd->add_option("--scene", args->scene, "ring (the paper's flat world) | box | clusters")->capture_default_str();
-  cmd->add_option("--seed", args->seed, "scene seed (same seed, same scene)")->capture_default_str();
+  add_scene_options(*cmd, args->world);
   cmd->add_option("--camera", args->camera, "start view: zoom-out | zoom-in | FILE.json")->capture_default_str();
   cmd->add_option("--size", args->size, "window WxH")->capture_default_str();
-  cmd->add_option("--dt", args->dt, "simulated seconds per frame")->capture_default_str();
   cmd->add_option("--frames", args->frames,
                   "run this many frames, write --screenshot (if given) and exit; 0 = until closed")
       ->capture_default_str();

@@ -30,6 +30,37 @@ void add_pipeline_options(CLI::App& cmd, PipelineOptions& o, bool backend_auto) 
       ->capture_default_str();
 }
 
+void add_scene_options(CLI::App& cmd, SceneOptions& o) {
+  cmd.add_option("--objects,-n", o.objects, "number of objects N")->capture_default_str();
+  cmd.add_option("--scene", o.kind, "ring (the paper's flat world) | box | clusters")->capture_default_str();
+  cmd.add_option("--seed", o.seed, "scene seed (same seed, same scene)")->capture_default_str();
+  cmd.add_option("--dt", o.dt, "simulated seconds per frame")->capture_default_str();
+}
+
+Result<SceneParams> make_scene_params(const SceneOptions& o) {
+  auto kind = parse_scene_kind(o.kind);
+  if (!kind) return Result<SceneParams>::failure(kind.error());
+  if (!(o.dt >= 0)) return Result<SceneParams>::failure("--dt: expected a number >= 0");
+  return SceneParams{.kind = kind.value(), .objects = o.objects, .seed = o.seed};
+}
+
+Result<GlOptions> make_gl_options(const PipelineOptions& o) {
+  GlOptions g;
+  if (o.geometry == "impostor")
+    g.geometry = GlGeometry::impostor;
+  else if (o.geometry == "mesh")
+    g.geometry = GlGeometry::mesh;
+  else
+    return Result<GlOptions>::failure("--geometry: expected impostor or mesh, got '" + o.geometry + "'");
+  if (o.counter == "ssbo")
+    g.counter = GlCounter::ssbo;
+  else if (o.counter == "atomic_uint")
+    g.counter = GlCounter::atomic_uint;
+  else
+    return Result<GlOptions>::failure("--counter: expected ssbo or atomic_uint, got '" + o.counter + "'");
+  return g;
+}
+
 Result<std::unique_ptr<Detector>> make_backend(const PipelineOptions& o, const Config& config, bool quiet) {
   using R = Result<std::unique_ptr<Detector>>;
   std::string backend = o.backend;
@@ -49,20 +80,9 @@ Result<std::unique_ptr<Detector>> make_backend(const PipelineOptions& o, const C
     if (!quiet) std::fprintf(stderr, "viscd: backend auto -> %s: %s\n", backend.c_str(), why.c_str());
   }
   if (backend != "gl") return make_detector(backend, config);
-  GlOptions g;
-  if (o.geometry == "impostor")
-    g.geometry = GlGeometry::impostor;
-  else if (o.geometry == "mesh")
-    g.geometry = GlGeometry::mesh;
-  else
-    return R::failure("--geometry: expected impostor or mesh, got '" + o.geometry + "'");
-  if (o.counter == "ssbo")
-    g.counter = GlCounter::ssbo;
-  else if (o.counter == "atomic_uint")
-    g.counter = GlCounter::atomic_uint;
-  else
-    return R::failure("--counter: expected ssbo or atomic_uint, got '" + o.counter + "'");
-  return make_gl_detector(config, g);
+  auto g = make_gl_options(o);
+  if (!g) return R::failure(g.error());
+  return make_gl_detector(config, g.value());
 }
 
 Result<std::pair<int, int>> parse_size(std::string_view text, std::string_view option) {

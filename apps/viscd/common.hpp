@@ -25,6 +25,19 @@ struct PipelineOptions {
 };
 
 void add_pipeline_options(CLI::App& cmd, PipelineOptions& o, bool backend_auto);
+
+/// The simulated scene's options, shared by `run` and `view`.
+struct SceneOptions {
+  std::uint32_t objects = 10000;
+  std::string kind = "ring";
+  std::uint64_t seed = 1;
+  float dt = 1.0f / 60.0f;  // simulated seconds per frame
+};
+void add_scene_options(CLI::App& cmd, SceneOptions& o);
+/// SceneParams from the options; the error names the bad option (--scene, --dt).
+Result<SceneParams> make_scene_params(const SceneOptions& o);
+/// The gl backend's options (--geometry, --counter); the error names the bad option.
+Result<GlOptions> make_gl_options(const PipelineOptions& o);
 /// Config from the options; the error names the bad option.
 Result<Config> make_config(const PipelineOptions& o);
 /// The detector the options name. "auto" picks gl on a hardware GPU and cpu where the only

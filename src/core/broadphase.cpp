@@ -30,6 +30,13 @@ ActiveExtent active_extent(std::span<const Sphere> spheres, std::span<const std:
   return e;
 }
 
+Status check_pair_cap(std::size_t pairs, std::size_t cap) {
+  if (cap == 0 || pairs * sizeof(Pair) <= cap) return {};
+  return Status::failure("frame has " + std::to_string(pairs) + " colliding pairs, which need " +
+                         std::to_string(pairs * sizeof(Pair)) + " bytes, over the pair memory cap of " +
+                         std::to_string(cap) + " bytes (Config::pair_memory_cap)");
+}
+
 void sort_pair_keys(std::vector<std::uint64_t>& keys, std::uint32_t max_index, int threads,
                     RadixScratch<std::uint64_t>& scratch, std::vector<Pair>& out) {
   const int key_bits = 32 + std::bit_width(max_index);
@@ -177,11 +184,7 @@ Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const
   // thread's list for the whole frame's pairs means a later frame allocates only if it has more
   // pairs in total, not when its split changes.
   for (int t = 0; t < t_q; ++t) thread_pairs_[static_cast<std::size_t>(t)].reserve(total);
-  if (pair_memory_cap != 0 && total * sizeof(Pair) > pair_memory_cap) {
-    return Status::failure("frame has " + std::to_string(total) + " colliding pairs, which need " +
-                           std::to_string(total * sizeof(Pair)) + " bytes, over the pair memory cap of " +
-                           std::to_string(pair_memory_cap) + " bytes (Config::pair_memory_cap)");
-  }
+  if (Status s = check_pair_cap(total, pair_memory_cap); !s) return s;
   pair_keys_.resize(total);
   std::size_t offset = 0;
   for (int t = 0; t < t_q; ++t) {
@@ -189,7 +192,7 @@ Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const
     std::copy(local.begin(), local.end(), pair_keys_.begin() + static_cast<std::ptrdiff_t>(offset));
     offset += local.size();
   }
-  const std::uint32_t max_index = n ? *std::max_element(active.begin(), active.end()) : 0;
+  const std::uint32_t max_index = n ? active.back() : 0;  // active is ascending
   sort_pair_keys(pair_keys_, max_index, threads, pair_scratch_, pairs);
   stats.pairs = pairs.size();
   ms(Stage::query) = sw.lap();

@@ -24,6 +24,9 @@ struct ActiveExtent {
 [[nodiscard]] ActiveExtent active_extent(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
                                          int threads);
 
+/// The pair-memory cap of Config (0 = none): an error naming the count when `pairs` exceed it.
+[[nodiscard]] Status check_pair_cap(std::size_t pairs, std::size_t cap);
+
 /// Sorts pair keys (i << 32 | j) and writes them as pairs. `max_index` bounds i and j.
 void sort_pair_keys(std::vector<std::uint64_t>& keys, std::uint32_t max_index, int threads,
                     RadixScratch<std::uint64_t>& scratch, std::vector<Pair>& out);

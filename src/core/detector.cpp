@@ -11,22 +11,17 @@
 
 namespace viscd {
 
-#ifdef VISCD_HAVE_GL
-Result<std::unique_ptr<Detector>> make_gl_detector_result(const Config& config);  // src/gl
-Result<std::string> gl_device_description();                                      // src/gl
-#else
+#ifndef VISCD_HAVE_GL
+// Without the gl backend (VISCD_ENABLE_GL=OFF) its entry points exist and say so; src/gl defines
+// them otherwise.
 Result<std::unique_ptr<Detector>> make_gl_detector(const Config&, const GlOptions&) {
   return Result<std::unique_ptr<Detector>>::failure("backend 'gl' is not built in (configure with VISCD_ENABLE_GL=ON)");
 }
-#endif
 
 Result<std::string> gl_device() {
-#ifdef VISCD_HAVE_GL
-  return gl_device_description();
-#else
   return Result<std::string>::failure("viscd was built without the gl backend (VISCD_ENABLE_GL=OFF)");
-#endif
 }
+#endif
 
 bool is_software_renderer(std::string_view device) {
   for (std::string_view soft : {"llvmpipe", "softpipe", "swrast", "lavapipe", "Software Rasterizer"})
@@ -37,14 +32,7 @@ bool is_software_renderer(std::string_view device) {
 Result<std::unique_ptr<Detector>> make_detector(std::string_view backend, const Config& config) {
   if (backend == "reference") return make_reference_detector(config);
   if (backend == "cpu") return make_cpu_detector(config);
-  if (backend == "gl") {
-#ifdef VISCD_HAVE_GL
-    return make_gl_detector_result(config);
-#else
-    return Result<std::unique_ptr<Detector>>::failure(
-        "backend 'gl' is not built in (configure with VISCD_ENABLE_GL=ON)");
-#endif
-  }
+  if (backend == "gl") return make_gl_detector(config);
   return Result<std::unique_ptr<Detector>>::failure("unknown backend '" + std::string(backend) +
                                                     "': expected reference, cpu or gl");
 }

@@ -29,11 +29,7 @@ class ReferenceDetector final : public PipelineDetector {
     stats.stage_ms[static_cast<std::size_t>(Stage::layout)] = sw.lap();
     brute_force_pairs(spheres, active, pairs);
     stats.stage_ms[static_cast<std::size_t>(Stage::query)] = sw.lap();
-    if (config_.pair_memory_cap != 0 && pairs.size() * sizeof(Pair) > config_.pair_memory_cap)
-      return Status::failure("frame has " + std::to_string(pairs.size()) +
-                             " colliding pairs, over the pair memory cap of " +
-                             std::to_string(config_.pair_memory_cap) + " bytes (Config::pair_memory_cap)");
-    return {};
+    return check_pair_cap(pairs.size(), config_.pair_memory_cap);
   }
 };
 

@@ -97,9 +97,8 @@ PixelRect sphere_rect(const CameraRig& cam, const Sphere& s) {
   const float slack = 1e-4f * (std::fabs(cz) + std::fabs(cx) + std::fabs(cy) + s.r) + 1e-6f;
   const float r = s.r + slack;
   if (cz + r < cam.near_plane || cz - r > cam.far_plane) return {};
-  const float dmin = cz - r, dmax = cz + r;
+  const float dmin = cz - r;
   if (!(dmin > cam.near_plane * 0.5f)) return {0, 0, cam.map_w, cam.map_h, 0.0f};  // reaches the near plane or the eye
-  (void)dmax;
   // Exact extent of the projection along one screen axis: the slopes v/z of the two lines from
   // the eye tangent to the circle (centre (cv, cz), radius r) in the plane of that axis and the
   // view direction. With the circle wholly in front (cz - r > 0) and t = sqrt(cv^2 + cz^2 - r^2):

@@ -183,11 +183,7 @@ Status GlDetector::broadphase(std::uint32_t n_bound, std::uint32_t objects, cons
     glGetNamedBufferSubData(info_.get(), 0, sizeof frame_info_, &frame_info_);
     count = frame_info_.pair_count;
     last_n_ = frame_info_.active_count;
-    if (config_.pair_memory_cap != 0 && static_cast<std::size_t>(count) * sizeof(Pair) > config_.pair_memory_cap)
-      return Status::failure("frame has " + std::to_string(count) + " colliding pairs, which need " +
-                             std::to_string(static_cast<std::size_t>(count) * sizeof(Pair)) +
-                             " bytes, over the pair memory cap of " + std::to_string(config_.pair_memory_cap) +
-                             " bytes (Config::pair_memory_cap)");
+    if (Status s = detail::check_pair_cap(count, config_.pair_memory_cap); !s) return s;
     if (count <= pair_capacity_) break;
     // A pair count beyond 2^32 - 1 would wrap the counter; N < 2^29 with our spheres cannot
     // fill 2^32 pairs on any machine this runs on, and the cap check above catches it first.

@@ -363,14 +363,10 @@ std::uint64_t gl::GlDetector::memory_bytes() const {
   return b;
 }
 
-Result<std::string> gl_device_description() {
+Result<std::string> gl_device() {
   auto ctx = gl::Context::create(false);
   if (!ctx) return Result<std::string>::failure(ctx.error());
   return ctx.value()->description();
-}
-
-Result<std::unique_ptr<Detector>> make_gl_detector_result(const Config& config) {
-  return make_gl_detector(config, GlOptions{});
 }
 
 }  // namespace viscd
