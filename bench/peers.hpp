@@ -1,5 +1,6 @@
 #pragma once
-// Broadphases compared by viscd_peers: viscd itself and the peers of DESIGN.md (Bullet, FCL).
+// Broadphases compared by viscd_peers: viscd itself and its peers, Bullet and FCL
+// (docs/benchmarks.md).
 //
 // Every method keeps its own structure between frames, is given the spheres of each frame and
 // must return the exact pairs: candidates from its broadphase filtered by viscd::spheres_overlap,

@@ -13,11 +13,12 @@
 
 namespace viscd::test {
 
-/// n spheres with centres uniform in [-extent, extent]^3 and radii uniform in [rmin, rmax].
-inline std::vector<Sphere> random_spheres(std::size_t n, std::uint64_t seed, float extent = 10, float rmin = 0.1f,
-                                          float rmax = 1.0f) {
+/// n spheres with centres uniform in [-half_extent, half_extent]^3 and radii uniform in
+/// [rmin, rmax] (std::mt19937_64 seeded with `seed`).
+inline std::vector<Sphere> random_spheres_by_half_extent(std::size_t n, std::uint64_t seed, float half_extent = 10,
+                                                         float rmin = 0.1f, float rmax = 1.0f) {
   std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<float> c(-extent, extent), r(rmin, rmax);
+  std::uniform_real_distribution<float> c(-half_extent, half_extent), r(rmin, rmax);
   std::vector<Sphere> s(n);
   for (auto& sp : s) sp = {c(rng), c(rng), c(rng), r(rng)};
   return s;

@@ -24,9 +24,6 @@ bool assert_failed(const char* expr, const char* message, const char* file, int 
   do {                                                                                        \
     if (!(cond) && !::viscd::assert_failed(#cond, msg, __FILE__, __LINE__)) __builtin_trap(); \
   } while (false)
-/// Code that exists only when asserts are on.
-#define VISCD_IF_ASSERTS(...) __VA_ARGS__
 #else
 #define VISCD_ASSERT(cond, msg) ((void)0)
-#define VISCD_IF_ASSERTS(...)
 #endif

@@ -12,7 +12,8 @@
 
 namespace viscd {
 
-/// Pipeline stages timed by detectors (DESIGN.md, stages 1-9; stage 0, simulation, is the caller's).
+/// Pipeline stages timed by detectors (docs/architecture.md, stages 1-9; stage 0, simulation, is
+/// the caller's).
 enum class Stage : std::uint8_t {
   visibility,  ///< 1: id map + depth + normal
   count,       ///< 2: pixels per object

@@ -1,6 +1,6 @@
 #pragma once
 /// \file gl.hpp
-/// The OpenGL 4.5 backend's own settings and factory (DESIGN.md, "Backends"). Available when
+/// The OpenGL 4.5 backend's own settings and factory (docs/gl.md). Available when
 /// viscd is built with VISCD_ENABLE_GL (the default); the backend runs headless through EGL
 /// (Mesa's surfaceless platform, llvmpipe where there is no GPU). See docs/gl.md.
 

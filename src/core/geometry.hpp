@@ -39,8 +39,8 @@ inline bool overlaps(const Aabb& a, const Aabb& b) {
          b.lo.z <= a.hi.z;
 }
 
-/// DESIGN.md's overlap test, exactly as every backend evaluates it (float, no FMA: the library is
-/// compiled with -ffp-contract=off).
+/// The overlap test (docs/architecture.md, "Contracts"), exactly as every backend evaluates it:
+/// float, touching counts, no FMA (the library is compiled with -ffp-contract=off).
 inline bool overlap_exact(const Sphere& a, const Sphere& b) {
   const float dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
   const float s = a.r + b.r;

@@ -132,33 +132,29 @@ std::string validate_lbvh(const Lbvh& bvh, std::span<const Aabb> leaf_boxes) {
   if (bvh.nodes.size() != n - 1) return "internal node count is not leaves - 1";
   std::vector<std::uint8_t> seen_leaf(n, 0), seen_node(n - 1, 0);
   // Iterative DFS from the root computing each subtree's box and last position.
-  struct Item {
-    std::uint32_t node;
-    int depth;
-  };
-  std::vector<Item> stack{{0, 0}};
+  std::vector<std::uint32_t> stack{0};
   seen_node[0] = 1;
   if (bvh.parent[0] != kNoParent) return "root has a parent";
   // Post-order needs subtree results; compute boxes by recursion over an explicit order.
   std::vector<std::uint32_t> order;
   order.reserve(n - 1);
   while (!stack.empty()) {
-    const Item it = stack.back();
+    const std::uint32_t node = stack.back();
     stack.pop_back();
-    order.push_back(it.node);
-    const BvhNode& nd = bvh.nodes[it.node];
+    order.push_back(node);
+    const BvhNode& nd = bvh.nodes[node];
     for (int c = 0; c < 2; ++c) {
       const std::uint32_t ch = nd.child[c];
       if (ch & kLeafBit) {
         const std::uint32_t leaf = ch & ~kLeafBit;
-        if (leaf >= n) return "leaf id out of range at node " + std::to_string(it.node);
+        if (leaf >= n) return "leaf id out of range at node " + std::to_string(node);
         if (seen_leaf[leaf]++) return "leaf " + std::to_string(leaf) + " appears twice";
-        if (bvh.leaf_parent[leaf] != it.node) return "leaf " + std::to_string(leaf) + " has a wrong parent link";
+        if (bvh.leaf_parent[leaf] != node) return "leaf " + std::to_string(leaf) + " has a wrong parent link";
       } else {
-        if (ch >= n - 1) return "child id out of range at node " + std::to_string(it.node);
+        if (ch >= n - 1) return "child id out of range at node " + std::to_string(node);
         if (seen_node[ch]++) return "internal node " + std::to_string(ch) + " reached twice";
-        if (bvh.parent[ch] != it.node) return "node " + std::to_string(ch) + " has a wrong parent link";
-        stack.push_back({ch, it.depth + 1});
+        if (bvh.parent[ch] != node) return "node " + std::to_string(ch) + " has a wrong parent link";
+        stack.push_back(ch);
       }
     }
   }

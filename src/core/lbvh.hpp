@@ -1,5 +1,5 @@
 #pragma once
-// Linear BVH over sorted Morton keys (DESIGN.md stage 7-8).
+// Linear BVH over sorted Morton keys: build and fit (stage 7), traversal (stage 8).
 //
 // Build: Karras 2012, "Maximizing Parallelism in the Construction of BVHs, Octrees, and k-d
 // Trees" (HPG), one independent task per internal node. n leaves (sorted positions 0..n-1) and

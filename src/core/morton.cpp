@@ -17,7 +17,7 @@ constexpr char kAxisName[3] = {'x', 'y', 'z'};
 // With equal extents (the plain layout passes {1, 1, 1}) this is the classic round robin in
 // `order`. For a flat world it keeps the flat axis's few bits for the levels where the other
 // axes' cells have become as thin as it is, so cells stay near cubic all the way down instead of
-// slicing the flat axis at the root (DESIGN.md's step 4 round robin did that; docs/architecture.md,
+// slicing the flat axis at the root (as a plain round robin would; docs/architecture.md,
 // "Morton layout", has the measurement).
 void assign_positions(MortonLayout& l, std::array<double, 3> cell) {
   const int total = l.axis_bits[0] + l.axis_bits[1] + l.axis_bits[2];

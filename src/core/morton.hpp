@@ -1,13 +1,17 @@
 #pragma once
-// Morton layouts (DESIGN.md stage 4) and codes (stage 5).
+// Morton layouts (stage 4) and codes (stage 5); the layout rule is docs/architecture.md,
+// "Morton layout".
 //
 // A layout says which axis supplies each bit of an m-bit code, most significant first. The
 // extended layout (after Vinkler et al. 2017, "Extended Morton Codes", and the paper's Table 2)
 // orders the axes by the extent of the active centres and gives the flattest axis no more bits
-// than resolve an object there; for the paper's flat world (x 200, z 180, y 6 wide) it yields
+// than resolve an object there. The bits are then interleaved by largest cell: from the most
+// significant bit down, each bit goes to the axis whose cell (extent / 2^bits given so far) is
+// the largest (ties to the larger extent), skipping axes whose bits are used up. For the paper's
+// flat world (x 200, z 180, y 6 wide) that yields
 //   m = 16:  x(7)→z(6)→y(3)    code bits 15..0:  x z x z x z x z x z x y z x y y
-// Each bit goes to the axis whose cell is then the largest, so y is split only once the x and z
-// cells have become about as thin as the world is flat.
+// so y is split only once the x and z cells have become about as thin as the world is flat.
+// With equal extents (and for the plain layout) the interleave is the classic round robin.
 // Encoding quantises each axis to its bit count over the bounds of the active centres, then
 // scatters the axis bits to their code positions with byte-wise lookup tables (4 bytes x 3 axes).
 
@@ -33,10 +37,12 @@ struct MortonLayout {
   void write(std::string& out) const;
 };
 
-/// DESIGN.md's rule: axes by extent (ties x, y, z); the smallest gets
-/// min(cap, floor(m/3)) bits with cap = max(1, ceil(log2(extent_smallest / mean_diameter)));
-/// the other two share the rest, the larger taking the extra bit; bits interleave from the most
-/// significant in axis order, skipping exhausted axes.
+/// The extended layout (docs/architecture.md, "Morton layout"): axes by extent (ties x, y, z); the
+/// smallest gets min(cap, floor(m/3)) bits with cap = max(1, ceil(log2(extent_smallest /
+/// mean_diameter))); the other two share the rest, the larger taking the extra bit. Bits are
+/// interleaved by largest cell: each next bit, from the most significant down, goes to the axis
+/// whose cell (extent / 2^bits given so far) is then the largest (ties to the larger extent),
+/// skipping axes whose bits are used up.
 [[nodiscard]] MortonLayout extended_layout(int bits, const Aabb& centre_bounds, float mean_diameter);
 /// Plain interleaving x, y, z with floor(m/3) bits each: 5/5/5, 10/10/10, 21/21/21.
 [[nodiscard]] MortonLayout plain_layout(int bits);

@@ -31,9 +31,9 @@ class PipelineDetector : public Detector {
   explicit PipelineDetector(const Config& config) : Detector(config) {}
   /// Stage 1 into map_ (already sized).
   virtual void rasterize(const CameraRig& cam, std::span<const Sphere> spheres, int threads) = 0;
-  /// Stages 4-8 over the active set; writes sorted pairs and stats (bits, layout, stage times).
   /// Bytes held by the backend's own stages (raster, broadphase).
   [[nodiscard]] virtual std::uint64_t backend_memory_bytes() const = 0;
+  /// Stages 4-8 over the active set; writes sorted pairs and stats (bits, layout, stage times).
   [[nodiscard]] virtual Status broadphase(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
                                           int bits, int threads, std::vector<Pair>& pairs, FrameStats& stats) = 0;
 

@@ -1,5 +1,5 @@
 #pragma once
-// Visibility map (DESIGN.md stage 1), pixel counts (2), culling and mu (3), shading (9): the parts
+// Visibility map (stage 1), pixel counts (2), culling and mu (3), shading (9): the parts
 // shared by the reference and cpu backends. Both rasterizers call the same `hit()` per pixel and
 // resolve depth ties by the smaller object id, so their id maps are equal bit for bit.
 

@@ -102,7 +102,6 @@ Status GlDetector::broadphase(std::uint32_t n_bound, std::uint32_t objects, cons
                               const detail::Aabb& bounds, std::vector<Pair>& pairs, FrameStats& stats) {
   const std::uint32_t n = n_bound;  // dispatch sizes below: shaders early-out at info.active_count
   reserve_broadphase(n);
-  last_bits_ = layout.bits;
   info_.bind_storage(VISCD_BIND_INFO);
 
   // Stage 5: codes. The encoder parameters are MortonEncoder's, computed the same way in double.

@@ -19,7 +19,6 @@ std::string egl_error(const char* what) {
 Result<std::unique_ptr<Context>> Context::create(bool debug) {
   using R = Result<std::unique_ptr<Context>>;
   std::unique_ptr<Context> ctx(new Context());
-  ctx->debug_ = debug;
   // Client extensions: EGL_EXT_platform_base and EGL_MESA_platform_surfaceless.
   const char* client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
   if (!client || std::string_view(client).find("EGL_MESA_platform_surfaceless") == std::string_view::npos)

@@ -31,8 +31,6 @@ class Context {
   [[nodiscard]] const std::string& description() const { return description_; }
   /// Debug messages of type error (and high-severity messages) since the last call.
   [[nodiscard]] std::vector<std::string> take_errors();
-  /// Whether debug output is on.
-  [[nodiscard]] bool debug() const { return debug_; }
 
  private:
   Context() = default;
@@ -42,7 +40,6 @@ class Context {
   EGLDisplay display_ = EGL_NO_DISPLAY;
   EGLContext context_ = EGL_NO_CONTEXT;
   std::string description_;
-  bool debug_ = false;
   std::mutex mutex_;
   std::vector<std::string> errors_;
 };

@@ -1,6 +1,7 @@
 #include "gl/gl_detector.hpp"
 
 #include <chrono>
+#include <cstdio>
 #include <cstring>
 
 #include "core/broadphase.hpp"
@@ -249,8 +250,9 @@ Status GlDetector::detect(std::span<const Sphere> spheres, const Camera* camera,
     glGetNamedBufferSubData(info_.get(), 0, sizeof layout_info, &layout_info);  // the sync mode's wait
     ++mid_frame_waits_;
     n_bound = layout_info.active_count;
-    // mu over all N (DESIGN.md). The cpu backend sums count * scale in double; with scale 1
-    // (map = screen) both sums are exact and equal, otherwise they may differ in the last ulp.
+    // mu over all N objects, culled ones included (docs/architecture.md, "Contracts"). The cpu
+    // backend sums count * scale in double; with scale 1 (map = screen) both sums are exact and
+    // equal, otherwise they may differ in the last ulp.
     if (camera) mu = n_all ? static_cast<double>(layout_info.total_pixels) * rig->pixel_scale / n_all : 0.0;
   }
   int bits = 32;  // without a camera mu is undefined; adaptive falls back to 32 (as PipelineDetector)

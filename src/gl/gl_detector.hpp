@@ -1,6 +1,7 @@
 #pragma once
-// The gl backend (DESIGN.md): every stage of the frame runs in OpenGL 4.5 compute shaders (and
-// one instanced draw for the visibility map). Two modes (GlOptions::sync_layout, docs/gl.md):
+// The gl backend: every stage of the frame (docs/architecture.md) runs in OpenGL 4.5 compute
+// shaders (and one instanced draw for the visibility map). Two modes (GlOptions::sync_layout,
+// docs/gl.md):
 //   default (sync_layout = false): no host wait between the start of the frame and its final
 //      readback. m and the Morton layout are chosen on the host (core/morton.hpp, as the cpu
 //      backend) from the PREVIOUS frame's FrameInfo (active count, active-centre bounds,
@@ -111,7 +112,6 @@ class GlDetector final : public Detector {
   GLsizei mesh_indices_ = 0;
   int sorted_in_ = 0;         // which keys_/values_ holds the last sorted codes
   std::uint32_t last_n_ = 0;  // active count of the last broadphase
-  int last_bits_ = 32;
   std::uint32_t pair_capacity_ = 0;
   // This frame's FrameInfo, read back once at the end of the broadphase (with the pair count).
   shader::FrameInfo frame_info_{};

@@ -1,32 +1,13 @@
 #pragma once
-// RAII owners of GL objects (STYLE.md item 10). Each owns one name, cannot be copied, can be
-// moved, and deletes its name on destruction: the context that created it must be current then
-// (GlDetector makes its context current in every entry point and in its destructor).
+// RAII owners of GL objects. Each owns one name, cannot be copied, can be moved, and deletes its
+// name on destruction: the context that created it must be current then (GlDetector makes its
+// context current in every entry point and in its destructor).
 // Shaders and passes see plain GLuint names ("views"), never the owners.
 
 #include <epoxy/gl.h>
 
 #include <algorithm>
-#include <cstdio>
 #include <utility>
-
-#include "viscd/assert.hpp"
-
-/// Checks glGetError() after a GL call in builds with asserts on (STYLE.md item 20). Errors are
-/// also reported, with a message, through the debug output callback (see context.hpp).
-#ifdef VISCD_ENABLE_ASSERTS
-#define VISCD_GL_CHECK(call)                                                                           \
-  do {                                                                                                 \
-    call;                                                                                              \
-    const GLenum viscd_gl_err = glGetError();                                                          \
-    if (viscd_gl_err != GL_NO_ERROR) {                                                                 \
-      std::fprintf(stderr, "%s:%d: GL error 0x%04x in %s\n", __FILE__, __LINE__, viscd_gl_err, #call); \
-      VISCD_ASSERT(false, "GL error");                                                                 \
-    }                                                                                                  \
-  } while (false)
-#else
-#define VISCD_GL_CHECK(call) call
-#endif
 
 namespace viscd::gl {
 
@@ -88,8 +69,9 @@ using Query = Handle<QueryDeleter>;
 using Shader = Handle<ShaderDeleter>;
 using ProgramHandle = Handle<ProgramDeleter>;
 
-/// A GL buffer with its size in bytes. Storage is immutable-size (glNamedBufferData), regrown on
-/// demand by `reserve` (contents are not kept).
+/// A GL buffer with its size in bytes. Its data store is mutable (glNamedBufferData, usage
+/// GL_DYNAMIC_COPY; no glBufferStorage): `reserve` re-specifies it with a larger size on demand,
+/// and the contents are not kept.
 class Buffer {
  public:
   Buffer() = default;

@@ -25,7 +25,7 @@ class Program {
   [[nodiscard]] explicit operator bool() const { return static_cast<bool>(handle_); }
   /// Local size x of a compute program.
   [[nodiscard]] GLuint local_size() const { return local_size_; }
-  /// Work groups covering n elements: ceil(n / local size) (STYLE.md item 19).
+  /// Work groups covering n elements: ceil(n / local size).
   [[nodiscard]] GLuint groups_for(std::uint64_t n) const {
     return static_cast<GLuint>((n + local_size_ - 1) / local_size_);
   }

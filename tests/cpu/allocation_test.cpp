@@ -1,5 +1,5 @@
-// The cpu backend allocates nothing per frame once warmed up (issue 2: "no allocation per frame
-// after the first"): global operator new is counted between two points of a test.
+// The cpu backend allocates nothing per frame once warmed up (no allocation per frame after the
+// first): global operator new is counted between two points of a test.
 #include <gtest/gtest.h>
 
 #include <atomic>

@@ -1,5 +1,7 @@
 // The cpu backend's pairs against brute force, for every Morton width and layout, over random
-// and degenerate sphere sets (issue 2's list), plus tree validity and pair-memory behaviour.
+// and degenerate sphere sets (none to two spheres, identical centres, touching spheres, a huge
+// sphere among tiny ones, collinear centres, large coordinates, subnormal distances, counts
+// around powers of two), plus tree validity and pair-memory behaviour.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -13,7 +15,7 @@ namespace viscd {
 namespace {
 
 using test::oracle_pairs;
-using test::random_spheres;
+using test::random_spheres_by_half_extent;
 using test::same_pairs;
 
 struct Variant {
@@ -51,7 +53,8 @@ void check_exact(const std::vector<Sphere>& spheres, const std::string& what) {
 TEST(CpuBroadphase, RandomScenesManySeeds) {
   for (std::uint64_t seed = 1; seed <= 25; ++seed) {
     const std::size_t n = 50 + seed * 97;
-    check_exact(random_spheres(n, seed, 8.0f + static_cast<float>(seed)), "seed " + std::to_string(seed));
+    check_exact(random_spheres_by_half_extent(n, seed, 8.0f + static_cast<float>(seed)),
+                "seed " + std::to_string(seed));
   }
 }
 
@@ -130,7 +133,7 @@ TEST(CpuBroadphase, PairsThatUninflatedBoxesWouldMiss) {
 }
 
 TEST(CpuBroadphase, HugeAmongTiny) {
-  auto s = random_spheres(3000, 5, 100.0f, 0.01f, 0.05f);
+  auto s = random_spheres_by_half_extent(3000, 5, 100.0f, 0.01f, 0.05f);
   s[17] = {0, 0, 0, 40};
   s[1234] = {50, 50, 50, 30};
   s[2999] = {-1e4f, 0, 0, 1e4f};  // swallows half the world
@@ -144,7 +147,7 @@ TEST(CpuBroadphase, AllOnALine) {
 }
 
 TEST(CpuBroadphase, CoordinatesNear1e5) {
-  auto s = random_spheres(2500, 9, 30.0f, 0.5f, 2.0f);
+  auto s = random_spheres_by_half_extent(2500, 9, 30.0f, 0.5f, 2.0f);
   for (auto& sp : s) sp.x += 1e5f, sp.y -= 1e5f, sp.z += 1e5f;
   check_exact(s, "near 1e5");
 }
@@ -160,12 +163,13 @@ TEST(CpuBroadphase, TinyRadiiAndSubnormalDistances) {
 
 TEST(CpuBroadphase, CountsAroundPowersOfTwo) {
   for (std::size_t p : {64u, 256u, 1024u, 4096u}) {
-    for (std::size_t n : {p - 1, p, p + 1}) check_exact(random_spheres(n, n, 6.0f), "N=" + std::to_string(n));
+    for (std::size_t n : {p - 1, p, p + 1})
+      check_exact(random_spheres_by_half_extent(n, n, 6.0f), "N=" + std::to_string(n));
   }
 }
 
 TEST(CpuBroadphase, ThreadCountsAgree) {
-  const auto s = random_spheres(20000, 3, 40.0f);
+  const auto s = random_spheres_by_half_extent(20000, 3, 40.0f);
   Config one;
   one.threads = 1;
   Config many;
@@ -180,7 +184,7 @@ TEST(CpuBroadphase, PairBuffersGrowAcrossFrames) {
   // Same detector: few pairs, then millions, then few again; every frame exact.
   auto det = make_cpu_detector();
   FrameResult f;
-  const auto sparse = random_spheres(500, 1, 50.0f);
+  const auto sparse = random_spheres_by_half_extent(500, 1, 50.0f);
   ASSERT_TRUE(det->detect(sparse, nullptr, f).ok());
   EXPECT_TRUE(same_pairs(f.pairs, oracle_pairs(sparse)));
   const std::vector<Sphere> dense(1500, Sphere{1, 1, 1, 1});
@@ -212,7 +216,7 @@ TEST(CpuBroadphase, InvalidSpheresAreErrors) {
                                                            {{0, 0, 2e18f, 1}, "exceeds"},
                                                            {{0, 0, 0, nan}, "r is not a finite"}};
   for (const auto& [sphere, phrase] : bad) {
-    std::vector<Sphere> s = random_spheres(10, 1);
+    std::vector<Sphere> s = random_spheres_by_half_extent(10, 1);
     s[7] = sphere;
     for (const char* backend : {"cpu", "reference"}) {
       FrameResult f;
@@ -229,7 +233,7 @@ TEST(CpuBroadphase, InvalidSpheresAreErrors) {
 }
 
 TEST(CpuBroadphase, ReferenceBackendMatchesIndependentOracle) {
-  const auto s = random_spheres(1500, 77, 10.0f);
+  const auto s = random_spheres_by_half_extent(1500, 77, 10.0f);
   auto ref = make_reference_detector();
   EXPECT_TRUE(same_pairs(test::run_frame(*ref, s).pairs, oracle_pairs(s)));
 }

@@ -13,7 +13,7 @@ namespace viscd {
 namespace {
 
 using test::oracle_pairs;
-using test::random_spheres;
+using test::random_spheres_by_half_extent;
 using test::same_pairs;
 
 Camera camera_at(float ex, float ey, float ez, float tx, float ty, float tz, int w, int h) {
@@ -59,7 +59,7 @@ TEST(Visibility, CpuEqualsReferenceOnRandomScenesAndCameras) {
   std::mt19937 rng(3);
   std::uniform_real_distribution<float> u(-1, 1);
   for (int trial = 0; trial < 12; ++trial) {
-    const auto s = random_spheres(40 + 30 * trial, 100 + trial, 10.0f, 0.2f, 2.5f);
+    const auto s = random_spheres_by_half_extent(40 + 30 * trial, 100 + trial, 10.0f, 0.2f, 2.5f);
     const int w = 97 + 13 * trial, h = 53 + 7 * trial;  // odd sizes: tiles cut at the edges
     const Camera cam = camera_at(30 * u(rng), 30 * u(rng), 30 * u(rng), 3 * u(rng), 3 * u(rng), 3 * u(rng), w, h);
     Config c;
@@ -71,7 +71,7 @@ TEST(Visibility, CpuEqualsReferenceOnRandomScenesAndCameras) {
 }
 
 TEST(Visibility, ScaledMapsAndDegenerateSizes) {
-  const auto s = random_spheres(300, 8, 10.0f, 0.3f, 2.0f);
+  const auto s = random_spheres_by_half_extent(300, 8, 10.0f, 0.3f, 2.0f);
   const Camera cam = camera_at(0, 5, 35, 0, 0, 0, 1280, 720);
   Config c;
   c.map_width = 64, c.map_height = 36;  // 400 screen pixels per map pixel
@@ -91,7 +91,7 @@ TEST(Visibility, ScaledMapsAndDegenerateSizes) {
   EXPECT_TRUE(sum == 0.0 || sum == 1280.0 * 720.0);
   // More objects than pixels.
   c.map_width = 8, c.map_height = 6;
-  check_against_reference(random_spheres(2000, 4, 10.0f, 0.05f, 0.5f), cam, c, "8x6 map, 2000 objects");
+  check_against_reference(random_spheres_by_half_extent(2000, 4, 10.0f, 0.05f, 0.5f), cam, c, "8x6 map, 2000 objects");
 }
 
 TEST(Visibility, CameraInsideASphereSeesItsInside) {
@@ -144,7 +144,7 @@ TEST(Visibility, MeanPixelsAndBitsAtTheThresholds) {
 }
 
 TEST(Visibility, AllCulledAndNoneCulled) {
-  const auto s = random_spheres(500, 21, 5.0f, 0.5f, 1.5f);
+  const auto s = random_spheres_by_half_extent(500, 21, 5.0f, 0.5f, 1.5f);
   const Camera cam = camera_at(0, 0, 30, 0, 0, 0, 160, 90);
   Config c;
   c.lambda = 1e9f;
@@ -159,7 +159,7 @@ TEST(Visibility, AllCulledAndNoneCulled) {
 }
 
 TEST(Visibility, InvalidCameraAndMapAreErrors) {
-  const auto s = random_spheres(10, 1);
+  const auto s = random_spheres_by_half_extent(10, 1);
   Camera cam = camera_at(0, 0, 10, 0, 0, 10, 64, 48);  // eye == target
   FrameResult f;
   EXPECT_FALSE(make_cpu_detector()->detect(s, &cam, f).ok());
@@ -232,10 +232,10 @@ TEST(Memory, TallyCoversTheMapAndGrowsWithN) {
   const Camera cam = camera_at(0, 5, 40, 0, 0, 0, 320, 180);
   auto det = make_cpu_detector();
   EXPECT_EQ(det->memory_bytes(), 0u);
-  test::run_frame(*det, random_spheres(1000, 1), &cam);
+  test::run_frame(*det, random_spheres_by_half_extent(1000, 1), &cam);
   const std::uint64_t small = det->memory_bytes();
   EXPECT_GE(small, 320u * 180 * (4 + 4));  // id + depth map at least
-  test::run_frame(*det, random_spheres(50000, 2, 30.0f), &cam);
+  test::run_frame(*det, random_spheres_by_half_extent(50000, 2, 30.0f), &cam);
   EXPECT_GT(det->memory_bytes(), small + 50000u * (sizeof(Sphere) + 4));  // sorted spheres + ids
 }
 

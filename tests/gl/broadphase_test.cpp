@@ -77,14 +77,14 @@ void check(gl::GlDetector& gl, const Case& c, int bits, Layout layout = Layout::
 TEST(GlBroadphase, SizesAroundWorkGroups) {
   VISCD_GL_OR_SKIP(gl);
   for (std::size_t n : {0u, 1u, 2u, 255u, 256u, 257u, 1023u, 1025u}) {
-    const Case c = all_active(random_spheres(n, 20.0f, 0.2f, 1.0f, static_cast<unsigned>(n) + 7));
+    const Case c = all_active(random_spheres_by_edge(n, 20.0f, 0.2f, 1.0f, static_cast<unsigned>(n) + 7));
     for (int bits : {16, 32, 64}) check(*gl, c, bits);
   }
 }
 
 TEST(GlBroadphase, PlainLayout) {
   VISCD_GL_OR_SKIP(gl);
-  const Case c = all_active(random_spheres(700, 30.0f, 0.2f, 1.2f, 3));
+  const Case c = all_active(random_spheres_by_edge(700, 30.0f, 0.2f, 1.2f, 3));
   for (int bits : {16, 32, 64}) check(*gl, c, bits, Layout::plain);
 }
 
@@ -129,7 +129,7 @@ TEST(GlBroadphase, PairBufferOverflowGrowsAndReruns) {
   ASSERT_TRUE(fresh.ok()) << fresh.error();
   gl::GlDetector& d = *fresh.value();
   ASSERT_EQ(d.pair_capacity(), 64u);
-  const Case c = all_active(random_spheres(2000, 12.0f, 0.3f, 0.9f, 5));
+  const Case c = all_active(random_spheres_by_edge(2000, 12.0f, 0.3f, 0.9f, 5));
   std::vector<Pair> brute;
   detail::brute_force_pairs(c.spheres, c.active, brute);
   ASSERT_GT(brute.size(), 64u);

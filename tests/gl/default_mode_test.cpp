@@ -90,8 +90,8 @@ TEST(GlDefaultMode, MovingRingWithCameraAndCullingEveryFrame) {
 
 TEST(GlDefaultMode, LayoutIsThePreviousFramesAndReportedAsUsed) {
   VISCD_GL_OR_SKIP(gl);
-  const std::vector<Sphere> a = random_spheres(1200, 40.0f, 0.2f, 1.0f, 1);
-  std::vector<Sphere> b = random_spheres(1200, 40.0f, 0.2f, 1.0f, 2);
+  const std::vector<Sphere> a = random_spheres_by_edge(1200, 40.0f, 0.2f, 1.0f, 1);
+  std::vector<Sphere> b = random_spheres_by_edge(1200, 40.0f, 0.2f, 1.0f, 2);
   for (Sphere& s : b) s.y *= 0.05f;  // flat in y: a different layout
   auto ref = make_reference_detector();
   FrameResult ra, rb, g;
@@ -112,7 +112,7 @@ TEST(GlDefaultMode, LayoutIsThePreviousFramesAndReportedAsUsed) {
 
 TEST(GlDefaultMode, ObjectsJumpFarOutsideThePreviousBounds) {
   VISCD_GL_OR_SKIP(gl);
-  std::vector<Sphere> s = random_spheres(2500, 20.0f, 0.2f, 1.0f, 4);
+  std::vector<Sphere> s = random_spheres_by_edge(2500, 20.0f, 0.2f, 1.0f, 4);
   FrameResult out;
   check_frame(*gl, s, nullptr, out, "start");
   for (Sphere& x : s) x.x += 1000.0f;  // every centre clamps to the border cell in x
@@ -150,7 +150,7 @@ TEST(GlDefaultMode, ZeroAndOneActiveOfManyObjects) {
   Camera cam;  // looks down -z from z = 10
   cam.width = 256;
   cam.height = 144;
-  std::vector<Sphere> s = random_spheres(3000, 10.0f, 0.05f, 0.3f, 8);  // z in [-5, 5]
+  std::vector<Sphere> s = random_spheres_by_edge(3000, 10.0f, 0.05f, 0.3f, 8);  // z in [-5, 5]
   FrameResult out;
   check_frame(*gl, s, &cam, out, "all in front");
   std::vector<Sphere> behind = s;
@@ -197,12 +197,12 @@ TEST(GlDefaultMode, PairBufferOverflowGrowsAndReruns) {
   ASSERT_TRUE(fresh.ok()) << fresh.error();
   gl::GlDetector& d = *fresh.value();
   FrameResult out;
-  const std::vector<Sphere> sparse = random_spheres(1500, 2000.0f, 0.1f, 0.2f, 31);
+  const std::vector<Sphere> sparse = random_spheres_by_edge(1500, 2000.0f, 0.1f, 0.2f, 31);
   check_frame(d, sparse, nullptr, out, "sparse (sync: first frame)");
   ASSERT_LE(out.pairs.size(), 16u);
   ASSERT_EQ(d.pair_capacity(), 16u);
   const std::uint64_t waits = d.mid_frame_waits();
-  const std::vector<Sphere> dense = random_spheres(1500, 10.0f, 0.3f, 0.8f, 32);
+  const std::vector<Sphere> dense = random_spheres_by_edge(1500, 10.0f, 0.3f, 0.8f, 32);
   check_frame(d, dense, nullptr, out, "dense (default mode, overflows)");
   EXPECT_GT(out.pairs.size(), 16u);
   EXPECT_GE(d.pair_capacity(), out.pairs.size());

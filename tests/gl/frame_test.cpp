@@ -48,7 +48,7 @@ TEST(GlFrame, NoCameraPairsEqualReference) {
   VISCD_GL_OR_SKIP(gl, Config{}, GlOptions{.sync_layout = true});
   auto ref = make_reference_detector();
   for (std::size_t n : {0u, 1u, 2u, 255u, 256u, 257u, 2000u}) {
-    const std::vector<Sphere> s = random_spheres(n, 25.0f, 0.2f, 1.0f, static_cast<unsigned>(n));
+    const std::vector<Sphere> s = random_spheres_by_edge(n, 25.0f, 0.2f, 1.0f, static_cast<unsigned>(n));
     FrameResult a, b;
     ASSERT_TRUE(gl->detect(s, nullptr, a).ok());
     ASSERT_TRUE(ref->detect(s, nullptr, b).ok());
@@ -234,7 +234,7 @@ TEST(GlFrame, DetectOverflowingPairBufferReturnsEveryPair) {
   VISCD_GL_OR_SKIP(gl);  // skips when there is no context at all
   auto fresh = gl::GlDetector::create(Config{}, GlOptions{.debug = true, .initial_pair_capacity = 16});
   ASSERT_TRUE(fresh.ok()) << fresh.error();
-  const std::vector<Sphere> s = random_spheres(1500, 10.0f, 0.3f, 0.8f, 21);
+  const std::vector<Sphere> s = random_spheres_by_edge(1500, 10.0f, 0.3f, 0.8f, 21);
   auto ref = make_reference_detector();
   FrameResult a, b;
   ASSERT_TRUE(fresh.value()->detect(s, nullptr, a).ok());

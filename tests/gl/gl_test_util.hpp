@@ -53,7 +53,6 @@ inline gl::GlDetector* gl_detector(const Config& config = {}, GlOptions options 
   gl::GlDetector* var = ::viscd::test::gl_detector(__VA_ARGS__); \
   if (!var) GTEST_SKIP() << "no OpenGL 4.5 context: " << ::viscd::test::gl_holder().error
 
-/// Uniform random spheres in a cube of edge `extent`, radii in [rmin, rmax].
 /// A preset camera over a small 256 x 144 screen, which keeps llvmpipe frames fast.
 inline Camera small_camera(const Scene& scene, const char* preset) {
   auto c = camera_preset(preset, scene, 256, 144);
@@ -61,9 +60,12 @@ inline Camera small_camera(const Scene& scene, const char* preset) {
   return c.value();
 }
 
-inline std::vector<Sphere> random_spheres(std::size_t n, float extent, float rmin, float rmax, unsigned seed) {
+/// n spheres with centres uniform in a cube of edge `edge` centred at the origin, i.e. in
+/// [-edge/2, edge/2]^3, and radii uniform in [rmin, rmax] (std::mt19937 seeded with `seed`).
+/// test_util.hpp's random_spheres_by_half_extent takes half the edge instead.
+inline std::vector<Sphere> random_spheres_by_edge(std::size_t n, float edge, float rmin, float rmax, unsigned seed) {
   std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> pos(-extent / 2, extent / 2), rad(rmin, rmax);
+  std::uniform_real_distribution<float> pos(-edge / 2, edge / 2), rad(rmin, rmax);
   std::vector<Sphere> s(n);
   for (Sphere& x : s) x = {pos(rng), pos(rng), pos(rng), rad(rng)};
   return s;

@@ -1,7 +1,7 @@
 #version 450 core
 // Stage 8: one invocation per leaf p (sorted position) walks the tree for leaves q > p whose box
-// overlaps its own (core/lbvh.hpp for_each_overlap_after), then applies DESIGN.md's exact sphere
-// test with `precise` (no FMA). Every pair is counted in info.pair_count; pairs are stored only
+// overlaps its own (core/lbvh.hpp for_each_overlap_after), then applies the exact sphere test
+// (docs/architecture.md, "Contracts") with `precise` (no FMA). Every pair is counted in info.pair_count; pairs are stored only
 // while the count is below u_capacity, and the host grows the buffer and re-runs on overflow:
 // no pair is ever dropped. The stack holds VISCD_STACK_DEPTH >= 64 + 32 entries, the deepest
 // possible tree (core/lbvh.hpp), so it cannot overflow.

@@ -1,9 +1,11 @@
-// viscd gl backend: the one header shared by C++ and GLSL (STYLE.md items 17-19).
+// viscd gl backend: the one header shared by C++ and GLSL.
 //
 // Holds the binding indices, the work-group sizes and the std430 structs that both sides read.
 // GLSL sees it textually inlined after `#version` (the build inlines it, see src/gl/CMakeLists.txt);
-// C++ includes it normally and pins every struct's size and offsets with static_assert. Structs
-// use vec4/uvec4 or explicit padding, never a bare vec3 (std430 would pad it differently).
+// C++ includes it normally and pins every struct's size and offsets with static_assert (below);
+// src/gl/layout_checks.cpp ties the constants and structs to their C++ twins (ObjectState,
+// core/lbvh.hpp, Sphere, Pair). Structs use vec4/uvec4 or explicit padding, never a bare vec3
+// (std430 would pad it differently).
 #ifndef VISCD_GL_LAYOUT_H
 #define VISCD_GL_LAYOUT_H
 
