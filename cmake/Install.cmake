@@ -19,3 +19,12 @@ install(FILES ${PROJECT_BINARY_DIR}/viscdConfig.cmake ${PROJECT_BINARY_DIR}/visc
 if(TARGET viscd_app)
   install(TARGETS viscd_app RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 endif()
+# `viscd bench` finds its plot scripts in <prefix>/share/viscd and the peers driver in
+# <prefix>/libexec/viscd when installed.
+if(TARGET viscd_app)
+  install(FILES ${PROJECT_SOURCE_DIR}/bench/plot_paper.py ${PROJECT_SOURCE_DIR}/bench/plot_peers.py
+          DESTINATION ${CMAKE_INSTALL_DATADIR}/viscd)
+endif()
+if(TARGET viscd_peers)
+  install(TARGETS viscd_peers RUNTIME DESTINATION ${CMAKE_INSTALL_LIBEXECDIR}/viscd)
+endif()

@@ -1,5 +1,9 @@
 // `viscd bench paper` and `viscd bench peers`: the paper's experiments, and the peer comparison.
+#include <sys/wait.h>
 #include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 
 #include <chrono>
 #include <cinttypes>
@@ -69,6 +73,18 @@ std::vector<std::string> available_backends() {
   std::vector<std::string> b = {"cpu"};
   if (gl_device()) b.push_back("gl");
   return b;
+}
+
+// A file that ships with viscd: installed under <prefix>/share/viscd beside <prefix>/bin/viscd,
+// or in the source tree of this build. Empty when neither exists.
+std::filesystem::path shipped_file(const std::string& name) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+  for (const fs::path& candidate :
+       {self.parent_path().parent_path() / "share" / "viscd" / name, fs::path(VISCD_SOURCE_DIR) / "bench" / name})
+    if (!self.empty() && fs::exists(candidate, ec)) return candidate;
+  return {};
 }
 
 int run_paper(const BenchArgs& a) {
@@ -184,20 +200,36 @@ int run_paper(const BenchArgs& a) {
     if (Status s = write_text(out / name, text->str()); !s) return fail(s.error());
   std::printf("wrote table1.csv, table2.csv, fig5_*.png, fig6.csv, fig7.csv, fig8.csv into %s\n", out.c_str());
   if (!a.no_plots) {
-    // Debian's matplotlib belongs to the system python; prefer it over another python3 on PATH.
-    const std::string python = fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
-    const std::string cmd = python + " '" VISCD_SOURCE_DIR "/bench/plot_paper.py' '" + out.string() + "'";
-    if (std::system(cmd.c_str()) != 0)
-      std::fprintf(stderr, "viscd: plots skipped (needs python3 with matplotlib: scripts/setup.sh installs it)\n");
+    const fs::path script = shipped_file("plot_paper.py");
+    if (script.empty()) {
+      std::fprintf(stderr, "viscd: plots skipped: plot_paper.py is neither in <prefix>/share/viscd nor in %s/bench\n",
+                   VISCD_SOURCE_DIR);
+    } else {
+      // Debian's matplotlib belongs to the system python; prefer it over another python3 on PATH.
+      // Arguments go through fork/exec, not a shell: no quoting of the paths is needed.
+      const std::string python = fs::exists("/usr/bin/python3") ? "/usr/bin/python3" : "python3";
+      std::fflush(stdout);
+      const pid_t pid = fork();
+      if (pid == 0) {
+        execlp(python.c_str(), python.c_str(), script.c_str(), out.c_str(), static_cast<char*>(nullptr));
+        _exit(127);
+      }
+      int status = 0;
+      if (pid < 0 || waitpid(pid, &status, 0) < 0 || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
+        std::fprintf(stderr, "viscd: plots skipped (needs python3 with matplotlib: scripts/setup.sh installs it)\n");
+    }
   }
-  return 0;
+  return kExitOk;
 }
 
 int run_peers(const BenchArgs& a) {
   // The peers driver links Bullet and FCL; it lives next to this binary (bench/, VISCD_BUILD_BENCH).
   namespace fs = std::filesystem;
-  const fs::path self = fs::read_symlink("/proc/self/exe");
-  for (const fs::path& candidate : {self.parent_path() / "bench" / "viscd_peers", self.parent_path() / "viscd_peers"}) {
+  std::error_code ec;
+  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+  const fs::path dir = self.parent_path();
+  for (const fs::path& candidate :
+       {dir / "viscd_peers", dir / "bench" / "viscd_peers", dir.parent_path() / "libexec" / "viscd" / "viscd_peers"}) {
     if (!fs::exists(candidate)) continue;
     std::vector<std::string> args = {candidate.string()};
     args.insert(args.end(), a.peer_args.begin(), a.peer_args.end());
@@ -206,10 +238,11 @@ int run_peers(const BenchArgs& a) {
     argv.push_back(nullptr);
     std::fflush(stdout);
     execv(argv[0], argv.data());
-    return fail("cannot run " + candidate.string());
+    return fail("cannot run " + printable(candidate.string(), 200) + ": " + std::strerror(errno));
   }
   return fail(
-      "viscd_peers not found next to viscd: build with -DVISCD_BUILD_BENCH=ON (needs libbullet-dev, libfcl-dev)");
+      "viscd_peers not found beside viscd nor in <prefix>/libexec/viscd: build with -DVISCD_BUILD_BENCH=ON (needs "
+      "libbullet-dev, libfcl-dev)");
 }
 
 }  // namespace
@@ -226,10 +259,20 @@ void add_bench_command(CLI::App& app, int& rc) {
       "(screenshots zoom-out and zoom-in), Fig. 6 (FPS against N with and without culling, lambda = 200),\n"
       "Fig. 7 (adaptive bits against fixed 32 and 64, a = 100, b = 400) and Fig. 8 (memory against N).\n"
       "Writes CSVs and PNG plots into --out. Frame times are wall-clock medians of simulate + detect.");
-  paper->add_option("--backend", args->backends, "backends to run (default: every one available)")->delimiter(',');
-  paper->add_option("--sizes", args->sizes, "object counts for Figs. 6-8")->delimiter(',')->capture_default_str();
-  paper->add_option("--frames", args->frames, "measured frames per point (median)")->capture_default_str();
-  paper->add_option("--warmup", args->warmup, "unmeasured frames before each point")->capture_default_str();
+  paper
+      ->add_option("--backend", args->backends, "backends to run, of cpu, reference, gl (default: every one available)")
+      ->delimiter(',')
+      ->check(CLI::IsMember({"cpu", "reference", "gl"}));
+  paper->add_option("--sizes", args->sizes, "object counts for Figs. 6-8, each 1 to 100 000 000")
+      ->delimiter(',')
+      ->check(CLI::Range(std::uint32_t{1}, kMaxObjects))
+      ->capture_default_str();
+  paper->add_option("--frames", args->frames, "measured frames per point (median), at least 1")
+      ->check(CLI::Range(1, 1'000'000))
+      ->capture_default_str();
+  paper->add_option("--warmup", args->warmup, "unmeasured frames before each point")
+      ->check(CLI::Range(0, 1'000'000))
+      ->capture_default_str();
   paper->add_option("--out", args->out, "results folder")->capture_default_str();
   paper->add_flag("--no-plots", args->no_plots, "write CSVs only");
   paper->callback([args, &rc] { rc = run_paper(*args); });
@@ -237,7 +280,8 @@ void add_bench_command(CLI::App& app, int& rc) {
       "peers",
       "viscd against Bullet (btDbvtBroadphase, bt32BitAxisSweep3) and FCL (DynamicAABBTree) on the\n"
       "same moving scene, in one process; arguments after -- go to the driver (try -- --help).");
-  peers->allow_extras();
+  // Everything after `peers` (main() drops a `--` right after it) belongs to the driver.
+  peers->prefix_command();
   peers->callback([args, peers, &rc] {
     args->peer_args = peers->remaining();
     rc = run_peers(*args);

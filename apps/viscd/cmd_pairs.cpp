@@ -1,6 +1,8 @@
 // `viscd pairs`: one frame from files.
+#include <algorithm>
 #include <cctype>
 #include <cinttypes>
+#include <optional>
 
 #include "common.hpp"
 
@@ -14,7 +16,19 @@ struct PairsArgs {
 
 int run_pairs(const PairsArgs& a) {
   auto config = make_config(a.pipeline);
-  if (!config) return fail(config.error());
+  if (!config) return usage_fail(config.error());
+  if (!a.validate_hash.empty()) {
+    const bool hex16 = a.validate_hash.size() == 16 &&
+                       std::all_of(a.validate_hash.begin(), a.validate_hash.end(),
+                                   [](char ch) { return std::isxdigit(static_cast<unsigned char>(ch)) != 0; });
+    if (!hex16) return usage_fail("--validate-hash: expected 16 hex digits, got '" + printable(a.validate_hash) + "'");
+  }
+  // Refuse before anything is read or written.
+  std::vector<NamedPath> inputs = {{"--spheres", a.spheres}}, outputs = {{"--out", a.out}};
+  if (!a.camera.empty()) inputs.push_back({"--camera", a.camera});
+  if (!a.stats.empty()) outputs.push_back({"--stats", a.stats});
+  if (Status s = check_outputs(inputs, outputs); !s) return usage_fail(s.error());
+
   auto spheres = read_spheres(a.spheres);
   if (!spheres) return fail(spheres.error());
   std::optional<Camera> camera;
@@ -28,25 +42,41 @@ int run_pairs(const PairsArgs& a) {
   FrameResult frame;
   if (Status s = detector.value()->detect(spheres.value(), camera ? &*camera : nullptr, frame); !s)
     return fail(s.error());
-  if (Status s = write_pairs_csv(a.out, frame.pairs); !s) return fail(s.error());
-  if (!a.stats.empty())
-    if (Status s = write_text(a.stats, stats_json(frame.stats, detector.value()->name())); !s) return fail(s.error());
+  detector.value()->wait_for_stage_times(frame.stats);  // one frame: its GPU times are wanted now
+
+  // Both outputs are written in full to temporary files first and renamed into place only when
+  // both succeeded: a failure leaves the previous files as they were and no partial output.
+  auto pairs_file = AtomicFile::create(a.out);
+  if (!pairs_file) return fail(pairs_file.error());
+  if (Status s = write_pairs_csv(pairs_file.value(), frame.pairs); !s) return fail(s.error());
+  std::optional<AtomicFile> stats_file;
+  if (!a.stats.empty()) {
+    auto f = AtomicFile::create(a.stats);
+    if (!f) return fail(f.error());
+    stats_file.emplace(std::move(f.value()));
+    if (Status s = stats_file->write(stats_json(frame.stats, detector.value()->name())); !s) return fail(s.error());
+  }
+  if (Status s = pairs_file.value().commit(); !s) return fail(s.error());
+  if (stats_file)
+    if (Status s = stats_file->commit(); !s) return fail(s.error());
+
   const std::uint64_t hash = pairs_hash(frame.pairs);
   std::printf("%u objects, %u active, %" PRIu64 " pairs, m = %d (%s), hash %016" PRIx64 "\n", frame.stats.objects,
               frame.stats.active, frame.stats.pairs, frame.stats.bits, frame.stats.layout.c_str(), hash);
-  std::printf("wrote %s%s%s\n", a.out.c_str(), a.stats.empty() ? "" : " and ", a.stats.c_str());
+  std::printf("wrote %s%s%s\n", printable(a.out, 200).c_str(), a.stats.empty() ? "" : " and ",
+              printable(a.stats, 200).c_str());
   if (!a.validate_hash.empty()) {
     char expected[32];
     std::snprintf(expected, sizeof expected, "%016" PRIx64, hash);
     std::string given = a.validate_hash;
     for (char& ch : given) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
     if (given != expected) {
-      std::fprintf(stderr, "viscd: hash mismatch: expected %s, got %s\n", a.validate_hash.c_str(), expected);
-      return 3;
+      std::fprintf(stderr, "viscd: hash mismatch: expected %s, got %s\n", given.c_str(), expected);
+      return kExitHashMismatch;
     }
     std::printf("hash matches\n");
   }
-  return 0;
+  return kExitOk;
 }
 
 }  // namespace
@@ -57,7 +87,8 @@ void add_pairs_command(CLI::App& app, int& rc) {
       "pairs",
       "One frame from files: read spheres (and optionally a camera for culling), write the colliding\n"
       "pairs as CSV (header i,j; 0-based; sorted; i < j) and the frame's stats as JSON.\n"
-      "Without --camera every object is active and adaptive bits use 32.");
+      "Without --camera every object is active and adaptive bits use 32. Outputs are written whole\n"
+      "or not at all, and never over an input.");
   cmd->add_option("--spheres", args->spheres,
                   "sphere file: XYZR text (x y z r per line, # comments) or .csv with header x,y,z,r")
       ->required();

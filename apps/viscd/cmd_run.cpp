@@ -23,21 +23,52 @@ struct RunArgs {
 
 using Clock = std::chrono::steady_clock;
 
+// Medians over the last kWindow frames: a run of any length keeps a fixed amount of memory.
+constexpr std::size_t kWindow = 10000;
+class RecentValues {
+ public:
+  void add(double v) {
+    if (values_.size() < kWindow) {
+      values_.push_back(v);
+    } else {
+      values_[next_] = v;
+      next_ = (next_ + 1) % kWindow;
+    }
+  }
+  [[nodiscard]] double median() const { return app::median(values_); }
+
+ private:
+  std::vector<double> values_;
+  std::size_t next_ = 0;
+};
+
 int run_run(RunArgs a) {
   auto config = make_config(a.pipeline);
-  if (!config) return fail(config.error());
+  if (!config) return usage_fail(config.error());
   auto params = make_scene_params(a.world);
-  if (!params) return fail(params.error());
+  if (!params) return usage_fail(params.error());
   auto size = parse_size(a.size, "--size");
-  if (!size) return fail(size.error());
-  if (a.frames < 1) return fail("--frames: expected at least 1");
+  if (!size) return usage_fail(size.error());
+  if (config.value().map_width == 0)  // the map is the screen
+    if (Status s = check_map_size(size.value().first, size.value().second, "--size"); !s) return usage_fail(s.error());
+  if (a.frames < 1) return usage_fail("--frames: expected at least 1");
+  const bool file_camera = a.camera.size() > 5 && a.camera.ends_with(".json");
+
+  const std::filesystem::path out(a.out_dir);
+  const std::filesystem::path shot =
+      a.screenshot.empty() ? out / "screenshot.png" : std::filesystem::path(a.screenshot);
+  const std::filesystem::path csv = a.csv.empty() ? out / "frames.csv" : std::filesystem::path(a.csv);
+  const std::filesystem::path json = a.json.empty() ? out / "summary.json" : std::filesystem::path(a.json);
+  std::vector<NamedPath> inputs;
+  if (file_camera) inputs.push_back({"--camera", a.camera});
+  if (Status s = check_outputs(inputs, {{"--screenshot", shot}, {"--csv", csv}, {"--json", json}}); !s)
+    return usage_fail(s.error());
 
   auto detector = make_backend(a.pipeline, config.value(), a.quiet);
   if (!detector) return fail(detector.error());
   Detector& det = *detector.value();
 
   Scene scene = Scene::make(params.value());
-  const bool file_camera = a.camera.size() > 5 && a.camera.ends_with(".json");
   Camera camera;
   if (file_camera) {
     auto c = read_camera(a.camera);
@@ -48,26 +79,23 @@ int run_run(RunArgs a) {
     if (file_camera) return camera;
     return camera_preset(a.camera, scene, size.value().first, size.value().second);
   };
-  if (auto c = camera_now(); !c) return fail(c.error());
-
-  const std::filesystem::path out(a.out_dir);
-  const std::filesystem::path shot =
-      a.screenshot.empty() ? out / "screenshot.png" : std::filesystem::path(a.screenshot);
-  const std::filesystem::path csv = a.csv.empty() ? out / "frames.csv" : std::filesystem::path(a.csv);
-  const std::filesystem::path json = a.json.empty() ? out / "summary.json" : std::filesystem::path(a.json);
+  if (auto c = camera_now(); !c) return usage_fail(c.error());
 
   if (!a.quiet)
     std::printf("viscd run: %s backend, %u objects (%s scene, seed %" PRIu64 "), %dx%d, camera %s, %d frames\n",
                 std::string(det.name()).c_str(), a.world.objects, a.world.kind.c_str(), a.world.seed,
-                camera_now().value().width, camera_now().value().height, a.camera.c_str(), a.frames);
+                camera_now().value().width, camera_now().value().height, printable(a.camera, 200).c_str(), a.frames);
 
+  // The per-frame CSV streams into its temporary file as the run goes (renamed at the end).
+  auto csv_file = AtomicFile::create(csv);
+  if (!csv_file) return fail(csv_file.error());
   std::ostringstream rows;
   rows << "frame,time_s,objects,active,mean_pixels,bits,layout,pairs,simulate_ms";
   for (std::size_t s = 0; s < kStageCount; ++s) rows << ',' << stage_name(static_cast<Stage>(s)) << "_ms";
   rows << ",frame_ms\n";
 
-  std::vector<double> sim_ms, frame_ms;
-  std::array<std::vector<double>, kStageCount> stage_ms;
+  RecentValues sim_ms, frame_ms;
+  std::array<RecentValues, kStageCount> stage_ms;
   FrameResult frame;
   Progress progress("frames", static_cast<std::size_t>(a.frames), a.quiet);
   for (int f = 0; f < a.frames; ++f) {
@@ -89,15 +117,22 @@ int run_run(RunArgs a) {
     double total = sim;
     for (std::size_t s = 0; s < kStageCount; ++s) {
       if (static_cast<Stage>(s) == Stage::shade && !last) continue;
-      if (static_cast<Stage>(s) != Stage::shade) stage_ms[s].push_back(st.stage_ms[s]);
+      if (static_cast<Stage>(s) != Stage::shade) stage_ms[s].add(st.stage_ms[s]);
       if (static_cast<Stage>(s) != Stage::shade) total += st.stage_ms[s];
     }
-    sim_ms.push_back(sim);
-    frame_ms.push_back(total);
+    sim_ms.add(sim);
+    frame_ms.add(total);
     rows << f << ',' << scene.time() << ',' << st.objects << ',' << st.active << ',' << st.mean_pixels << ',' << st.bits
          << ',' << st.layout << ',' << st.pairs << ',' << sim;
     for (std::size_t s = 0; s < kStageCount; ++s) rows << ',' << st.stage_ms[s];
     rows << ',' << total << '\n';
+    if (rows.tellp() > (1 << 16) || last) {
+      if (Status s = csv_file.value().write(rows.str()); !s) {
+        progress.finish();
+        return fail(s.error());
+      }
+      rows.str({});
+    }
     char note[64];
     std::snprintf(note, sizeof note, "%.2f ms/frame", total);
     progress.update(static_cast<std::size_t>(f + 1), note);
@@ -105,27 +140,28 @@ int run_run(RunArgs a) {
   progress.finish();
 
   const FrameStats& st = frame.stats;
-  const double med_frame = median(frame_ms);
+  const double med_frame = frame_ms.median();
   nlohmann::ordered_json summary;
   summary["backend"] = det.name();
   summary["objects"] = a.world.objects;
   summary["frames"] = a.frames;
   summary["camera"] = a.camera;
   summary["culling"] = !a.pipeline.no_culling;
-  summary["median_ms"]["simulate"] = median(sim_ms);
+  summary["median_over_frames"] = std::min<std::size_t>(static_cast<std::size_t>(a.frames), kWindow);
+  summary["median_ms"]["simulate"] = sim_ms.median();
   for (std::size_t s = 0; s < kStageCount; ++s)
     if (static_cast<Stage>(s) != Stage::shade)
-      summary["median_ms"][std::string(stage_name(static_cast<Stage>(s)))] = median(stage_ms[s]);
+      summary["median_ms"][std::string(stage_name(static_cast<Stage>(s)))] = stage_ms[s].median();
   summary["median_frame_ms"] = med_frame;
   summary["fps"] = med_frame > 0 ? 1000.0 / med_frame : 0.0;
   summary["last_frame"] = nlohmann::ordered_json::parse(stats_json(st, det.name()));
 
   if (!a.quiet) {
     std::printf("\n  %-12s %10s\n", "stage", "median ms");
-    std::printf("  %-12s %10.3f\n", "simulate", median(sim_ms));
+    std::printf("  %-12s %10.3f\n", "simulate", sim_ms.median());
     for (std::size_t s = 0; s < kStageCount; ++s) {
       if (static_cast<Stage>(s) == Stage::shade) continue;
-      std::printf("  %-12s %10.3f\n", std::string(stage_name(static_cast<Stage>(s))).c_str(), median(stage_ms[s]));
+      std::printf("  %-12s %10.3f\n", std::string(stage_name(static_cast<Stage>(s))).c_str(), stage_ms[s].median());
     }
     std::printf("  %-12s %10.3f   (%.0f frames per second)\n", "frame", med_frame,
                 med_frame > 0 ? 1000.0 / med_frame : 0.0);
@@ -135,11 +171,20 @@ int run_run(RunArgs a) {
                 st.active, st.objects, st.objects ? 100.0 * st.active / st.objects : 0.0, st.mean_pixels, st.bits,
                 st.layout.c_str(), st.pairs);
   }
-  if (Status s = write_png(shot, frame.image, frame.image_width, frame.image_height); !s) return fail(s.error());
-  if (Status s = write_text(csv, rows.str()); !s) return fail(s.error());
-  if (Status s = write_text(json, summary.dump(2) + "\n"); !s) return fail(s.error());
-  if (!a.quiet) std::printf("wrote %s, %s, %s\n", shot.c_str(), csv.c_str(), json.c_str());
-  return 0;
+  // All three are written to temporary files first and renamed into place only when all succeeded.
+  auto shot_file = AtomicFile::create(shot);
+  if (!shot_file) return fail(shot_file.error());
+  if (Status s = write_png(shot_file.value(), frame.image, frame.image_width, frame.image_height); !s)
+    return fail(s.error());
+  auto json_file = AtomicFile::create(json);
+  if (!json_file) return fail(json_file.error());
+  if (Status s = json_file.value().write(summary.dump(2) + "\n"); !s) return fail(s.error());
+  for (AtomicFile* f : {&shot_file.value(), &csv_file.value(), &json_file.value()})
+    if (Status s = f->commit(); !s) return fail(s.error());
+  if (!a.quiet)
+    std::printf("wrote %s, %s, %s\n", printable(shot.string(), 200).c_str(), printable(csv.string(), 200).c_str(),
+                printable(json.string(), 200).c_str());
+  return kExitOk;
 }
 
 }  // namespace
@@ -155,7 +200,9 @@ void add_run_command(CLI::App& app, int& rc) {
       "among the rest. Prints per-stage median times and frames per second; writes a screenshot\n"
       "(red colliding, blue visible and free, yellow culled), a CSV of frames and a JSON summary.");
   add_scene_options(*cmd, args->world);
-  cmd->add_option("--frames", args->frames, "frames to simulate")->capture_default_str();
+  cmd->add_option("--frames", args->frames, "frames to simulate")
+      ->check(CLI::Range(1, 1'000'000'000))
+      ->capture_default_str();
   cmd->add_option("--camera", args->camera, "zoom-out | zoom-in | orbit | FILE.json")->capture_default_str();
   cmd->add_option("--size", args->size, "screen WxH for the preset cameras")->capture_default_str();
   cmd->add_option("--out", args->out_dir, "output folder for the screenshot, CSV and summary")->capture_default_str();

@@ -537,9 +537,10 @@ void Viewer::upload_image() {
 }
 
 int Viewer::run() {
-  if (Status s = setup(); !s) return fail(s.error());
+  if (auto config = make_config(args_.pipeline); !config) return usage_fail(config.error());
   auto size = parse_size(args_.size, "--size");
-  if (!size) return fail(size.error());
+  if (!size) return usage_fail(size.error());
+  if (Status s = setup(); !s) return fail(s.error());
 
   glfwSetErrorCallback(on_glfw_error);
   if (!glfwInit()) return no_window("cannot connect to a display");

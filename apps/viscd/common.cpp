@@ -1,9 +1,12 @@
 #include "common.hpp"
 
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <charconv>
+#include <cmath>
+#include <fstream>
 
 namespace viscd::app {
 
@@ -23,7 +26,17 @@ void add_pipeline_options(CLI::App& cmd, PipelineOptions& o, bool backend_auto) 
   cmd.add_flag("--no-culling", o.no_culling, "keep every object active (no lambda culling)");
   cmd.add_option("--map-size", o.map_size,
                  "visibility map WxH (default: the screen size); counts are scaled to screen pixels");
-  cmd.add_option("--threads", o.threads, "worker threads for the cpu backend (0 = all cores)")->capture_default_str();
+  cmd.add_option("--threads", o.threads,
+                 "worker threads for the cpu backend (0 = all cores; more than the machine has are clamped)")
+      ->check(CLI::Range(0, 1 << 16))
+      ->capture_default_str();
+  const std::uint64_t cap = default_pair_memory_cap();
+  cmd.add_option("--max-pair-memory", o.max_pair_memory,
+                 "cap on the memory a frame's pairs may take (8 bytes a pair), e.g. 512M, 4G, or 0 for none; a "
+                 "frame over it fails naming its pair count. auto = 1/8 of the memory available when viscd "
+                 "starts" +
+                     (cap ? " (here " + format_bytes(cap) + ")" : std::string(" (unknown here: no cap)")))
+      ->capture_default_str();
   cmd.add_option("--geometry", o.geometry, "gl backend: sphere geometry in the visibility map, impostor | mesh")
       ->capture_default_str();
   cmd.add_option("--counter", o.counter, "gl backend: pixel counting, ssbo (any N) | atomic_uint (the paper's)")
@@ -31,7 +44,9 @@ void add_pipeline_options(CLI::App& cmd, PipelineOptions& o, bool backend_auto) 
 }
 
 void add_scene_options(CLI::App& cmd, SceneOptions& o) {
-  cmd.add_option("--objects,-n", o.objects, "number of objects N")->capture_default_str();
+  cmd.add_option("--objects,-n", o.objects, "number of objects N (at most 100 000 000)")
+      ->check(CLI::Range(std::uint32_t{0}, kMaxObjects))
+      ->capture_default_str();
   cmd.add_option("--scene", o.kind, "ring (the paper's flat world) | box | clusters")->capture_default_str();
   cmd.add_option("--seed", o.seed, "scene seed (same seed, same scene)")->capture_default_str();
   cmd.add_option("--dt", o.dt, "simulated seconds per frame")->capture_default_str();
@@ -40,7 +55,8 @@ void add_scene_options(CLI::App& cmd, SceneOptions& o) {
 Result<SceneParams> make_scene_params(const SceneOptions& o) {
   auto kind = parse_scene_kind(o.kind);
   if (!kind) return Result<SceneParams>::failure(kind.error());
-  if (!(o.dt >= 0)) return Result<SceneParams>::failure("--dt: expected a number >= 0");
+  if (!(o.dt >= 0 && std::isfinite(o.dt)))
+    return Result<SceneParams>::failure("--dt: expected a finite number >= 0, got " + std::to_string(o.dt));
   return SceneParams{.kind = kind.value(), .objects = o.objects, .seed = o.seed};
 }
 
@@ -51,13 +67,13 @@ Result<GlOptions> make_gl_options(const PipelineOptions& o) {
   else if (o.geometry == "mesh")
     g.geometry = GlGeometry::mesh;
   else
-    return Result<GlOptions>::failure("--geometry: expected impostor or mesh, got '" + o.geometry + "'");
+    return Result<GlOptions>::failure("--geometry: expected impostor or mesh, got '" + printable(o.geometry) + "'");
   if (o.counter == "ssbo")
     g.counter = GlCounter::ssbo;
   else if (o.counter == "atomic_uint")
     g.counter = GlCounter::atomic_uint;
   else
-    return Result<GlOptions>::failure("--counter: expected ssbo or atomic_uint, got '" + o.counter + "'");
+    return Result<GlOptions>::failure("--counter: expected ssbo or atomic_uint, got '" + printable(o.counter) + "'");
   return g;
 }
 
@@ -94,7 +110,7 @@ Result<std::pair<int, int>> parse_size(std::string_view text, std::string_view o
   };
   if (x == std::string_view::npos || !num(text.substr(0, x), w) || !num(text.substr(x + 1), h))
     return Result<std::pair<int, int>>::failure(
-        std::string(option) + ": expected WIDTHxHEIGHT such as 1280x720, got '" + std::string(text) + "'");
+        std::string(option) + ": expected WIDTHxHEIGHT such as 1280x720, got '" + printable(text) + "'");
   return std::pair{w, h};
 }
 
@@ -109,15 +125,25 @@ Result<Config> make_config(const PipelineOptions& o) {
   else if (o.bits == "64")
     c.bits = Bits::b64;
   else
-    return Result<Config>::failure("--bits: expected adaptive, 16, 32 or 64, got '" + o.bits + "'");
+    return Result<Config>::failure("--bits: expected adaptive, 16, 32 or 64, got '" + printable(o.bits) + "'");
   if (o.layout == "extended")
     c.layout = Layout::extended;
   else if (o.layout == "plain")
     c.layout = Layout::plain;
   else
-    return Result<Config>::failure("--layout: expected extended or plain, got '" + o.layout + "'");
-  if (!(o.lambda >= 0)) return Result<Config>::failure("--lambda: expected a number >= 0");
-  if (!(o.a >= 0 && o.b >= o.a)) return Result<Config>::failure("-a/-b: expected 0 <= a <= b");
+    return Result<Config>::failure("--layout: expected extended or plain, got '" + printable(o.layout) + "'");
+  if (!(o.lambda >= 0 && std::isfinite(o.lambda)))
+    return Result<Config>::failure("--lambda: expected a finite number >= 0");
+  if (!(o.a >= 0 && o.b >= o.a && std::isfinite(o.b))) return Result<Config>::failure("-a/-b: expected 0 <= a <= b");
+  if (o.threads < 0) return Result<Config>::failure("--threads: expected 0 (all cores) or a positive count");
+  if (o.backend != "cpu" && o.backend != "reference" && o.backend != "gl" && o.backend != "auto")
+    return Result<Config>::failure("--backend: expected cpu, reference, gl or auto, got '" + printable(o.backend) +
+                                   "'");
+  // The gl options are checked whatever the backend: a typo must not pass silently.
+  if (auto g = make_gl_options(o); !g) return Result<Config>::failure(g.error());
+  auto cap = parse_bytes(o.max_pair_memory, "--max-pair-memory");
+  if (!cap) return Result<Config>::failure(cap.error());
+  c.pair_memory_cap = static_cast<std::size_t>(cap.value());
   c.lambda = o.lambda;
   c.a = o.a;
   c.b = o.b;
@@ -128,13 +154,134 @@ Result<Config> make_config(const PipelineOptions& o) {
     if (!s) return Result<Config>::failure(s.error());
     c.map_width = s.value().first;
     c.map_height = s.value().second;
+    if (auto m = check_map_size(c.map_width, c.map_height, "--map-size"); !m) return Result<Config>::failure(m.error());
   }
   return c;
 }
 
+Status check_map_size(int width, int height, std::string_view option) {
+  if (width > kMaxMapSide || height > kMaxMapSide ||
+      static_cast<std::uint64_t>(width) * static_cast<std::uint64_t>(height) > kMaxMapPixels)
+    return Status::failure(std::string(option) + ": " + std::to_string(width) + "x" + std::to_string(height) +
+                           " is too large for a visibility map: at most " + std::to_string(kMaxMapSide) +
+                           " pixels a side and " + std::to_string(kMaxMapPixels) +
+                           " pixels in all (8192x8192); a smaller --map-size is scaled to the screen");
+  return {};
+}
+
 int fail(const std::string& message) {
   std::fprintf(stderr, "viscd: error: %s\n", message.c_str());
-  return 1;
+  return kExitFailed;
+}
+
+int usage_fail(const std::string& message) {
+  std::fprintf(stderr, "viscd: error: %s\n", message.c_str());
+  return kExitUsage;
+}
+
+std::uint64_t available_memory_bytes() {
+  std::uint64_t best = 0;
+  auto consider = [&](std::uint64_t v) {
+    if (v > 0 && (best == 0 || v < best)) best = v;
+  };
+  {
+    std::ifstream meminfo("/proc/meminfo");
+    std::string key;
+    std::uint64_t kib = 0;
+    std::string unit;
+    while (meminfo >> key >> kib >> unit)
+      if (key == "MemAvailable:") consider(kib * 1024);
+  }
+  rlimit as{};
+  if (getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY) {
+    // The limit counts the address space already mapped too.
+    std::ifstream status("/proc/self/status");
+    std::string key;
+    std::uint64_t used_kib = 0;
+    std::string line;
+    while (std::getline(status, line))
+      if (line.rfind("VmSize:", 0) == 0) used_kib = std::strtoull(line.c_str() + 7, nullptr, 10);
+    const std::uint64_t limit = as.rlim_cur, used = used_kib * 1024;
+    consider(limit > used ? limit - used : 1);
+  }
+  {
+    std::ifstream max_file("/sys/fs/cgroup/memory.max"), current_file("/sys/fs/cgroup/memory.current");
+    std::string max_text;
+    std::uint64_t current = 0;
+    if (max_file >> max_text && max_text != "max" && current_file >> current) {
+      const std::uint64_t max = std::strtoull(max_text.c_str(), nullptr, 10);
+      if (max > 0) consider(max > current ? max - current : 1);
+    }
+  }
+  return best;
+}
+
+std::uint64_t default_pair_memory_cap() {
+  static const std::uint64_t cap = available_memory_bytes() / 8;
+  return cap;
+}
+
+Result<std::uint64_t> parse_bytes(std::string_view text, std::string_view option) {
+  using R = Result<std::uint64_t>;
+  if (text == "auto") return default_pair_memory_cap();
+  double v = 0;
+  const auto [p, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  std::string_view unit = text.substr(static_cast<std::size_t>(p - text.data()));
+  if (unit.ends_with("iB") || unit.ends_with("ib")) unit.remove_suffix(2);
+  if (unit.size() == 2 && (unit[1] == 'B' || unit[1] == 'b')) unit.remove_suffix(1);
+  double scale = 0;
+  if (unit.empty() || unit == "B" || unit == "b")
+    scale = 1;
+  else if (unit == "K" || unit == "k")
+    scale = 1024.0;
+  else if (unit == "M" || unit == "m")
+    scale = 1024.0 * 1024;
+  else if (unit == "G" || unit == "g")
+    scale = 1024.0 * 1024 * 1024;
+  else if (unit == "T" || unit == "t")
+    scale = 1024.0 * 1024 * 1024 * 1024;
+  const double bytes = v * scale;
+  if (ec != std::errc() || p == text.data() || scale == 0 || !(bytes >= 0) || bytes > 9.0e18)
+    return R::failure(std::string(option) + ": expected a size such as 512M, 4G or 0 (no cap), got '" +
+                      printable(text) + "'");
+  return static_cast<std::uint64_t>(bytes);
+}
+
+std::string format_bytes(std::uint64_t bytes) {
+  char buf[32];
+  const char* units[] = {"bytes", "KiB", "MiB", "GiB", "TiB"};
+  double v = static_cast<double>(bytes);
+  int u = 0;
+  while (v >= 1024 && u < 4) v /= 1024, ++u;
+  std::snprintf(buf, sizeof buf, u == 0 ? "%.0f %s" : "%.1f %s", v, units[u]);
+  return buf;
+}
+
+Status check_outputs(const std::vector<NamedPath>& inputs, const std::vector<NamedPath>& outputs) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  auto same = [&](const fs::path& a, const fs::path& b) {
+    if (fs::exists(a, ec) && fs::exists(b, ec)) return fs::equivalent(a, b, ec);
+    // A file that does not exist yet: compare where the two names lead.
+    const fs::path ca = fs::weakly_canonical(fs::absolute(a, ec), ec);
+    const fs::path cb = fs::weakly_canonical(fs::absolute(b, ec), ec);
+    return !ca.empty() && ca == cb;
+  };
+  for (std::size_t k = 0; k < outputs.size(); ++k) {
+    const NamedPath& out = outputs[k];
+    const std::string shown = printable(out.path.string(), 200);
+    if (out.path.empty()) return Status::failure(out.option + ": expected a file name");
+    if (fs::is_directory(out.path, ec))
+      return Status::failure(out.option + " " + shown + ": is a folder, expected a file name");
+    for (const NamedPath& in : inputs)
+      if (!in.path.empty() && same(in.path, out.path))
+        return Status::failure(out.option + " " + shown + " is the same file as " + in.option + " " +
+                               printable(in.path.string(), 200) + ": refusing to overwrite an input");
+    for (std::size_t j = 0; j < k; ++j)
+      if (same(outputs[j].path, out.path))
+        return Status::failure(out.option + " and " + outputs[j].option + " name the same file " + shown);
+  }
+  return {};
 }
 
 Progress::Progress(std::string label, std::size_t total, bool quiet)

@@ -3,6 +3,7 @@
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <filesystem>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -10,6 +11,15 @@
 #include "viscd/viscd.hpp"
 
 namespace viscd::app {
+
+/// Exit codes of the tool (docs/usage.md).
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitFailed = 1;        ///< bad input file, or a run that failed
+inline constexpr int kExitUsage = 2;         ///< unknown option, bad option value
+inline constexpr int kExitHashMismatch = 3;  ///< --validate-hash differs
+
+/// Upper bound of --objects: beyond it a frame needs tens of gigabytes.
+inline constexpr std::uint32_t kMaxObjects = 100'000'000;
 
 /// Options every frame-running command shares.
 struct PipelineOptions {
@@ -22,6 +32,7 @@ struct PipelineOptions {
   int threads = 0;
   std::string geometry = "impostor";  // gl only
   std::string counter = "ssbo";       // gl only
+  std::string max_pair_memory = "auto";
 };
 
 void add_pipeline_options(CLI::App& cmd, PipelineOptions& o, bool backend_auto);
@@ -45,9 +56,33 @@ Result<Config> make_config(const PipelineOptions& o);
 Result<std::unique_ptr<Detector>> make_backend(const PipelineOptions& o, const Config& config, bool quiet);
 /// Parses "1280x720".
 Result<std::pair<int, int>> parse_size(std::string_view text, std::string_view option);
+/// A visibility map of width x height within kMaxMapSide and kMaxMapPixels; the error names the option.
+Status check_map_size(int width, int height, std::string_view option);
 
-/// Prints "viscd: error: <msg>" to stderr and returns the exit code 1.
+/// Prints "viscd: error: <msg>" to stderr and returns kExitFailed.
 int fail(const std::string& message);
+/// Prints "viscd: error: <msg>" to stderr and returns kExitUsage (a bad option or value).
+int usage_fail(const std::string& message);
+
+/// Memory this process may still use, in bytes: the least of the system's available memory
+/// (MemAvailable), the address-space limit and the cgroup's limit. 0 when none can be read.
+[[nodiscard]] std::uint64_t available_memory_bytes();
+/// The default pair memory cap: 1/8 of available_memory_bytes() (a frame's pair buffers take
+/// several times the pairs' own 8 bytes), or 0 (no cap) when that is unknown.
+[[nodiscard]] std::uint64_t default_pair_memory_cap();
+/// Parses a byte size: "0", "1048576", "512K", "64M", "1.5G", "2T" (binary units); "auto".
+[[nodiscard]] Result<std::uint64_t> parse_bytes(std::string_view text, std::string_view option);
+/// "1.5 GiB".
+[[nodiscard]] std::string format_bytes(std::uint64_t bytes);
+
+/// A file the command reads or writes, with the option that names it (for messages).
+struct NamedPath {
+  std::string option;
+  std::filesystem::path path;
+};
+/// Refuses, before anything is read or written: an output that is the same file as an input
+/// (also through links), two outputs naming the same file, and an output that is a folder.
+[[nodiscard]] Status check_outputs(const std::vector<NamedPath>& inputs, const std::vector<NamedPath>& outputs);
 
 /// A progress bar on a terminal (stderr), plain lines every 10 % otherwise.
 class Progress {

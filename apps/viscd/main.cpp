@@ -1,5 +1,9 @@
 // viscd: visibility-based collision detection for very many moving spheres.
 #include <CLI/CLI.hpp>
+#include <exception>
+#include <new>
+#include <string_view>
+#include <vector>
 
 #include "common.hpp"
 
@@ -19,6 +23,8 @@ int main(int argc, char** argv) {
       "  viscd pairs --spheres scene.csv --camera cam.json --lambda 50\n"
       "  viscd bench paper --sizes 1000,10000,100000   # the paper's tables and figures\n"
       "  viscd view                                 # the same in a window (xvfb-run without a display)\n"
+      "\nExit codes: 0 success, 1 bad input or a failed run, 2 bad usage (unknown option, bad value),\n"
+      "3 a --validate-hash mismatch.\n"
       "\nRun `viscd <command> --help` for a command's options. Docs: docs/usage.md");
   app.require_subcommand(1);
   app.set_version_flag("--version", std::to_string(viscd::kVersionMajor) + "." + std::to_string(viscd::kVersionMinor) +
@@ -30,10 +36,28 @@ int main(int argc, char** argv) {
 #ifdef VISCD_HAVE_VIEWER
   viscd::app::add_view_command(app, rc);
 #endif
+  // `viscd bench peers -- ARGS`: CLI11 would hand everything after `--` to the top-level app as
+  // positionals; the `--` only marks where the driver's arguments begin, so drop it here.
+  std::vector<char*> args(argv, argv + argc);
+  if (args.size() > 3 && std::string_view(args[1]) == "bench" && std::string_view(args[2]) == "peers" &&
+      std::string_view(args[3]) == "--")
+    args.erase(args.begin() + 3);
   try {
-    app.parse(argc, argv);
+    app.parse(static_cast<int>(args.size()), args.data());
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    if (e.get_exit_code() == 0) return app.exit(e);  // --help, --version
+    // CLI11's messages quote the offending argument: print it escaped and cut.
+    std::fprintf(stderr, "viscd: error: %s\nRun with --help for more information.\n",
+                 viscd::printable(e.what(), 300).c_str());
+    return viscd::app::kExitUsage;
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr,
+                 "viscd: error: out of memory (fewer objects, a smaller --map-size or a lower "
+                 "--max-pair-memory need less)\n");
+    return viscd::app::kExitFailed;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "viscd: error: %s\n", viscd::printable(e.what(), 300).c_str());
+    return viscd::app::kExitFailed;
   }
   return rc;
 }

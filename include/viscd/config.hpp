@@ -12,7 +12,7 @@ enum class Bits : std::uint8_t { adaptive = 0, b16 = 16, b32 = 32, b64 = 64 };
 
 /// How Morton bits are laid out over the axes.
 enum class Layout : std::uint8_t {
-  extended,  ///< DESIGN.md stage 4: axes by extent, few bits on the flattest axis (paper Table 2)
+  extended,  ///< axes by extent, few bits on the flattest axis (paper Table 2; docs/architecture.md)
   plain,     ///< classic interleaving x,y,z with equal bits: 5/5/5, 10/10/10 or 21/21/21
 };
 
@@ -38,8 +38,11 @@ struct Config {
   bool shade = false;
   /// Hard cap on the memory pairs may take, in bytes (8 per pair); 0 (default) = no cap.
   /// A frame with more pairs fails with an error that names the count; it never truncates.
+  /// The cap is enforced while pairs are found, before their memory is taken: a failing frame
+  /// holds at most about the cap (plus a few hundred KiB) in pair buffers.
   std::size_t pair_memory_cap = 0;
   /// Worker threads for the cpu backend; 0 (default) = all hardware threads, 1 = serial.
+  /// More than the machine has are clamped to the machine's count; negative is an error.
   int threads = 0;
 };
 

@@ -27,8 +27,10 @@ class Detector {
   /// Runs one frame. With `camera` == nullptr no visibility stages run and every object is
   /// active; with a camera and Config::culling, objects below lambda screen pixels are culled.
   /// Fails (and leaves `out` unspecified) on invalid spheres (non-finite, negative radius,
-  /// beyond kMaxCoordinate), an invalid camera, more than 2^31 - 1 objects, or pairs beyond
-  /// Config::pair_memory_cap.
+  /// beyond kMaxCoordinate), an invalid camera, a visibility map beyond kMaxMapSide or
+  /// kMaxMapPixels, negative Config::threads, more than 2^31 - 1 objects, pairs beyond
+  /// Config::pair_memory_cap, or when memory runs out (the message names the frame's size).
+  /// No exception leaves detect().
   [[nodiscard]] virtual Status detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) = 0;
 
   /// Backend name: "reference", "cpu", "gl".
@@ -38,6 +40,12 @@ class Detector {
   /// buffers, tree, pair buffers (GPU memory for gl; there the driver's own figure, from
   /// GL_NVX_gpu_memory_info, when it offers one). Grows with the largest frame seen so far.
   [[nodiscard]] virtual std::uint64_t memory_bytes() const = 0;
+
+  /// Backends that time stages on a GPU report a frame's times one frame late, so that timing
+  /// never stalls the pipeline. After a frame whose times are needed now (a single-frame run),
+  /// call this: it waits until that frame's times are known and writes them into `stats`.
+  /// CPU backends report times at once; for them this does nothing.
+  virtual void wait_for_stage_times(FrameStats& stats) { (void)stats; }
 
   [[nodiscard]] const Config& config() const { return config_; }
   /// Changes settings; takes effect on the next detect().
@@ -58,13 +66,15 @@ class Detector {
 /// Largest number of pairs N objects can produce, N(N-1)/2: the capacity that always suffices.
 [[nodiscard]] constexpr std::uint64_t max_pairs_bound(std::uint64_t n) { return n < 2 ? 0 : n * (n - 1) / 2; }
 
-/// The overlap test of DESIGN.md, evaluated in float without FMA: |c_i - c_j| <= r_i + r_j.
+/// The overlap test every backend uses, evaluated in float without FMA: |c_i - c_j| <= r_i + r_j
+/// (touching counts; docs/architecture.md).
 [[nodiscard]] bool spheres_overlap(const Sphere& a, const Sphere& b);
 
 /// Checks spheres for the input rules (finite, 0 <= r, magnitudes <= kMaxCoordinate) and the
 /// object limit; the error names the first bad sphere by index.
 [[nodiscard]] Status validate_spheres(std::span<const Sphere> spheres);
-/// Checks a camera (positive size, 0 < fov < 180, 0 < near < far, eye != target, up not parallel).
+/// Checks a camera (positive size, 0 < fov < 180, 0 < near < far, eye != target, up not parallel,
+/// every coordinate and plane distance finite and at most kMaxCoordinate in magnitude).
 [[nodiscard]] Status validate_camera(const Camera& camera);
 
 }  // namespace viscd

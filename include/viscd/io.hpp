@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <span>
 #include <string>
 #include <string_view>
@@ -15,6 +16,11 @@
 #include "viscd/types.hpp"
 
 namespace viscd {
+
+/// `text` made safe to print inside a message: control characters, DEL and bytes that are not
+/// part of valid UTF-8 are escaped (`\n`, `\t`, `\r`, `\xNN`), and text longer than `max_chars`
+/// characters is cut with "…". Readers quote every field of the input through this.
+[[nodiscard]] std::string printable(std::string_view text, std::size_t max_chars = 40);
 
 /// XYZR text: one sphere per line as four numbers `x y z r` separated by blanks (or commas);
 /// `#` starts a comment; blank lines are ignored. An empty file is zero spheres.
@@ -31,17 +37,46 @@ namespace viscd {
 /// The camera as JSON, in the format parse_camera reads.
 [[nodiscard]] std::string camera_json(const Camera& camera);
 
+/// An output file written whole or not at all. Bytes go to a temporary file in the destination's
+/// folder; commit() flushes it to disk and renames it over the destination in one step, so a
+/// reader sees the previous file or the new one, never a part. A file destroyed uncommitted
+/// (an error, a full disk) removes its temporary and leaves the destination untouched. A
+/// destination that is a symbolic link is written where the link points. Move-only.
+class AtomicFile {
+ public:
+  /// Creates the temporary beside `path` (and the parent folders). Fails naming the path and
+  /// the system's reason, or when `path` is a folder.
+  [[nodiscard]] static Result<AtomicFile> create(const std::filesystem::path& path);
+  AtomicFile(AtomicFile&&) noexcept;
+  AtomicFile& operator=(AtomicFile&&) noexcept;
+  ~AtomicFile();
+  /// Appends bytes. After the first failure every later call (and commit) fails with that error.
+  [[nodiscard]] Status write(std::string_view bytes);
+  /// Makes the bytes durable and renames the temporary onto the destination.
+  [[nodiscard]] Status commit();
+  /// The destination.
+  [[nodiscard]] const std::filesystem::path& path() const;
+
+ private:
+  struct State;
+  explicit AtomicFile(std::unique_ptr<State> state);
+  std::unique_ptr<State> state_;
+};
+
 /// Writes spheres as CSV with header `x,y,z,r` (round-trips exactly: 9 significant digits).
 [[nodiscard]] Status write_spheres_csv(const std::filesystem::path& path, std::span<const Sphere> spheres);
-/// Writes pairs as CSV with header `i,j`, one pair per line, in the given (sorted) order.
+/// Writes pairs as CSV with header `i,j`, one pair per line, in the given (sorted) order. The
+/// text is streamed in blocks: memory use does not grow with the number of pairs.
 [[nodiscard]] Status write_pairs_csv(const std::filesystem::path& path, std::span<const Pair> pairs);
+[[nodiscard]] Status write_pairs_csv(AtomicFile& out, std::span<const Pair> pairs);
 /// Frame stats as a JSON object (N, active, mu, m, layout, pairs, per-stage ms).
 [[nodiscard]] std::string stats_json(const FrameStats& stats, std::string_view backend);
-/// Writes text to a file, creating parent folders.
+/// Writes text to a file, creating parent folders; whole or not at all (AtomicFile).
 [[nodiscard]] Status write_text(const std::filesystem::path& path, std::string_view text);
-/// Writes an RGBA8 image (rows top to bottom) as PNG.
+/// Writes an RGBA8 image (rows top to bottom) as PNG; whole or not at all.
 [[nodiscard]] Status write_png(const std::filesystem::path& path, std::span<const std::uint8_t> rgba, int width,
                                int height);
+[[nodiscard]] Status write_png(AtomicFile& out, std::span<const std::uint8_t> rgba, int width, int height);
 /// FNV-1a 64 hash of the pairs in order: equal pair lists give equal hashes on every machine.
 [[nodiscard]] std::uint64_t pairs_hash(std::span<const Pair> pairs);
 

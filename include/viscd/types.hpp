@@ -20,6 +20,12 @@ static_assert(sizeof(Sphere) == 16, "Sphere must match GLSL vec4");
 /// finite in float (4e18^2 = 1.6e37 < 3.4e38), so the overlap test never sees an overflow.
 inline constexpr float kMaxCoordinate = 1e18f;
 
+/// Largest visibility map viscd renders: each side at most kMaxMapSide pixels and at most
+/// kMaxMapPixels pixels in all (8192 x 8192; a map costs 8 to 28 bytes per pixel). A larger
+/// screen is fine: set a smaller map (Config::map_width, map_height) and counts are scaled.
+inline constexpr int kMaxMapSide = 16384;
+inline constexpr std::uint64_t kMaxMapPixels = std::uint64_t{1} << 26;
+
 /// An unordered pair of colliding objects, stored with i < j, as 0-based indices into the input.
 struct Pair {
   std::uint32_t i = 0, j = 0;

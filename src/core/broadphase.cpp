@@ -3,8 +3,10 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <atomic>
 #include <bit>
 #include <limits>
+#include <new>
 
 #include "core/parallel.hpp"
 #include "core/stopwatch.hpp"
@@ -30,11 +32,17 @@ ActiveExtent active_extent(std::span<const Sphere> spheres, std::span<const std:
   return e;
 }
 
-Status check_pair_cap(std::size_t pairs, std::size_t cap) {
-  if (cap == 0 || pairs * sizeof(Pair) <= cap) return {};
-  return Status::failure("frame has " + std::to_string(pairs) + " colliding pairs, which need " +
-                         std::to_string(pairs * sizeof(Pair)) + " bytes, over the pair memory cap of " +
-                         std::to_string(cap) + " bytes (Config::pair_memory_cap)");
+std::size_t pairs_within_cap(std::size_t cap) {
+  return cap == 0 ? std::numeric_limits<std::size_t>::max() : cap / sizeof(Pair);
+}
+
+Status check_pair_cap(std::size_t pairs, std::size_t cap, bool at_least) {
+  if (!at_least && pairs <= pairs_within_cap(cap)) return {};
+  const char* more = at_least ? "at least " : "";
+  return Status::failure("frame has " + std::string(more) + std::to_string(pairs) + " colliding pairs, which need " +
+                         more + std::to_string(pairs * sizeof(Pair)) + " bytes, over the pair memory cap of " +
+                         std::to_string(cap) +
+                         " bytes (raise it with Config::pair_memory_cap, or the tool's --max-pair-memory)");
 }
 
 void sort_pair_keys(std::vector<std::uint64_t>& keys, std::uint32_t max_index, int threads,
@@ -160,7 +168,14 @@ Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const
   }
 #endif
 
-  // Stage 8: each leaf p looks for partners q > p only, so each pair is found once.
+  // Stage 8: each leaf p looks for partners q > p only, so each pair is found once. The pair cap
+  // is enforced while searching: threads publish their counts every kPublish pairs, and all stop
+  // once the frame is over the cap, before the pairs' memory is taken. An allocation failure
+  // inside the parallel region is carried out of it (an exception may not cross it).
+  constexpr std::size_t kPublish = 4096;
+  const std::size_t allowed = pairs_within_cap(pair_memory_cap);
+  std::atomic<std::size_t> published{0};
+  std::atomic<bool> stop{false}, out_of_memory{false};
   const int t_q = threads_for(n, threads);
   if (thread_pairs_.size() < static_cast<std::size_t>(t_q)) thread_pairs_.resize(static_cast<std::size_t>(t_q));
 #pragma omp parallel num_threads(t_q)
@@ -169,22 +184,33 @@ Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const
     local.clear();
 #pragma omp for schedule(dynamic, 256)
     for (std::size_t p = 0; p < n; ++p) {
+      if (stop.load(std::memory_order_relaxed)) continue;
       const Sphere& a = sorted_spheres_[p];
       const std::uint32_t ia = sorted_ids_[p];
-      for_each_overlap_after(bvh_, static_cast<std::uint32_t>(p), leaf_boxes_[p], [&](std::uint32_t q) {
-        if (!overlap_exact(a, sorted_spheres_[q])) return;
-        const std::uint32_t ib = sorted_ids_[q];
-        local.push_back(ia < ib ? (std::uint64_t{ia} << 32 | ib) : (std::uint64_t{ib} << 32 | ia));
-      });
+      try {
+        for_each_overlap_after(bvh_, static_cast<std::uint32_t>(p), leaf_boxes_[p], [&](std::uint32_t q) {
+          if (!overlap_exact(a, sorted_spheres_[q])) return;
+          const std::uint32_t ib = sorted_ids_[q];
+          local.push_back(ia < ib ? (std::uint64_t{ia} << 32 | ib) : (std::uint64_t{ib} << 32 | ia));
+          if (local.size() % kPublish == 0 &&
+              published.fetch_add(kPublish, std::memory_order_relaxed) + kPublish > allowed)
+            stop.store(true, std::memory_order_relaxed);
+        });
+      } catch (const std::bad_alloc&) {
+        out_of_memory.store(true);
+        stop.store(true);
+      }
     }
   }
+  if (out_of_memory.load()) throw std::bad_alloc();
+  if (stop.load()) return check_pair_cap(published.load(), pair_memory_cap, true);
   std::size_t total = 0;
   for (int t = 0; t < t_q; ++t) total += thread_pairs_[static_cast<std::size_t>(t)].size();
   // The dynamic schedule splits the pairs between threads differently every frame; sizing every
   // thread's list for the whole frame's pairs means a later frame allocates only if it has more
   // pairs in total, not when its split changes.
-  for (int t = 0; t < t_q; ++t) thread_pairs_[static_cast<std::size_t>(t)].reserve(total);
   if (Status s = check_pair_cap(total, pair_memory_cap); !s) return s;
+  for (int t = 0; t < t_q; ++t) thread_pairs_[static_cast<std::size_t>(t)].reserve(total);
   pair_keys_.resize(total);
   std::size_t offset = 0;
   for (int t = 0; t < t_q; ++t) {
@@ -199,15 +225,19 @@ Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const
   return {};
 }
 
-void brute_force_pairs(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
-                       std::vector<Pair>& pairs) {
+bool brute_force_pairs(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, std::vector<Pair>& pairs,
+                       std::size_t max_pairs) {
   pairs.clear();
   const std::size_t n = active.size();
   for (std::size_t a = 0; a < n; ++a) {
     const Sphere& sa = spheres[active[a]];
-    for (std::size_t b = a + 1; b < n; ++b)
-      if (overlap_exact(sa, spheres[active[b]])) pairs.push_back(Pair{active[a], active[b]});
+    for (std::size_t b = a + 1; b < n; ++b) {
+      if (!overlap_exact(sa, spheres[active[b]])) continue;
+      if (pairs.size() == max_pairs) return false;
+      pairs.push_back(Pair{active[a], active[b]});
+    }
   }
+  return true;
 }
 
 }  // namespace viscd::detail

@@ -25,7 +25,10 @@ struct ActiveExtent {
                                          int threads);
 
 /// The pair-memory cap of Config (0 = none): an error naming the count when `pairs` exceed it.
-[[nodiscard]] Status check_pair_cap(std::size_t pairs, std::size_t cap);
+/// `at_least`: the search stopped at the cap, so the frame has `pairs` or more.
+[[nodiscard]] Status check_pair_cap(std::size_t pairs, std::size_t cap, bool at_least = false);
+/// Pairs the cap allows (0 = no cap: the largest count).
+[[nodiscard]] std::size_t pairs_within_cap(std::size_t cap);
 
 /// Sorts pair keys (i << 32 | j) and writes them as pairs. `max_index` bounds i and j.
 void sort_pair_keys(std::vector<std::uint64_t>& keys, std::uint32_t max_index, int threads,
@@ -76,8 +79,9 @@ class LbvhBroadphase {
   RadixScratch<std::uint64_t> pair_scratch_;
 };
 
-/// O(n^2) brute force over the active set: the oracle. Pairs come out sorted.
-void brute_force_pairs(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
-                       std::vector<Pair>& pairs);
+/// O(n^2) brute force over the active set: the oracle. Pairs come out sorted. Stops and returns
+/// false when there are more than `max_pairs`.
+bool brute_force_pairs(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, std::vector<Pair>& pairs,
+                       std::size_t max_pairs = SIZE_MAX);
 
 }  // namespace viscd::detail

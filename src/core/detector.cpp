@@ -61,10 +61,16 @@ Status validate_camera(const Camera& c) {
   auto finite3 = [](const float* v) { return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]); };
   if (!finite3(c.eye) || !finite3(c.target) || !finite3(c.up))
     return Status::failure("camera: eye, target and up must be finite");
+  // Bounded like spheres: squared distances stay finite in float, so no projection overflows.
+  auto bounded3 = [](const float* v) {
+    return std::fabs(v[0]) <= kMaxCoordinate && std::fabs(v[1]) <= kMaxCoordinate && std::fabs(v[2]) <= kMaxCoordinate;
+  };
+  if (!bounded3(c.eye) || !bounded3(c.target) || !bounded3(c.up))
+    return Status::failure("camera: eye, target and up must lie within the supported magnitude 1e18");
   if (c.width < 1 || c.height < 1) return Status::failure("camera: width and height must be at least 1 pixel");
   if (!(c.fov_y_deg > 0 && c.fov_y_deg < 180)) return Status::failure("camera: fov_y_deg must be in (0, 180)");
-  if (!(c.near_plane > 0 && c.far_plane > c.near_plane && std::isfinite(c.far_plane)))
-    return Status::failure("camera: need 0 < near < far (finite)");
+  if (!(c.near_plane > 0 && c.far_plane > c.near_plane && c.far_plane <= kMaxCoordinate))
+    return Status::failure("camera: need 0 < near < far <= 1e18");
   const double f[3] = {double(c.target[0]) - c.eye[0], double(c.target[1]) - c.eye[1], double(c.target[2]) - c.eye[2]};
   const double fl = std::sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
   if (!(fl > 0)) return Status::failure("camera: eye and target coincide");

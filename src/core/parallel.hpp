@@ -14,8 +14,12 @@ namespace viscd::detail {
 /// Below this many elements a loop runs serially: a parallel region costs more than it saves.
 inline constexpr std::size_t kParallelThreshold = 4096;
 
-/// Threads to use: `requested` > 0 as given, else every hardware thread OpenMP sees.
-inline int resolve_threads(int requested) { return requested > 0 ? requested : std::max(1, omp_get_max_threads()); }
+/// Threads to use: `requested` > 0 as given but at most what the machine has, else every
+/// hardware thread OpenMP sees. (Asking OpenMP for tens of thousands of threads crashes it.)
+inline int resolve_threads(int requested) {
+  const int available = std::max(1, std::max(omp_get_max_threads(), omp_get_num_procs()));
+  return requested > 0 ? std::min(requested, available) : available;
+}
 
 /// Threads for a loop of n elements: 1 below the threshold.
 inline int threads_for(std::size_t n, int threads) { return n < kParallelThreshold ? 1 : threads; }

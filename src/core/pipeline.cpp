@@ -1,5 +1,6 @@
 #include "core/pipeline.hpp"
 
+#include <new>
 #include <optional>
 
 #include "core/broadphase.hpp"
@@ -16,16 +17,50 @@ std::uint64_t PipelineDetector::memory_bytes() const {
 }
 
 Status validate_frame(std::span<const Sphere> spheres, const Camera* camera, const Config& config) {
+  if (config.threads < 0)
+    return Status::failure("Config::threads = " + std::to_string(config.threads) +
+                           ": expected 0 (all cores) or a positive count");
   if (Status s = validate_spheres(spheres); !s) return s;
   if (camera) {
     if (Status s = validate_camera(*camera); !s) return s;
     if (config.map_width < 0 || config.map_height < 0 || (config.map_width == 0) != (config.map_height == 0))
       return Status::failure("visibility map size must be W x H with both positive, or 0 x 0 for the screen size");
+    const int w = config.map_width ? config.map_width : camera->width;
+    const int h = config.map_height ? config.map_height : camera->height;
+    if (w > kMaxMapSide || h > kMaxMapSide ||
+        static_cast<std::uint64_t>(w) * static_cast<std::uint64_t>(h) > kMaxMapPixels)
+      return Status::failure("visibility map " + std::to_string(w) + "x" + std::to_string(h) +
+                             " is too large: at most " + std::to_string(kMaxMapSide) + " pixels a side and " +
+                             std::to_string(kMaxMapPixels) + " pixels in all (set a smaller map size; counts " +
+                             "are scaled to the screen)");
   }
   return {};
 }
 
+std::string out_of_memory_message(std::size_t objects, const Camera* camera, const Config& config) {
+  std::string m = "out of memory in a frame of " + std::to_string(objects) + " objects";
+  if (camera) {
+    const int w = config.map_width ? config.map_width : camera->width;
+    const int h = config.map_height ? config.map_height : camera->height;
+    m += " with a " + std::to_string(w) + "x" + std::to_string(h) + " visibility map";
+  }
+  m += config.pair_memory_cap
+           ? " (pair memory cap " + std::to_string(config.pair_memory_cap) +
+                 " bytes: a lower cap makes such a frame fail early; or free memory)"
+           : " (no pair memory cap is set: Config::pair_memory_cap, the tool's --max-pair-memory, makes a frame "
+             "with too many pairs fail early)";
+  return m;
+}
+
 Status PipelineDetector::detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) {
+  try {
+    return detect_frame(spheres, camera, out);
+  } catch (const std::bad_alloc&) {
+    return Status::failure(out_of_memory_message(spheres.size(), camera, config_));
+  }
+}
+
+Status PipelineDetector::detect_frame(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) {
   if (Status s = validate_frame(spheres, camera, config_); !s) return s;
   const int threads = resolve_threads(config_.threads);
   const std::size_t n = spheres.size();

@@ -17,8 +17,10 @@ std::uint64_t bytes_of(const std::vector<T>& v) {
   return static_cast<std::uint64_t>(v.capacity()) * sizeof(T);
 }
 
-/// The checks every backend makes on a frame's input: spheres, camera, and the map size.
+/// The checks every backend makes on a frame's input: spheres, camera, the map size, threads.
 [[nodiscard]] Status validate_frame(std::span<const Sphere> spheres, const Camera* camera, const Config& config);
+/// The error of a frame that ran out of memory: its size, and what to change.
+[[nodiscard]] std::string out_of_memory_message(std::size_t objects, const Camera* camera, const Config& config);
 
 class PipelineDetector : public Detector {
  public:
@@ -26,6 +28,9 @@ class PipelineDetector : public Detector {
   [[nodiscard]] std::uint64_t memory_bytes() const final;
   /// The last frame's visibility map (empty without camera); for tests and tools.
   [[nodiscard]] const VisibilityMap& visibility_map() const { return map_; }
+
+ private:
+  Status detect_frame(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out);
 
  protected:
   explicit PipelineDetector(const Config& config) : Detector(config) {}

@@ -27,9 +27,10 @@ class ReferenceDetector final : public PipelineDetector {
     stats.bits = bits;
     stats.layout = make_layout(config_.layout, bits, e.bounds, e.mean_diameter).to_string();
     stats.stage_ms[static_cast<std::size_t>(Stage::layout)] = sw.lap();
-    brute_force_pairs(spheres, active, pairs);
+    const bool complete = brute_force_pairs(spheres, active, pairs, pairs_within_cap(config_.pair_memory_cap));
     stats.stage_ms[static_cast<std::size_t>(Stage::query)] = sw.lap();
-    return check_pair_cap(pairs.size(), config_.pair_memory_cap);
+    if (!complete) return check_pair_cap(pairs.size() + 1, config_.pair_memory_cap, true);
+    return {};
   }
 };
 

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <new>
 
 #include "core/broadphase.hpp"
 #include "core/pipeline.hpp"
@@ -137,9 +138,31 @@ void GlDetector::read_timers(FrameStats& stats) {
   timer_frame_ = 1 - timer_frame_;
 }
 
+void GlDetector::wait_for_stage_times(FrameStats& stats) {
+  if (!timers_ok_ || !ctx_->make_current()) return;
+  // read_timers() has flipped the slots: the frame that just ended is the other slot now.
+  // GL_QUERY_RESULT waits for the GPU to reach the query.
+  const auto last = static_cast<std::size_t>(1 - timer_frame_);
+  for (std::size_t k = 0; k < kStageCount; ++k) {
+    if (!timer_used_[last][k] || static_cast<Stage>(k) == Stage::layout) continue;
+    GLuint64 t0 = 0, t1 = 0;
+    glGetQueryObjectui64v(timers_[last][2 * k].get(), GL_QUERY_RESULT, &t0);
+    glGetQueryObjectui64v(timers_[last][2 * k + 1].get(), GL_QUERY_RESULT, &t1);
+    stats.stage_ms[k] = t1 >= t0 ? static_cast<double>(t1 - t0) * 1e-6 : 0.0;
+  }
+}
+
 // ---- the frame ----
 
 Status GlDetector::detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) {
+  try {
+    return detect_frame(spheres, camera, out);
+  } catch (const std::bad_alloc&) {
+    return Status::failure(detail::out_of_memory_message(spheres.size(), camera, config_));
+  }
+}
+
+Status GlDetector::detect_frame(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) {
   if (Status s = detail::validate_frame(spheres, camera, config_); !s) return s;
   if (spheres.size() >= (1u << 29)) return Status::failure("the gl backend handles at most 2^29 - 1 objects");
   if (!ctx_->make_current()) return Status::failure("OpenGL: cannot make the detector's context current");

@@ -38,6 +38,7 @@ class GlDetector final : public Detector {
   ~GlDetector() override;
 
   [[nodiscard]] Status detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) override;
+  void wait_for_stage_times(FrameStats& stats) override;
   [[nodiscard]] std::string_view name() const override { return "gl"; }
   [[nodiscard]] std::uint64_t memory_bytes() const override;
   [[nodiscard]] const GlOptions& options() const { return options_; }
@@ -97,6 +98,7 @@ class GlDetector final : public Detector {
   void stage_begin(Stage s);
   void stage_end(Stage s);
   void read_timers(FrameStats& stats);
+  Status detect_frame(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out);
 
   GlOptions options_;
   std::unique_ptr<Context> ctx_;

@@ -2,12 +2,17 @@
 
 #include "viscd/detector.hpp"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
+#include <cstring>
+#include <limits>
 #include <nlohmann/json.hpp>
-#include <sstream>
 
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wconversion"
@@ -24,8 +29,14 @@ namespace {
 using SpheresResult = Result<std::vector<Sphere>>;
 
 std::string where(std::string_view source, std::size_t line) {
-  return std::string(source) + ":" + std::to_string(line) + ": ";
+  return printable(source, 200) + ":" + std::to_string(line) + ": ";
 }
+
+// The system's reason for the last failed call, e.g. "No such file or directory".
+std::string reason(int error) { return std::strerror(error); }
+
+// A UTF-8 byte-order mark at the start of a file carries no data.
+std::string_view skip_bom(std::string_view text) { return text.starts_with("\xEF\xBB\xBF") ? text.substr(3) : text; }
 
 std::string_view trim(std::string_view s) {
   const auto b = s.find_first_not_of(" \t\r");
@@ -63,19 +74,19 @@ std::string parse_sphere(const std::vector<std::string_view>& f, Sphere& s) {
       double d = 0;
       const auto [dptr, dec] = std::from_chars(t.data(), t.data() + t.size(), d);
       if (dec != std::errc() || dptr != t.data() + t.size() || std::fabs(d) >= 1.0)
-        return std::string(kName[c]) + " = '" + std::string(f[c]) + "' is out of float range";
+        return std::string(kName[c]) + " = '" + printable(f[c]) + "' is out of float range";
       v[c] = static_cast<float>(d);
       ptr = dptr;
       ec = std::errc();
     }
     if (ec != std::errc() || ptr != t.data() + t.size() || t.empty())
-      return std::string(kName[c]) + ": expected a number, found '" + std::string(f[c]) + "'";
+      return std::string(kName[c]) + ": expected a number, found '" + printable(f[c]) + "'";
     if (!std::isfinite(v[c]))
-      return std::string(kName[c]) + " = " + std::string(f[c]) + " is not finite (NaN and infinity are not allowed)";
+      return std::string(kName[c]) + " = " + printable(f[c]) + " is not finite (NaN and infinity are not allowed)";
     if (std::fabs(v[c]) > kMaxCoordinate)
-      return std::string(kName[c]) + " = " + std::string(f[c]) + " exceeds the supported magnitude 1e18";
+      return std::string(kName[c]) + " = " + printable(f[c]) + " exceeds the supported magnitude 1e18";
   }
-  if (v[3] < 0) return "r = " + std::string(f[3]) + " is negative (a radius must be >= 0)";
+  if (v[3] < 0) return "r = " + printable(f[3]) + " is negative (a radius must be >= 0)";
   s = Sphere{v[0], v[1], v[2], v[3]};
   return {};
 }
@@ -93,20 +104,89 @@ void for_each_line(std::string_view text, F&& f) {
 }
 
 Result<std::string> slurp(const std::filesystem::path& path) {
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec))
-    return Result<std::string>::failure(path.string() + ": is a folder, expected a file");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Result<std::string>::failure(path.string() + ": cannot open for reading");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) return Result<std::string>::failure(path.string() + ": read error");
-  return ss.str();
+  using R = Result<std::string>;
+  const std::string name = printable(path.string(), 200);
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return R::failure(name + ": cannot open for reading: " + reason(errno));
+  struct stat st {};
+  if (::fstat(fd, &st) == 0 && S_ISDIR(st.st_mode)) {
+    ::close(fd);
+    return R::failure(name + ": is a folder, expected a file");
+  }
+  std::string text;
+  if (S_ISREG(st.st_mode) && st.st_size > 0) text.reserve(static_cast<std::size_t>(st.st_size));
+  char buf[1 << 16];
+  for (;;) {
+    const ssize_t got = ::read(fd, buf, sizeof buf);
+    if (got == 0) break;
+    if (got < 0) {
+      if (errno == EINTR) continue;
+      const int e = errno;
+      ::close(fd);
+      return R::failure(name + ": read error: " + reason(e));
+    }
+    text.append(buf, static_cast<std::size_t>(got));
+  }
+  ::close(fd);
+  return text;
 }
 
 }  // namespace
 
+std::string printable(std::string_view text, std::size_t max_chars) {
+  std::string out;
+  std::size_t chars = 0;
+  static constexpr char kHex[] = "0123456789ABCDEF";
+  for (std::size_t i = 0; i < text.size();) {
+    if (chars == max_chars) {
+      out += "\xE2\x80\xA6";  // …
+      break;
+    }
+    const auto c = static_cast<unsigned char>(text[i]);
+    // Length of a valid UTF-8 sequence starting here (0: not valid).
+    std::size_t len = 0;
+    if (c >= 0x20 && c < 0x7F) {
+      len = 1;
+    } else if (c >= 0xC2 && c <= 0xF4) {
+      const std::size_t want = c < 0xE0 ? 2 : c < 0xF0 ? 3 : 4;
+      len = want;
+      for (std::size_t k = 1; k < want; ++k)
+        if (i + k >= text.size() || (static_cast<unsigned char>(text[i + k]) & 0xC0) != 0x80) len = 0;
+      if (len) {  // no overlong forms, surrogates or code points beyond U+10FFFF
+        const auto c1 = static_cast<unsigned char>(text[i + 1]);
+        if ((c == 0xE0 && c1 < 0xA0) || (c == 0xED && c1 >= 0xA0) || (c == 0xF0 && c1 < 0x90) ||
+            (c == 0xF4 && c1 >= 0x90))
+          len = 0;
+      }
+    }
+    if (len) {
+      out.append(text.substr(i, len));
+      i += len;
+    } else {
+      switch (c) {
+        case '\n':
+          out += "\\n";
+          break;
+        case '\r':
+          out += "\\r";
+          break;
+        case '\t':
+          out += "\\t";
+          break;
+        default:
+          out += "\\x";
+          out += kHex[c >> 4];
+          out += kHex[c & 15];
+      }
+      ++i;
+    }
+    ++chars;
+  }
+  return out;
+}
+
 SpheresResult parse_xyzr(std::string_view text, std::string_view source) {
+  text = skip_bom(text);
   std::vector<Sphere> out;
   std::string error;
   for_each_line(text, [&](std::string_view line, std::size_t no) {
@@ -126,6 +206,7 @@ SpheresResult parse_xyzr(std::string_view text, std::string_view source) {
 }
 
 SpheresResult parse_csv(std::string_view text, std::string_view source) {
+  text = skip_bom(text);
   std::vector<Sphere> out;
   std::string error;
   bool header = false;
@@ -134,7 +215,7 @@ SpheresResult parse_csv(std::string_view text, std::string_view source) {
     const auto fields = split(line, ",", false);
     if (!header) {
       if (fields.size() != 4 || fields[0] != "x" || fields[1] != "y" || fields[2] != "z" || fields[3] != "r") {
-        error = where(source, no) + "expected the header `x,y,z,r`, found '" + std::string(trim(line)) + "'";
+        error = where(source, no) + "expected the header `x,y,z,r`, found '" + printable(trim(line)) + "'";
         return false;
       }
       header = true;
@@ -161,39 +242,71 @@ SpheresResult read_spheres(const std::filesystem::path& path) {
 
 Result<Camera> parse_camera(std::string_view text, std::string_view source) {
   using nlohmann::json;
+  text = skip_bom(text);
   json j;
   try {
     j = json::parse(text);
-  } catch (const json::parse_error& e) {
-    // Turn the byte offset into a line number.
-    std::size_t line = 1;
-    for (std::size_t i = 0; i < std::min<std::size_t>(e.byte, text.size()); ++i) line += text[i] == '\n';
+  } catch (const json::exception& e) {
+    // nlohmann's message reads "[json.exception.parse_error.101] parse error at line 3, column 7:
+    // syntax error while parsing value - invalid literal; last read: '1e4x'". Keep what follows
+    // the prefix and the position, and give the position our way: file:line:column.
+    std::string at;
+    if (const auto* pe = dynamic_cast<const json::parse_error*>(&e)) {
+      std::size_t line = 1, column = 1;
+      const std::size_t byte = std::min<std::size_t>(pe->byte, text.size());
+      for (std::size_t i = 0; i + 1 < byte; ++i) {
+        if (text[i] == '\n') {
+          ++line;
+          column = 1;
+        } else {
+          ++column;
+        }
+      }
+      at = ":" + std::to_string(line) + ":" + std::to_string(column);
+    }
     std::string what = e.what();
-    const auto colon = what.rfind(": ");
-    return Result<Camera>::failure(where(source, line) +
-                                   "invalid JSON: " + (colon == std::string::npos ? what : what.substr(colon + 2)));
+    if (const auto bracket = what.find("] "); what.starts_with("[json.exception") && bracket != std::string::npos)
+      what.erase(0, bracket + 2);
+    if (what.starts_with("parse error")) {
+      const auto colon = what.find(": ");
+      if (colon != std::string::npos) what.erase(0, colon + 2);
+    }
+    return Result<Camera>::failure(printable(source, 200) + at + ": invalid JSON: " + printable(what, 200));
   }
-  auto fail = [&](const std::string& m) { return Result<Camera>::failure(std::string(source) + ": " + m); };
+  auto fail = [&](const std::string& m) { return Result<Camera>::failure(printable(source, 200) + ": " + m); };
   if (!j.is_object()) return fail("expected a JSON object {\"eye\": [x,y,z], ...}");
   Camera c;
   for (auto it = j.begin(); it != j.end(); ++it) {
-    const std::string& key = it.key();
+    const std::string key = printable(it.key());
     const json& v = it.value();
+    // A JSON number as float: finite, and within what the camera accepts.
+    auto to_float = [&](const json& x, float& dst) -> bool {
+      // Compared as float, as the spheres' bound is: 1e18 itself rounds to the float 1e18f.
+      const double d = x.get<double>();
+      if (!(std::fabs(d) <= 1e30)) return false;
+      dst = static_cast<float>(d);
+      return std::fabs(dst) <= kMaxCoordinate;
+    };
     auto vec3 = [&](float* dst) -> std::string {
       if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() || !v[2].is_number())
         return "\"" + key + "\": expected an array of 3 numbers [x, y, z]";
-      for (int k = 0; k < 3; ++k) dst[k] = v[k].get<float>();
+      for (std::size_t k = 0; k < 3; ++k)
+        if (!to_float(v[k], dst[k]))
+          return "\"" + key + "\": " + printable(v[k].dump()) + " is beyond the supported magnitude 1e18";
       return {};
     };
     auto number = [&](float& dst) -> std::string {
       if (!v.is_number()) return "\"" + key + "\": expected a number";
-      dst = v.get<float>();
+      if (!to_float(v, dst))
+        return "\"" + key + "\": " + printable(v.dump()) + " is beyond the supported magnitude 1e18";
       return {};
     };
     auto integer = [&](int& dst) -> std::string {
-      if (!v.is_number_integer() || v.get<long long>() < 1 || v.get<long long>() > 65536)
-        return "\"" + key + "\": expected an integer number of pixels in 1..65536";
-      dst = v.get<int>();
+      const bool in_range =
+          (v.is_number_unsigned() && v.get<std::uint64_t>() >= 1 && v.get<std::uint64_t>() <= 65536) ||
+          (v.is_number_integer() && v.get<std::int64_t>() >= 1 && v.get<std::int64_t>() <= 65536);
+      if (!in_range) return "\"" + key + "\": expected an integer number of pixels in 1..65536";
+      dst = static_cast<int>(v.get<std::int64_t>());
       return {};
     };
     std::string e;
@@ -239,15 +352,101 @@ std::string camera_json(const Camera& c) {
   return j.dump(2) + "\n";
 }
 
-Status write_text(const std::filesystem::path& path, std::string_view text) {
+// ---- AtomicFile ----
+
+struct AtomicFile::State {
+  std::filesystem::path path;       // the destination
+  std::filesystem::path temporary;  // beside it, same file system, so rename is atomic
+  int fd = -1;
+  std::string error;  // the first failure
+  bool committed = false;
+};
+
+AtomicFile::AtomicFile(std::unique_ptr<State> state) : state_(std::move(state)) {}
+AtomicFile::AtomicFile(AtomicFile&&) noexcept = default;
+AtomicFile& AtomicFile::operator=(AtomicFile&&) noexcept = default;
+
+AtomicFile::~AtomicFile() {
+  if (!state_) return;
+  if (state_->fd >= 0) ::close(state_->fd);
+  if (!state_->committed) ::unlink(state_->temporary.c_str());
+}
+
+const std::filesystem::path& AtomicFile::path() const { return state_->path; }
+
+Result<AtomicFile> AtomicFile::create(const std::filesystem::path& path) {
+  namespace fs = std::filesystem;
+  using R = Result<AtomicFile>;
+  const std::string name = printable(path.string(), 200);
   std::error_code ec;
-  if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path(), ec);
-  std::ofstream out(path, std::ios::binary);
-  if (!out) return Status::failure(path.string() + ": cannot open for writing");
-  out.write(text.data(), static_cast<std::streamsize>(text.size()));
-  out.close();
-  if (!out) return Status::failure(path.string() + ": write failed");
+  fs::path dest = path;
+  if (fs::is_symlink(dest, ec)) {  // write where the link points, as an ordinary open would
+    const fs::path target = fs::weakly_canonical(dest, ec);
+    if (!ec) dest = target;
+  }
+  if (fs::is_directory(dest, ec)) return R::failure(name + ": is a folder, expected a file name");
+  if (dest.filename().empty()) return R::failure(name + ": expected a file name");
+  const fs::path dir = dest.has_parent_path() ? dest.parent_path() : fs::path(".");
+  fs::create_directories(dir, ec);
+  if (ec) return R::failure(name + ": cannot create its folder: " + ec.message());
+  std::string tmpl = (dir / ("." + dest.filename().string() + ".tmp-XXXXXX")).string();
+  const int fd = ::mkostemp(tmpl.data(), O_CLOEXEC);
+  if (fd < 0) return R::failure(name + ": cannot open for writing: " + reason(errno));
+  // mkostemp creates the file private (0600); give it the mode an ordinary new file would get.
+  const mode_t mask = ::umask(0);
+  ::umask(mask);
+  if (::fchmod(fd, 0666 & ~mask) != 0) {
+    const int e = errno;
+    ::close(fd);
+    ::unlink(tmpl.c_str());
+    return R::failure(name + ": cannot set the file mode: " + reason(e));
+  }
+  auto state = std::make_unique<State>();
+  state->path = dest;
+  state->temporary = tmpl;
+  state->fd = fd;
+  return AtomicFile(std::move(state));
+}
+
+Status AtomicFile::write(std::string_view bytes) {
+  State& st = *state_;
+  if (!st.error.empty()) return Status::failure(st.error);
+  while (!bytes.empty()) {
+    const ssize_t put = ::write(st.fd, bytes.data(), bytes.size());
+    if (put < 0) {
+      if (errno == EINTR) continue;
+      st.error = printable(st.path.string(), 200) + ": write failed: " + reason(errno);
+      return Status::failure(st.error);
+    }
+    bytes.remove_prefix(static_cast<std::size_t>(put));
+  }
   return {};
+}
+
+Status AtomicFile::commit() {
+  State& st = *state_;
+  if (!st.error.empty()) return Status::failure(st.error);
+  if (st.committed) return {};
+  const std::string name = printable(st.path.string(), 200);
+  const bool synced = ::fsync(st.fd) == 0 || errno == EINVAL;  // EINVAL: a file system without fsync
+  const int sync_errno = errno;
+  const bool closed = ::close(st.fd) == 0;
+  const int close_errno = errno;
+  st.fd = -1;
+  if (!synced) st.error = name + ": write failed: " + reason(sync_errno);
+  if (synced && !closed) st.error = name + ": write failed: " + reason(close_errno);
+  if (st.error.empty() && ::rename(st.temporary.c_str(), st.path.c_str()) != 0)
+    st.error = name + ": cannot replace the file: " + reason(errno);
+  if (!st.error.empty()) return Status::failure(st.error);
+  st.committed = true;
+  return {};
+}
+
+Status write_text(const std::filesystem::path& path, std::string_view text) {
+  auto f = AtomicFile::create(path);
+  if (!f) return Status::failure(f.error());
+  if (Status s = f.value().write(text); !s) return s;
+  return f.value().commit();
 }
 
 Status write_spheres_csv(const std::filesystem::path& path, std::span<const Sphere> spheres) {
@@ -261,9 +460,11 @@ Status write_spheres_csv(const std::filesystem::path& path, std::span<const Sphe
   return write_text(path, s);
 }
 
-Status write_pairs_csv(const std::filesystem::path& path, std::span<const Pair> pairs) {
+Status write_pairs_csv(AtomicFile& out, std::span<const Pair> pairs) {
+  // Streamed in blocks of about 1 MiB: a billion pairs need no gigabytes of text in memory.
+  constexpr std::size_t kBlock = 1 << 20;
   std::string s = "i,j\n";
-  s.reserve(s.size() + pairs.size() * 14);
+  s.reserve(kBlock + 32);
   char buf[32];
   for (const Pair& p : pairs) {
     auto* end = std::to_chars(buf, buf + 12, p.i).ptr;
@@ -271,8 +472,19 @@ Status write_pairs_csv(const std::filesystem::path& path, std::span<const Pair> 
     end = std::to_chars(end, buf + 30, p.j).ptr;
     *end++ = '\n';
     s.append(buf, end);
+    if (s.size() >= kBlock) {
+      if (Status st = out.write(s); !st) return st;
+      s.clear();
+    }
   }
-  return write_text(path, s);
+  return out.write(s);
+}
+
+Status write_pairs_csv(const std::filesystem::path& path, std::span<const Pair> pairs) {
+  auto f = AtomicFile::create(path);
+  if (!f) return Status::failure(f.error());
+  if (Status s = write_pairs_csv(f.value(), pairs); !s) return s;
+  return f.value().commit();
 }
 
 std::string stats_json(const FrameStats& st, std::string_view backend) {
@@ -291,14 +503,27 @@ std::string stats_json(const FrameStats& st, std::string_view backend) {
   return j.dump(2) + "\n";
 }
 
-Status write_png(const std::filesystem::path& path, std::span<const std::uint8_t> rgba, int width, int height) {
+Status write_png(AtomicFile& out, std::span<const std::uint8_t> rgba, int width, int height) {
   if (width < 1 || height < 1 || rgba.size() != static_cast<std::size_t>(width) * height * 4)
-    return Status::failure(path.string() + ": image size does not match its pixels");
-  std::error_code ec;
-  if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path(), ec);
-  if (!stbi_write_png(path.string().c_str(), width, height, 4, rgba.data(), width * 4))
-    return Status::failure(path.string() + ": cannot write PNG");
-  return {};
+    return Status::failure(printable(out.path().string(), 200) + ": image size does not match its pixels");
+  struct Sink {
+    AtomicFile* file;
+    Status status;
+  } sink{&out, {}};
+  auto put = [](void* context, void* data, int size) {
+    auto* k = static_cast<Sink*>(context);
+    if (k->status.ok()) k->status = k->file->write({static_cast<const char*>(data), static_cast<std::size_t>(size)});
+  };
+  if (!stbi_write_png_to_func(put, &sink, width, height, 4, rgba.data(), width * 4))
+    return Status::failure(printable(out.path().string(), 200) + ": cannot encode the PNG");
+  return sink.status;
+}
+
+Status write_png(const std::filesystem::path& path, std::span<const std::uint8_t> rgba, int width, int height) {
+  auto f = AtomicFile::create(path);
+  if (!f) return Status::failure(f.error());
+  if (Status s = write_png(f.value(), rgba, width, height); !s) return s;
+  return f.value().commit();
 }
 
 std::uint64_t pairs_hash(std::span<const Pair> pairs) {

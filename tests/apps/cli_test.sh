@@ -3,80 +3,7 @@
 # Usage: VISCD=/path/to/viscd bash tests/apps/cli_test.sh WORKDIR
 set -euo pipefail
 
-if [[ $# -ne 1 ]]; then
-  echo "usage: VISCD=/path/to/viscd $0 WORKDIR" >&2
-  exit 2
-fi
-: "${VISCD:?set VISCD to the viscd binary}"
-if [[ ! -x "$VISCD" ]]; then
-  echo "FAIL: VISCD=$VISCD is not an executable" >&2
-  exit 1
-fi
-
-W="$1"
-rm -rf "$W"
-mkdir -p "$W"
-
-checks=0
-fail() {
-  echo "FAIL: $*" >&2
-  exit 1
-}
-step() {
-  checks=$((checks + 1))
-  echo "--- [$checks] $*"
-}
-pass() { echo "    ok"; }
-
-# Runs the tool, keeping stdout in $W/out, stderr in $W/err and the exit status in $rc.
-rc=0
-run() {
-  set +e
-  "$VISCD" "$@" >"$W/out" 2>"$W/err"
-  rc=$?
-  set -e
-}
-show() {
-  echo "    command: viscd $*" >&2
-  echo "    exit status: $rc" >&2
-  echo "    stdout:" >&2
-  sed 's/^/      /' "$W/out" >&2 || true
-  echo "    stderr:" >&2
-  sed 's/^/      /' "$W/err" >&2 || true
-}
-expect_rc() {  # expect_rc CODE ARGS...
-  local want="$1"
-  shift
-  run "$@"
-  if [[ "$rc" -ne "$want" ]]; then
-    show "$@"
-    fail "viscd $* exited $rc, expected $want"
-  fi
-}
-expect_nonzero() {
-  run "$@"
-  if [[ "$rc" -eq 0 ]]; then
-    show "$@"
-    fail "viscd $* exited 0, expected a failure"
-  fi
-}
-expect_in() {  # expect_in FILE TEXT WHAT
-  if ! grep -qF -- "$2" "$1"; then
-    echo "    $(basename "$1"):" >&2
-    sed 's/^/      /' "$1" >&2 || true
-    fail "$3: '$2' not found in $(basename "$1")"
-  fi
-}
-expect_file_equals() {  # expect_file_equals FILE EXPECTED_TEXT WHAT
-  if [[ ! -f "$1" ]]; then fail "$3: $1 was not written"; fi
-  if ! cmp -s "$1" <(printf '%b' "$2"); then
-    echo "    expected:" >&2
-    printf '%b' "$2" | sed 's/^/      /' >&2
-    echo "    got:" >&2
-    sed 's/^/      /' "$1" >&2
-    fail "$3: $1 differs from the expected text"
-  fi
-}
+source "$(dirname "$0")/cli_lib.sh"
 
 # ----------------------------------------------------------------------------------------------
 # Fixtures: four spheres; 0 and 1 touch (centres 1 apart, radii 0.5), 2 and 3 overlap, 1 and 2
@@ -122,12 +49,12 @@ expect_in "$W/out" "--objects" "run --help"
 expect_in "$W/out" "--frames" "run --help"
 pass
 
-step "viscd without a subcommand fails"
-expect_nonzero
+step "viscd without a subcommand is a usage error (exit 2)"
+expect_rc 2
 pass
 
-step "viscd with an unknown subcommand fails"
-expect_nonzero frobnicate
+step "viscd with an unknown subcommand is a usage error (exit 2)"
+expect_rc 2 frobnicate
 pass
 
 step "pairs finds exactly (0,1) touching and (2,3) overlapping"
@@ -173,12 +100,12 @@ expect_rc 1 pairs --spheres "$W/no_such_file.xyzr" --out "$W/pairs_missing.csv"
 expect_in "$W/err" "no_such_file.xyzr" "missing file error"
 pass
 
-step "pairs without --spheres fails"
-expect_nonzero pairs --out "$W/pairs_none.csv"
+step "pairs without --spheres is a usage error (exit 2)"
+expect_rc 2 pairs --out "$W/pairs_none.csv"
 pass
 
-step "--bits 12 fails with a message naming --bits"
-expect_nonzero pairs --spheres "$W/four.xyzr" --out "$W/pairs_bits.csv" --bits 12
+step "--bits 12 is a usage error (exit 2) naming --bits"
+expect_rc 2 pairs --spheres "$W/four.xyzr" --out "$W/pairs_bits.csv" --bits 12
 expect_in "$W/err" "--bits" "--bits 12 error"
 pass
 
@@ -189,8 +116,8 @@ for b in 16 32 64 adaptive; do
 done
 pass
 
-step "--backend nope exits 1"
-expect_rc 1 pairs --spheres "$W/four.xyzr" --out "$W/pairs_nope.csv" --backend nope
+step "--backend nope is a usage error (exit 2)"
+expect_rc 2 pairs --spheres "$W/four.xyzr" --out "$W/pairs_nope.csv" --backend nope
 expect_in "$W/err" "nope" "--backend nope error"
 pass
 
@@ -252,20 +179,20 @@ LINES="$(wc -l <"$W/run2/frames.csv")"
 [[ "$LINES" -eq 3 ]] || fail "run2/frames.csv has $LINES lines, expected a header and 2 rows"
 pass
 
-step "run --map-size 0x5 fails with a message"
-expect_nonzero run --map-size 0x5 --frames 1 --objects 100 --out "$W/run3"
+step "run --map-size 0x5 is a usage error (exit 2) with a message"
+expect_rc 2 run --map-size 0x5 --frames 1 --objects 100 --out "$W/run3"
 expect_in "$W/err" "--map-size" "--map-size 0x5 error"
 pass
 
 step "run --camera nope and --scene donut fail with messages"
-expect_nonzero run --camera nope --frames 1 --objects 100 --out "$W/run4"
+expect_rc 2 run --camera nope --frames 1 --objects 100 --out "$W/run4"
 expect_in "$W/err" "nope" "--camera nope error"
-expect_nonzero run --scene donut --frames 1 --objects 100 --out "$W/run5"
+expect_rc 2 run --scene donut --frames 1 --objects 100 --out "$W/run5"
 expect_in "$W/err" "donut" "--scene donut error"
 pass
 
-step "run --frames 0 fails"
-expect_nonzero run --frames 0 --objects 100 --out "$W/run6"
+step "run --frames 0 is a usage error (exit 2)"
+expect_rc 2 run --frames 0 --objects 100 --out "$W/run6"
 expect_in "$W/err" "--frames" "--frames 0 error"
 pass
 

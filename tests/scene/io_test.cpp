@@ -1,8 +1,11 @@
-// Tests of the file formats the world sees (DESIGN.md "Data the world sees"): XYZR and CSV sphere
+// Tests of the file formats the world sees (docs/usage.md, "File formats"): XYZR and CSV sphere
 // readers, the camera JSON reader and writer, the pairs/spheres/stats writers and pairs_hash.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <sys/stat.h>
+
+#include <algorithm>
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -858,6 +861,171 @@ TEST(PairsHash, IsFnv1aOverLittleEndianIndices) {
   for (int k = 0; k < 100; ++k) pairs.push_back({static_cast<std::uint32_t>(rng()), static_cast<std::uint32_t>(rng())});
   EXPECT_EQ(pairs_hash(pairs), fnv1a_oracle(pairs));
   EXPECT_EQ(pairs_hash(std::vector<Pair>{{0, 1}}), fnv1a_oracle({{0, 1}}));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Hostile input: messages that stay printable, byte-order marks, out-of-range camera values,
+// outputs written whole or not at all.
+
+TEST(Printable, EscapesControlCharactersAndInvalidUtf8) {
+  EXPECT_EQ(printable("plain text 1.5e3"), "plain text 1.5e3");
+  EXPECT_EQ(printable(std::string_view("a\0b", 3)), "a\\x00b");
+  EXPECT_EQ(printable("tab\there\r\n"), "tab\\there\\r\\n");
+  EXPECT_EQ(printable("\x1b[31mred\x7f"), "\\x1B[31mred\\x7F");
+  EXPECT_EQ(printable("\xff\xfe"), "\\xFF\\xFE");           // never valid in UTF-8
+  EXPECT_EQ(printable("\xc0\x80"), "\\xC0\\x80");           // overlong NUL
+  EXPECT_EQ(printable("\xed\xa0\x80"), "\\xED\\xA0\\x80");  // a UTF-16 surrogate
+  EXPECT_EQ(printable("\xe2\x86"), "\\xE2\\x86");           // cut sequence
+  EXPECT_EQ(printable("caf\xc3\xa9 x\xe2\x86\x92y \xf0\x9f\x98\x80"), "caf\xc3\xa9 x\xe2\x86\x92y \xf0\x9f\x98\x80");
+}
+
+TEST(Printable, CutsLongTextByCharacters) {
+  EXPECT_EQ(printable(std::string(10, 'a'), 10), std::string(10, 'a'));
+  EXPECT_EQ(printable(std::string(11, 'a'), 10), std::string(10, 'a') + "\xE2\x80\xA6");
+  // Multi-byte characters count once.
+  std::string arrows;
+  for (int k = 0; k < 5; ++k) arrows += "\xe2\x86\x92";
+  EXPECT_EQ(printable(arrows, 5), arrows);
+  EXPECT_EQ(printable(std::string(1000000, 'z')).size(), 40u + 3u);
+}
+
+TEST(Xyzr, ByteOrderMarkIsSkipped) {
+  auto r = parse_xyzr(
+      "\xEF\xBB\xBF"
+      "1 2 3 0.5\n",
+      "bom.xyzr");
+  ASSERT_TRUE(r.ok()) << r.error();
+  ASSERT_EQ(r.value().size(), 1u);
+  expect_sphere(r.value()[0], 1, 2, 3, 0.5f);
+}
+
+TEST(Csv, ByteOrderMarkIsSkipped) {
+  auto r = parse_csv("\xEF\xBB\xBFx,y,z,r\n1,2,3,0.5\n", "bom.csv");
+  ASSERT_TRUE(r.ok()) << r.error();
+  ASSERT_EQ(r.value().size(), 1u);
+}
+
+TEST(Xyzr, BinaryFieldIsEscapedInTheMessage) {
+  const std::string e = xyzr_error(std::string("0 0 0 1\n1 \x01\0\x02 0 1\n", 20));
+  EXPECT_CONTAINS(e, "in.xyzr:2:");
+  EXPECT_CONTAINS(e, "\\x01\\x00\\x02");
+  for (char ch : e) EXPECT_FALSE(static_cast<unsigned char>(ch) < 0x20) << e;
+}
+
+TEST(Xyzr, HugeFieldIsCutInTheMessage) {
+  const std::string e = xyzr_error("0 0 0 " + std::string(1000000, '9') + "\n");
+  EXPECT_LT(e.size(), 200u) << e.substr(0, 300);
+  EXPECT_CONTAINS(e, "\xE2\x80\xA6");
+}
+
+TEST(ReadSpheres, OpenErrorSaysWhy) {
+  TempDir dir;
+  auto r = read_spheres(dir / "missing.xyzr");
+  ASSERT_FALSE(r.ok());
+  EXPECT_CONTAINS(r.error(), "No such file or directory");
+}
+
+TEST(CameraJson, NumberBeyondDoubleIsAnErrorNotAnException) {
+  const std::string e = camera_error(R"({"eye": [0, 0, 10], "far": 1e400})");
+  EXPECT_CONTAINS(e, "cam.json");
+  EXPECT_CONTAINS(e, "invalid JSON");
+}
+
+TEST(CameraJson, ValuesBeyond1e18AreErrors) {
+  EXPECT_CONTAINS(camera_error(R"({"eye": [0, 1e30, 1e30]})"), "\"eye\"");
+  EXPECT_CONTAINS(camera_error(R"({"target": [1e19, 0, 0]})"), "\"target\"");
+  EXPECT_CONTAINS(camera_error(R"({"far": 1e300})"), "\"far\"");
+  EXPECT_CONTAINS(camera_error(R"({"up": [0, 1e20, 0]})"), "\"up\"");
+  EXPECT_CONTAINS(camera_error(R"({"width": 18446744073709551615})"), "\"width\"");
+  EXPECT_CONTAINS(camera_error(R"({"height": 1e5})"), "\"height\"");
+  auto ok = parse_camera(R"({"eye": [0, 1e18, 1e18], "far": 1e18})", "cam.json");
+  EXPECT_TRUE(ok.ok()) << ok.error();
+}
+
+TEST(CameraJson, SyntaxErrorGivesLineColumnAndTheWholeReason) {
+  const std::string e = camera_error("{\"eye\": [1, 2,\n  3x]}");
+  EXPECT_CONTAINS(e, "cam.json:2:");
+  EXPECT_CONTAINS(e, "syntax error while parsing array");
+  EXPECT_CONTAINS(e, "last read");
+}
+
+TEST(CameraJson, ByteOrderMarkIsSkipped) {
+  auto r = parse_camera("\xEF\xBB\xBF{\"eye\": [0, 0, 5]}", "bom.json");
+  ASSERT_TRUE(r.ok()) << r.error();
+  EXPECT_EQ(r.value().eye[2], 5.0f);
+}
+
+TEST(CameraJson, KeysWithControlCharactersAreEscaped) {
+  const std::string e = camera_error("{\"a\\u001bb\": 1}");
+  EXPECT_CONTAINS(e, "\\x1B");
+  for (char ch : e) EXPECT_FALSE(static_cast<unsigned char>(ch) < 0x20) << e;
+}
+
+// Files in a folder other than `keep`.
+std::vector<std::string> files_in(const fs::path& dir) {
+  std::vector<std::string> names;
+  for (const auto& e : fs::directory_iterator(dir)) names.push_back(e.path().filename().string());
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+TEST(AtomicFile, UncommittedLeavesTheOldFileAndNoTemporary) {
+  TempDir dir;
+  write_file(dir / "out.csv", "old\n");
+  {
+    auto f = AtomicFile::create(dir / "out.csv");
+    ASSERT_TRUE(f.ok()) << f.error();
+    ASSERT_TRUE(f.value().write("new, but never committed\n").ok());
+    EXPECT_EQ(files_in(dir.path()).size(), 2u);  // out.csv and the temporary
+  }
+  EXPECT_EQ(read_file(dir / "out.csv"), "old\n");
+  EXPECT_EQ(files_in(dir.path()), std::vector<std::string>{"out.csv"});
+}
+
+TEST(AtomicFile, CommitReplacesWholeWithOrdinaryPermissions) {
+  TempDir dir;
+  write_file(dir / "out.csv", "old\n");
+  auto f = AtomicFile::create(dir / "out.csv");
+  ASSERT_TRUE(f.ok()) << f.error();
+  ASSERT_TRUE(f.value().write("new\n").ok());
+  EXPECT_EQ(read_file(dir / "out.csv"), "old\n");  // not yet
+  ASSERT_TRUE(f.value().commit().ok());
+  EXPECT_EQ(read_file(dir / "out.csv"), "new\n");
+  EXPECT_EQ(files_in(dir.path()), std::vector<std::string>{"out.csv"});
+  const mode_t mask = ::umask(0);
+  ::umask(mask);
+  const auto perms = static_cast<mode_t>(fs::status(dir / "out.csv").permissions());
+  EXPECT_EQ(perms & 0777, 0666 & ~mask);
+}
+
+TEST(AtomicFile, WritesThroughASymbolicLink) {
+  TempDir dir;
+  write_file(dir / "target.csv", "old\n");
+  fs::create_symlink(dir / "target.csv", dir / "link.csv");
+  ASSERT_TRUE(write_text(dir / "link.csv", "new\n").ok());
+  EXPECT_TRUE(fs::is_symlink(dir / "link.csv"));
+  EXPECT_EQ(read_file(dir / "target.csv"), "new\n");
+}
+
+TEST(AtomicFile, FolderIsAnError) {
+  TempDir dir;
+  auto f = AtomicFile::create(dir.path());
+  ASSERT_FALSE(f.ok());
+  EXPECT_CONTAINS(f.error(), "is a folder");
+}
+
+TEST(WritePairsCsv, StreamsManyBlocksExactly) {
+  // More than one 1 MiB block of text; the expected text is built here independently.
+  TempDir dir;
+  std::vector<Pair> pairs;
+  std::ostringstream want;
+  want << "i,j\n";
+  for (std::uint32_t k = 0; k < 300000; ++k) {
+    pairs.push_back({k, k * 7 + 1});
+    want << k << ',' << (k * 7 + 1) << '\n';
+  }
+  ASSERT_TRUE(write_pairs_csv(dir / "p.csv", pairs).ok());
+  EXPECT_EQ(read_file(dir / "p.csv"), want.str());
 }
 
 }  // namespace
