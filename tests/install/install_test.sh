@@ -12,3 +12,17 @@ cmake --build "$work/consumer" >/dev/null
 "$work/consumer/game_loop" | tee "$work/out.txt"
 grep -q "tick  *80:" "$work/out.txt"
 echo "install test: find_package(viscd) + game_loop OK"
+
+# The installed tool finds what `viscd bench` needs in the prefix, not in the build tree.
+prefix="$work/prefix"
+if [[ -x "$prefix/bin/viscd" ]]; then
+  [[ -f "$prefix/share/viscd/plot_paper.py" ]] || { echo "FAIL: share/viscd/plot_paper.py not installed" >&2; exit 1; }
+  if [[ -f "$build/viscd_peers" ]]; then
+    [[ -x "$prefix/libexec/viscd/viscd_peers" ]] || { echo "FAIL: libexec/viscd/viscd_peers not installed" >&2; exit 1; }
+    # Run from a copy of the prefix elsewhere, so that nothing next to the build tree is found.
+    cp -r "$prefix" "$work/moved"
+    "$work/moved/bin/viscd" bench peers -- --help >"$work/peers.txt"
+    grep -q -- "--objects" "$work/peers.txt" || { echo "FAIL: installed viscd bench peers" >&2; exit 1; }
+  fi
+  echo "install test: bench scripts and the peers driver installed and found"
+fi
