@@ -5,15 +5,6 @@
 # Exits 77 (ctest: skipped) when xvfb-run or python3 is missing.
 set -euo pipefail
 
-if [[ $# -ne 1 ]]; then
-  echo "usage: VISCD=/path/to/viscd $0 WORKDIR" >&2
-  exit 2
-fi
-: "${VISCD:?set VISCD to the viscd binary}"
-if [[ ! -x "$VISCD" ]]; then
-  echo "FAIL: VISCD=$VISCD is not an executable" >&2
-  exit 1
-fi
 for tool in xvfb-run python3; do
   if ! command -v "$tool" >/dev/null; then
     echo "SKIP: $tool is not installed (apt-get install xvfb xauth python3)"
@@ -21,21 +12,11 @@ for tool in xvfb-run python3; do
   fi
 done
 
-WORK="$1"
-rm -rf "$WORK"
-mkdir -p "$WORK"
+# The usage check, the work folder ($W), fail and step; run is this script's own, below.
+source "$(dirname "$0")/cli_lib.sh"
+WORK="$W"
 XVFB=(xvfb-run -a -s "-screen 0 1280x800x24")
 
-checks=0
-fail() {
-  echo "FAIL: $*" >&2
-  exit 1
-}
-step() {
-  checks=$((checks + 1))
-  echo "--- [$checks] $*"
-}
-rc=0
 run() {  # run [PREFIX...] -- ARGS...: stdout in $WORK/out, stderr in $WORK/err, status in $rc
   local prefix=()
   while [[ "$1" != "--" ]]; do
