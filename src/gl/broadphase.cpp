@@ -168,6 +168,9 @@ Status GlDetector::broadphase(std::uint32_t n_bound, std::uint32_t objects, cons
 
   // Stage 8: query; on overflow grow the buffer to the exact count and run it again.
   stage_begin(Stage::query);
+  // The previous frame's pair sort may have left its smaller buffer (sized for that frame's
+  // count) as pairs_: make sure pairs_ holds the pair_capacity_ pairs the query may write.
+  pairs_.reserve(static_cast<GLsizeiptr>(pair_capacity_) * 8);
   std::uint32_t count = 0;
   for (int attempt = 0;; ++attempt) {
     VISCD_ASSERT(attempt < 2, "the pair count is exact, one re-run suffices");

@@ -80,10 +80,14 @@ std::vector<std::string> Context::take_errors() {
   return std::exchange(errors_, {});
 }
 
-void GLAPIENTRY Context::on_debug(GLenum, GLenum type, GLuint id, GLenum severity, GLsizei length,
+void GLAPIENTRY Context::on_debug(GLenum source, GLenum type, GLuint id, GLenum severity, GLsizei length,
                                   const GLchar* message, const void* user) {
   auto* self = static_cast<Context*>(const_cast<void*>(user));
-  const bool error = type == GL_DEBUG_TYPE_ERROR || severity == GL_DEBUG_SEVERITY_HIGH;
+  // Mesa reports every shader compiler message with high severity, warnings included (they
+  // appear only when a shader is compiled, not when it comes from the shader cache): from the
+  // compiler, only errors count. Programs check their own compile and link status as well.
+  const bool error =
+      type == GL_DEBUG_TYPE_ERROR || (severity == GL_DEBUG_SEVERITY_HIGH && source != GL_DEBUG_SOURCE_SHADER_COMPILER);
   if (!error) return;  // performance and other notes are not failures
   std::string text = "GL debug (id " + std::to_string(id) +
                      "): " + std::string(message, length > 0 ? static_cast<std::size_t>(length) : std::strlen(message));
