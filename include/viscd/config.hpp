@@ -37,9 +37,10 @@ struct Config {
   /// Produce the shaded image (stage 9) in FrameResult::image. Default off.
   bool shade = false;
   /// Hard cap on the memory pairs may take, in bytes (8 per pair); 0 (default) = no cap.
-  /// A frame with more pairs fails with an error that names the count; it never truncates.
-  /// The cap is enforced while pairs are found, before their memory is taken: a failing frame
-  /// holds at most about the cap (plus a few hundred KiB) in pair buffers.
+  /// A frame with more pairs fails with an error; it never truncates. The cap is enforced while
+  /// pairs are found, before their memory is taken, so the error names the count found when the
+  /// search stopped ("at least N pairs"), and a failing frame holds about the cap (plus a few
+  /// hundred KiB) in pair buffers.
   std::size_t pair_memory_cap = 0;
   /// Worker threads for the cpu backend; 0 (default) = all hardware threads, 1 = serial.
   /// More than the machine has are clamped to the machine's count; negative is an error.

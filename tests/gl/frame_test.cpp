@@ -27,9 +27,11 @@ std::vector<std::uint32_t> histogram(std::span<const std::uint32_t> ids, std::si
 
 TEST(GlContext, DebugOutputTurnsGlErrorsIntoFailures) {
   VISCD_GL_OR_SKIP(gl);
-  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 100000, 0);  // invalid index: GL_INVALID_VALUE
   FrameResult out;
   const std::vector<Sphere> s = {{0, 0, 0, 1}};
+  // A frame first makes the detector's context current (an earlier test's may still be).
+  ASSERT_TRUE(gl->detect(s, nullptr, out).ok());
+  glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 100000, 0);  // invalid index: GL_INVALID_VALUE
   const Status st = gl->detect(s, nullptr, out);
   ASSERT_FALSE(st.ok());
   EXPECT_NE(st.error().find("OpenGL error"), std::string::npos) << st.error();
