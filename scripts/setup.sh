@@ -12,6 +12,7 @@ packages=(
   glslang-tools xvfb xauth
   libbullet-dev libfcl-dev
   python3-matplotlib
+  clang libclang-rt-14-dev libomp-dev
 )
 
 missing=()

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The README's second command: install what is missing, build, run every test.
-# Usage: scripts/test.sh [preset]      preset: release (default), debug or asan
+# Usage: scripts/test.sh [preset]      preset: release (default), debug, asan or fuzz (libFuzzer, Clang)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 preset="${1:-release}"
