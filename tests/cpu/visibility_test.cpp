@@ -70,6 +70,31 @@ TEST(Visibility, CpuEqualsReferenceOnRandomScenesAndCameras) {
   }
 }
 
+TEST(Visibility, SubPixelSpheresThroughANarrowFieldOfView) {
+  // Found by fuzzing: hit() cancels badly for rays near the centre of a sphere much smaller than
+  // its distance, and accepted pixels the rectangle of the cpu rasterizer did not cover (a point
+  // at fov 0.5 degrees: reference 7 pixels, cpu 5).
+  Camera c = camera_at(1000.5f, 1003.0f, 1003.0f, 1000.5f, 1000.5f, 1000.5f, 9, 1);
+  c.fov_y_deg = 0.5f;
+  c.near_plane = 0.025f;
+  c.far_plane = 250.0f;
+  Config cfg;
+  cfg.culling = false;
+  cfg.map_width = cfg.map_height = 63;
+  check_against_reference({{std::nextafter(1000.5f, 0.0f), 998.5f, 998.5f, 0.0f}}, c, cfg, "point, fov 0.5");
+  // Many tiny and point spheres around the view axis, at a few narrow fields of view.
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-1, 1), r(0, 1e-3f);
+  std::vector<Sphere> s;
+  for (int k = 0; k < 300; ++k) s.push_back({0.02f * u(rng), 0.02f * u(rng), 0.02f * u(rng), k % 3 ? r(rng) : 0.0f});
+  for (float fov : {0.2f, 0.5f, 2.0f}) {
+    Camera n = camera_at(0, 0, 3, 0, 0, 0, 101, 77);
+    n.fov_y_deg = fov;
+    n.near_plane = 0.01f;
+    check_against_reference(s, n, cfg, "tiny spheres, fov " + std::to_string(fov));
+  }
+}
+
 TEST(Visibility, ScaledMapsAndDegenerateSizes) {
   const auto s = random_spheres_by_half_extent(300, 8, 10.0f, 0.3f, 2.0f);
   const Camera cam = camera_at(0, 5, 35, 0, 0, 0, 1280, 720);
