@@ -104,8 +104,8 @@ PixelRect sphere_rect(const CameraRig& cam, const Sphere& s) {
   // rounding of this bound itself.
   const double o2 = static_cast<double>(cz) * cz + static_cast<double>(cx) * cx + static_cast<double>(cy) * cy;
   const double l1 = static_cast<double>(std::fabs(cz) + std::fabs(cx) + std::fabs(cy));
-  const double rr = static_cast<double>(s.r);
-  const float r = static_cast<float>(std::sqrt(rr * rr + 0x1p-19 * o2) + 1e-4 * (l1 + rr) + 1e-6);
+  const double rs = static_cast<double>(s.r);
+  const float r = static_cast<float>(std::sqrt(rs * rs + 0x1p-19 * o2) + 1e-4 * (l1 + rs) + 1e-6);
   if (cz + r < cam.near_plane || cz - r > cam.far_plane) return {};
   const float dmin = cz - r;
   if (!(dmin > cam.near_plane * 0.5f)) return {0, 0, cam.map_w, cam.map_h, 0.0f};  // reaches the near plane or the eye
