@@ -15,6 +15,7 @@ viscd="${VISCD:-./build/release/viscd}"
 mkdir -p "$out"
 # Run a copy, so that a rebuild during the soak does not change the binary under it.
 cp "$viscd" "$out/viscd"
+: >"$out/run.log"
 "$out/viscd" run --frames "$frames" --out "$out/run" --backend cpu "$@" >"$out/run.log" 2>&1 &
 pid=$!
 trap 'kill "$pid" 2>/dev/null || true' EXIT
