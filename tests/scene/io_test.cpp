@@ -906,7 +906,8 @@ TEST(Csv, ByteOrderMarkIsSkipped) {
 }
 
 TEST(Xyzr, BinaryFieldIsEscapedInTheMessage) {
-  const std::string e = xyzr_error(std::string("0 0 0 1\n1 \x01\0\x02 0 1\n", 20));
+  static constexpr char kText[] = "0 0 0 1\n1 \x01\0\x02 0 1\n";
+  const std::string e = xyzr_error(std::string(kText, sizeof kText - 1));
   EXPECT_CONTAINS(e, "in.xyzr:2:");
   EXPECT_CONTAINS(e, "\\x01\\x00\\x02");
   for (char ch : e) EXPECT_FALSE(static_cast<unsigned char>(ch) < 0x20) << e;
