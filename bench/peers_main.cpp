@@ -10,6 +10,10 @@
 //   --sort-bits  the paper's Table 2: radix sort time of the scene's 16/32/64-bit Morton codes.
 //   --tree-stats viscd's LBVH: depth, nodes visited and boxes tested per object in the query.
 
+#include <signal.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
@@ -50,6 +54,33 @@ struct Options {
   bool tree_stats = false;
   int bits = 0;  // --stages, --tree-stats: Morton width, 0 = adaptive (32 without camera)
   int sort_runs = 50;
+  int busy = 0;  // cores to hold with spinning processes while measuring
+};
+
+// Holds `count` cores with spinning child processes for its lifetime (--busy): what an engine's
+// job threads do to a library that wants the cores too. The children die with this process.
+class BusyCores {
+ public:
+  explicit BusyCores(int count) {
+    for (int k = 0; k < count; ++k) {
+      const pid_t pid = fork();
+      if (pid == 0) {
+        prctl(PR_SET_PDEATHSIG, SIGKILL);
+        volatile unsigned long spin = 0;
+        for (;;) spin = spin + 1;
+      }
+      if (pid > 0) pids_.push_back(pid);
+    }
+  }
+  ~BusyCores() {
+    for (const pid_t pid : pids_) kill(pid, SIGKILL);
+    for (const pid_t pid : pids_) waitpid(pid, nullptr, 0);
+  }
+  BusyCores(const BusyCores&) = delete;
+  BusyCores& operator=(const BusyCores&) = delete;
+
+ private:
+  std::vector<pid_t> pids_;
 };
 
 void progress(const std::string& line) {
@@ -149,8 +180,8 @@ int run_peers(const Options& opt) {
   CsvWriter csv(opt.csv, {"method", "objects", "median_ms", "min_ms", "pairs", "speedup_vs_viscd"});
   std::printf(
       "# viscd_peers: %s scene, %d warm-up frames, then %d block(s) of %d timed frames, methods taking "
-      "turns per block; viscd threads %d\n",
-      opt.scene.c_str(), opt.warmup, opt.repeats, opt.frames, detail::resolve_threads(opt.threads));
+      "turns per block; viscd threads %d; %d core(s) held busy by spinning processes\n",
+      opt.scene.c_str(), opt.warmup, opt.repeats, opt.frames, detail::resolve_threads(opt.threads), opt.busy);
   std::printf("# ms per frame = update + query + exact sphere test (viscd: detect(), pairs sorted)\n");
 
   for (const std::uint32_t n : opt.objects) {
@@ -527,7 +558,12 @@ int main(int argc, char** argv) {
                  "--stages, --tree-stats: Morton width 16, 32 or 64 (default adaptive = 32 without camera)")
       ->check(CLI::IsMember({0, 16, 32, 64}));
   app.add_option("--runs", opt.sort_runs, "--sort-bits: timed sorts per width")->check(CLI::PositiveNumber);
+  app.add_option("--busy", opt.busy,
+                 "hold this many cores with spinning processes while measuring (what an engine's own "
+                 "threads do); compare viscd with viscd_1t in that run")
+      ->check(CLI::Range(0, 256));
   CLI11_PARSE(app, argc, argv);
+  const viscd::bench::BusyCores busy(opt.busy);
 
   if (opt.stages) return viscd::bench::run_stages(opt);
   if (opt.tree_stats) return viscd::bench::run_tree_stats(opt);

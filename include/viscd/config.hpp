@@ -5,6 +5,8 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "viscd/executor.hpp"
+
 namespace viscd {
 
 /// Morton code width m. `adaptive` picks 16/32/64 from the mean pixel count mu (paper Eq. 1).
@@ -43,8 +45,12 @@ struct Config {
   /// hundred KiB) in pair buffers.
   std::size_t pair_memory_cap = 0;
   /// Worker threads for the cpu backend; 0 (default) = all hardware threads, 1 = serial.
-  /// More than the machine has are clamped to the machine's count; negative is an error.
+  /// More than the machine has (or than `executor` offers) are clamped; negative is an error.
   int threads = 0;
+  /// Where the cpu backend's parallel stages run: the caller's job system (not owned; it must
+  /// outlive the detect() calls), or nullptr (default) for viscd's own pool, whose threads sleep
+  /// while there is no work and whose caller works too (docs/architecture.md, "Threads").
+  Executor* executor = nullptr;
 };
 
 }  // namespace viscd

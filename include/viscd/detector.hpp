@@ -58,7 +58,7 @@ class Detector {
 
 /// Brute force O(N^2) pairs and a per-pixel ray cast visibility map: the test oracle.
 [[nodiscard]] std::unique_ptr<Detector> make_reference_detector(const Config& config = {});
-/// The fast CPU backend: LBVH on all cores (OpenMP), tiled sphere rasterizer.
+/// The fast CPU backend: LBVH and a tiled sphere rasterizer on all cores (or Config::executor).
 [[nodiscard]] std::unique_ptr<Detector> make_cpu_detector(const Config& config = {});
 /// A backend by name ("reference", "cpu", or "gl" when built with VISCD_ENABLE_GL).
 [[nodiscard]] Result<std::unique_ptr<Detector>> make_detector(std::string_view backend, const Config& config = {});

@@ -1,8 +1,7 @@
 #include "core/broadphase.hpp"
 
-#include <omp.h>
-
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <bit>
 #include <limits>
@@ -16,15 +15,31 @@ namespace viscd::detail {
 ActiveExtent active_extent(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int threads) {
   const std::size_t n = active.size();
   constexpr float kInf = std::numeric_limits<float>::infinity();
+  // Partial results per chunk, combined in chunk order: the same for every executor.
+  struct Partial {
+    float lx = kInf, ly = kInf, lz = kInf, hx = -kInf, hy = -kInf, hz = -kInf;
+    double d = 0;
+  };
+  constexpr std::size_t kMaxChunks = 64;
+  std::array<Partial, kMaxChunks> part{};
+  const std::size_t chunks = std::min<std::size_t>(kMaxChunks, static_cast<std::size_t>(threads_for(n, threads)));
+  for_chunks(n, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
+    Partial p;
+    for (std::size_t k = b; k < e; ++k) {
+      const Sphere& s = spheres[active[k]];
+      p.lx = std::min(p.lx, s.x), p.ly = std::min(p.ly, s.y), p.lz = std::min(p.lz, s.z);
+      p.hx = std::max(p.hx, s.x), p.hy = std::max(p.hy, s.y), p.hz = std::max(p.hz, s.z);
+      p.d += 2.0 * s.r;
+    }
+    part[c] = p;
+  });
   float lx = kInf, ly = kInf, lz = kInf, hx = -kInf, hy = -kInf, hz = -kInf;
   double d = 0;
-#pragma omp parallel for num_threads(threads_for(n, threads)) schedule(static) \
-    reduction(min : lx, ly, lz) reduction(max : hx, hy, hz) reduction(+ : d)
-  for (std::size_t k = 0; k < n; ++k) {
-    const Sphere& s = spheres[active[k]];
-    lx = std::min(lx, s.x), ly = std::min(ly, s.y), lz = std::min(lz, s.z);
-    hx = std::max(hx, s.x), hy = std::max(hy, s.y), hz = std::max(hz, s.z);
-    d += 2.0 * s.r;
+  for (std::size_t c = 0; c < chunks; ++c) {
+    const Partial& p = part[c];
+    lx = std::min(lx, p.lx), ly = std::min(ly, p.ly), lz = std::min(lz, p.lz);
+    hx = std::max(hx, p.hx), hy = std::max(hy, p.hy), hz = std::max(hz, p.hz);
+    d += p.d;
   }
   ActiveExtent e;
   e.bounds = Aabb{{lx, ly, lz}, {hx, hy, hz}};
@@ -50,10 +65,9 @@ void sort_pair_keys(std::vector<std::uint64_t>& keys, std::uint32_t max_index, i
   const int key_bits = 32 + std::bit_width(max_index);
   radix_sort<std::uint64_t>(keys, {}, key_bits, threads, scratch);
   out.resize(keys.size());
-  const std::size_t n = keys.size();
-#pragma omp parallel for num_threads(threads_for(n, threads)) schedule(static)
-  for (std::size_t k = 0; k < n; ++k)
+  parallel_for(keys.size(), threads, [&](std::size_t k) {
     out[k] = Pair{static_cast<std::uint32_t>(keys[k] >> 32), static_cast<std::uint32_t>(keys[k])};
+  });
 }
 
 template <>
@@ -76,7 +90,7 @@ std::uint64_t LbvhBroadphase::memory_bytes() const {
                     bytes(scratch64_.keys) + bytes(scratch64_.values) + bytes(sorted_ids_) + bytes(sorted_spheres_) +
                     bytes(leaf_boxes_) + bytes(bvh_.nodes) + bytes(bvh_.parent) + bytes(bvh_.leaf_parent) +
                     bytes(bvh_.arrivals) + bytes(pair_keys_) + bytes(pair_scratch_.keys);
-  for (const auto& t : thread_pairs_) b += bytes(t);
+  for (const auto& t : chunk_pairs_) b += bytes(t);
   return b;
 }
 
@@ -126,13 +140,11 @@ Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const
   // Stage 5: codes. Values start as active object ids in ascending order, so the stable sort
   // breaks key ties by object index.
   const MortonEncoder encoder(layout_, bounds);
-  const int t_n = threads_for(n, threads);
-#pragma omp parallel for num_threads(t_n) schedule(static)
-  for (std::size_t k = 0; k < n; ++k) {
+  parallel_for(n, threads, [&](std::size_t k) {
     const Sphere& s = spheres[active[k]];
     key[k] = static_cast<K>(encoder.encode(s.x, s.y, s.z));
     sorted_ids_[k] = active[k];
-  }
+  });
   ms(Stage::codes) = sw.lap();
 
   // Stage 6: sort.
@@ -154,11 +166,10 @@ Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const
     sorted_spheres_.resize(n);
     leaf_boxes_.resize(n);
   }
-#pragma omp parallel for num_threads(t_n) schedule(static)
-  for (std::size_t p = 0; p < n; ++p) {
+  parallel_for(n, threads, [&](std::size_t p) {
     sorted_spheres_[p] = spheres[sorted_ids_[p]];
     leaf_boxes_[p] = conservative_box(sorted_spheres_[p]);
-  }
+  });
   fit_lbvh(leaf_boxes_, bvh_, threads);
   ms(Stage::fit) = sw.lap();
 #ifdef VISCD_VALIDATE
@@ -168,23 +179,22 @@ Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const
   }
 #endif
 
-  // Stage 8: each leaf p looks for partners q > p only, so each pair is found once. The pair cap
-  // is enforced while searching: threads publish their counts every kPublish pairs, and all stop
-  // once the frame is over the cap, before the pairs' memory is taken. An allocation failure
-  // inside the parallel region is carried out of it (an exception may not cross it).
+  // Stage 8: each leaf p looks for partners q > p only, so each pair is found once. The leaves
+  // are cut into chunks, several per thread because the work per leaf varies; each chunk keeps
+  // its own pair list. The pair cap is enforced while searching: chunks publish their counts
+  // every kPublish pairs, and all stop once the frame is over the cap, before the pairs' memory
+  // is taken. An allocation failure inside a task is carried out of it.
   constexpr std::size_t kPublish = 4096;
   const std::size_t allowed = pairs_within_cap(pair_memory_cap);
   std::atomic<std::size_t> published{0};
   std::atomic<bool> stop{false}, out_of_memory{false};
-  const int t_q = threads_for(n, threads);
-  if (thread_pairs_.size() < static_cast<std::size_t>(t_q)) thread_pairs_.resize(static_cast<std::size_t>(t_q));
-#pragma omp parallel num_threads(t_q)
-  {
-    auto& local = thread_pairs_[static_cast<std::size_t>(omp_get_thread_num())];
-    local.clear();
-#pragma omp for schedule(dynamic, 256)
-    for (std::size_t p = 0; p < n; ++p) {
-      if (stop.load(std::memory_order_relaxed)) continue;
+  const std::size_t chunks = threads_for(n, threads) == 1 ? 1 : std::min<std::size_t>(n, 8 * threads);
+  if (chunk_pairs_.size() < chunks) chunk_pairs_.resize(chunks);
+  for (std::size_t c = 0; c < chunks; ++c) chunk_pairs_[c].clear();  // also when n = 0 runs no chunk
+  for_chunks(n, chunks, [&](std::size_t begin, std::size_t end, std::size_t c) {
+    auto& local = chunk_pairs_[c];
+    for (std::size_t p = begin; p < end; ++p) {
+      if (stop.load(std::memory_order_relaxed)) return;
       const Sphere& a = sorted_spheres_[p];
       const std::uint32_t ia = sorted_ids_[p];
       try {
@@ -199,22 +209,22 @@ Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const
       } catch (const std::bad_alloc&) {
         out_of_memory.store(true);
         stop.store(true);
+        return;
       }
     }
-  }
+  });
   if (out_of_memory.load()) throw std::bad_alloc();
   if (stop.load()) return check_pair_cap(published.load(), pair_memory_cap, true);
   std::size_t total = 0;
-  for (int t = 0; t < t_q; ++t) total += thread_pairs_[static_cast<std::size_t>(t)].size();
-  // The dynamic schedule splits the pairs between threads differently every frame; sizing every
-  // thread's list for the whole frame's pairs means a later frame allocates only if it has more
-  // pairs in total, not when its split changes.
+  for (std::size_t c = 0; c < chunks; ++c) total += chunk_pairs_[c].size();
   if (Status s = check_pair_cap(total, pair_memory_cap); !s) return s;
-  for (int t = 0; t < t_q; ++t) thread_pairs_[static_cast<std::size_t>(t)].reserve(total);
+  // Chunks cover the same leaves every frame, but their pair counts drift as objects move: twice
+  // its count in reserve keeps a chunk's list from allocating in a steady state.
+  for (std::size_t c = 0; c < chunks; ++c) chunk_pairs_[c].reserve(2 * chunk_pairs_[c].size());
   pair_keys_.resize(total);
   std::size_t offset = 0;
-  for (int t = 0; t < t_q; ++t) {
-    const auto& local = thread_pairs_[static_cast<std::size_t>(t)];
+  for (std::size_t c = 0; c < chunks; ++c) {
+    const auto& local = chunk_pairs_[c];
     std::copy(local.begin(), local.end(), pair_keys_.begin() + static_cast<std::ptrdiff_t>(offset));
     offset += local.size();
   }

@@ -74,7 +74,7 @@ class LbvhBroadphase {
   std::vector<Sphere> sorted_spheres_;
   std::vector<Aabb> leaf_boxes_;
   Lbvh bvh_;
-  std::vector<std::vector<std::uint64_t>> thread_pairs_;
+  std::vector<std::vector<std::uint64_t>> chunk_pairs_;
   std::vector<std::uint64_t> pair_keys_;
   RadixScratch<std::uint64_t> pair_scratch_;
 };

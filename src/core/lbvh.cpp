@@ -37,10 +37,8 @@ void build_lbvh(std::span<const K> sorted_keys, Lbvh& bvh, int threads) {
   bvh.leaf_parent.resize(static_cast<std::size_t>(n));
   bvh.parent[0] = kNoParent;
   const K* keys = sorted_keys.data();
-  const int t_count = threads_for(static_cast<std::size_t>(n), threads);
-
-#pragma omp parallel for num_threads(t_count) schedule(static)
-  for (std::int64_t i = 0; i < n - 1; ++i) {
+  parallel_for(static_cast<std::size_t>(n - 1), threads, [&](std::size_t node_index) {
+    const auto i = static_cast<std::int64_t>(node_index);
     // Direction of the range: towards the neighbour with the longer common prefix.
     const int d = delta(keys, n, i, i + 1) - delta(keys, n, i, i - 1) > 0 ? 1 : -1;
     const int delta_min = delta(keys, n, i, i - d);
@@ -80,7 +78,7 @@ void build_lbvh(std::span<const K> sorted_keys, Lbvh& bvh, int threads) {
     }
     node.last[0] = static_cast<std::uint32_t>(gamma);
     node.last[1] = static_cast<std::uint32_t>(last);
-  }
+  });
 }
 
 template void build_lbvh<std::uint16_t>(std::span<const std::uint16_t>, Lbvh&, int);
@@ -99,10 +97,7 @@ void fit_lbvh(std::span<const Aabb> leaf_boxes, Lbvh& bvh, int threads) {
     return;
   }
   bvh.arrivals.assign(n - 1, 0);
-  const int t_count = threads_for(n, threads);
-
-#pragma omp parallel for num_threads(t_count) schedule(static)
-  for (std::size_t p = 0; p < n; ++p) {
+  parallel_for(n, threads, [&](std::size_t p) {
     std::uint32_t child = static_cast<std::uint32_t>(p) | kLeafBit;
     std::uint32_t node = bvh.leaf_parent[p];
     Aabb box = leaf_boxes[p];
@@ -122,7 +117,7 @@ void fit_lbvh(std::span<const Aabb> leaf_boxes, Lbvh& bvh, int threads) {
       child = node;
       node = bvh.parent[node];
     }
-  }
+  });
 }
 
 std::string validate_lbvh(const Lbvh& bvh, std::span<const Aabb> leaf_boxes) {

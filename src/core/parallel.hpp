@@ -1,25 +1,25 @@
 #pragma once
-// OpenMP helpers. viscd uses OpenMP rather than oneTBB: the stages are flat data-parallel loops
-// over arrays (no nested tasks), OpenMP is part of the compiler (no extra dependency), its static
-// schedule is deterministic, and a team's start-up costs a few microseconds on 2 cores
-// (docs/architecture.md, "Threads").
-
-#include <omp.h>
+// Parallel loops over an Executor: the caller's (Config::executor) or viscd's own pool. The stages
+// are flat data-parallel loops over arrays; each becomes a few tasks over contiguous chunks, or
+// many small tasks where the work per item varies (docs/architecture.md, "Threads").
 
 #include <algorithm>
 #include <cstddef>
+#include <cstdint>
+
+#include "viscd/executor.hpp"
 
 namespace viscd::detail {
 
-/// Below this many elements a loop runs serially: a parallel region costs more than it saves.
+/// Below this many elements a loop runs serially: handing it out costs more than it saves.
 inline constexpr std::size_t kParallelThreshold = 4096;
 
-/// Threads to use: `requested` > 0 as given but at most what the machine has, else every
-/// hardware thread OpenMP sees. (Asking OpenMP for tens of thousands of threads crashes it.)
-inline int resolve_threads(int requested) {
-  const int available = std::max(1, std::max(omp_get_max_threads(), omp_get_num_procs()));
-  return requested > 0 ? std::min(requested, available) : available;
-}
+/// Hardware threads of this machine (at least 1).
+[[nodiscard]] int hardware_threads();
+
+/// Threads to use: `requested` > 0 as given but at most what the machine has (or what a caller's
+/// executor offers), else all of them.
+[[nodiscard]] int resolve_threads(int requested);
 
 /// Threads for a loop of n elements: 1 below the threshold.
 inline int threads_for(std::size_t n, int threads) { return n < kParallelThreshold ? 1 : threads; }
@@ -28,11 +28,65 @@ inline int threads_for(std::size_t n, int threads) { return n < kParallelThresho
 struct Chunk {
   std::size_t begin, end;
 };
-inline Chunk chunk_of(std::size_t n, int t, int count) {
-  const std::size_t base = n / static_cast<std::size_t>(count), extra = n % static_cast<std::size_t>(count);
-  const auto tt = static_cast<std::size_t>(t);
-  const std::size_t begin = tt * base + std::min(tt, extra);
-  return {begin, begin + base + (tt < extra ? 1 : 0)};
+inline Chunk chunk_of(std::size_t n, std::size_t t, std::size_t count) {
+  const std::size_t base = n / count, extra = n % count;
+  const std::size_t begin = t * base + std::min(t, extra);
+  return {begin, begin + base + (t < extra ? 1 : 0)};
+}
+
+/// viscd's own pool, shared by every detector that has no executor of its own: one thread per
+/// hardware thread but one (the caller is the last), created on first use. A pool that is busy
+/// with another detector's stage runs the new stage on its caller instead of queueing it.
+[[nodiscard]] Executor& default_executor();
+
+/// The executor of the frame running on this thread: set for the length of detect() by an
+/// ExecutorScope, else default_executor().
+[[nodiscard]] Executor& current_executor();
+
+/// Makes `executor` (nullptr: the default) current on this thread until destroyed.
+class ExecutorScope {
+ public:
+  explicit ExecutorScope(Executor* executor);
+  ~ExecutorScope();
+  ExecutorScope(const ExecutorScope&) = delete;
+  ExecutorScope& operator=(const ExecutorScope&) = delete;
+
+ private:
+  Executor* previous_;
+};
+
+/// Runs f(task) for task in [0, count) on the current executor; inline when count <= 1.
+template <class F>
+void run_tasks(std::uint32_t count, F&& f) {
+  if (count == 0) return;
+  if (count == 1) {
+    f(0u);
+    return;
+  }
+  current_executor().run(count, TaskRef(f));
+}
+
+/// Splits [0, n) into `chunks` contiguous ranges and runs f(begin, end, chunk) for each (chunk
+/// indices are stable: the same n and chunks give the same ranges, whichever thread runs them).
+template <class F>
+void for_chunks(std::size_t n, std::size_t chunks, F&& f) {
+  chunks = std::max<std::size_t>(1, std::min(chunks, n));
+  if (chunks == 1) {
+    if (n) f(std::size_t{0}, n, std::size_t{0});
+    return;
+  }
+  run_tasks(static_cast<std::uint32_t>(chunks), [&](std::uint32_t t) {
+    const Chunk c = chunk_of(n, t, chunks);
+    f(c.begin, c.end, static_cast<std::size_t>(t));
+  });
+}
+
+/// The loop `for i in [0, n): f(i)` over `threads_for(n, threads)` balanced chunks.
+template <class F>
+void parallel_for(std::size_t n, int threads, F&& f) {
+  for_chunks(n, static_cast<std::size_t>(threads_for(n, threads)), [&](std::size_t b, std::size_t e, std::size_t) {
+    for (std::size_t i = b; i < e; ++i) f(i);
+  });
 }
 
 }  // namespace viscd::detail

@@ -1,5 +1,6 @@
 #include "core/pipeline.hpp"
 
+#include <algorithm>
 #include <new>
 #include <optional>
 
@@ -62,7 +63,10 @@ Status PipelineDetector::detect(std::span<const Sphere> spheres, const Camera* c
 
 Status PipelineDetector::detect_frame(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) {
   if (Status s = validate_frame(spheres, camera, config_); !s) return s;
-  const int threads = resolve_threads(config_.threads);
+  // Every parallel stage of this frame runs on the caller's executor, or on viscd's pool.
+  const ExecutorScope scope(config_.executor);
+  const int available = config_.executor ? std::max(1, config_.executor->concurrency()) : resolve_threads(0);
+  const int threads = config_.threads > 0 ? std::min(config_.threads, available) : available;
   const std::size_t n = spheres.size();
   FrameStats& stats = out.stats;
   std::string layout = std::move(stats.layout);  // keep its buffer: no allocation per frame

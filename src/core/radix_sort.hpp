@@ -4,11 +4,9 @@
 // The number of passes follows the key width: 2 for 16-bit, 4 for 32-bit and 8 for 64-bit keys;
 // a pass whose digit is the same for every key is skipped (it would move nothing).
 //
-// Each pass: every thread builds a histogram of its contiguous chunk; an exclusive scan over
-// (digit, thread) gives each thread its own output offsets; every thread scatters its chunk.
-// Stability follows from chunk order = thread order and in-chunk order being kept.
-
-#include <omp.h>
+// Each pass: a task per contiguous chunk builds its histogram; an exclusive scan over
+// (digit, chunk) gives each chunk its own output offsets; a task per chunk scatters it.
+// Stability follows from the offsets following chunk order and in-chunk order being kept.
 
 #include <array>
 #include <cstdint>
@@ -31,7 +29,7 @@ template <class K>
 struct RadixScratch {
   std::vector<K> keys;
   std::vector<std::uint32_t> values;
-  std::vector<std::array<std::uint32_t, 256>> histograms;  // per thread
+  std::vector<std::array<std::uint32_t, 256>> histograms;  // per chunk
 };
 
 /// Sorts keys[0..n) ascending, carrying values along (pass an empty `values` to sort keys only). `key_bits` (<= 8 *
@@ -59,36 +57,34 @@ void radix_sort(std::span<K> keys, std::span<std::uint32_t> values, int key_bits
   for (int pass = 0; pass < passes; ++pass) {
     const int shift = 8 * pass;
     bool constant_digit = false;
-#pragma omp parallel num_threads(t_count)
-    {
-      const int t = omp_get_thread_num();
-      const Chunk c = chunk_of(n, t, t_count);
+    // Histograms per chunk, a serial scan in (digit, chunk) order, then a stable scatter per
+    // chunk: two tasks per chunk and pass, the same chunks whichever thread runs them.
+    const auto chunks = static_cast<std::size_t>(t_count);
+    for_chunks(n, chunks, [&](std::size_t b, std::size_t e, std::size_t t) {
       auto& h = scratch.histograms[t];
       h.fill(0);
-      for (std::size_t i = c.begin; i < c.end; ++i) ++h[(src_k[i] >> shift) & 0xFF];
-#pragma omp barrier
-#pragma omp single
-      {
-        // Exclusive scan in (digit, thread) order, written back into the histograms as offsets.
-        std::uint32_t sum = 0;
-        for (int d = 0; d < 256; ++d) {
-          std::uint32_t digit_total = 0;
-          for (int u = 0; u < t_count; ++u) {
-            const std::uint32_t c_count = scratch.histograms[u][d];
-            scratch.histograms[u][d] = sum;
-            sum += c_count;
-            digit_total += c_count;
-          }
-          if (digit_total == n) constant_digit = true;
-        }
-      }  // implicit barrier
-      if (!constant_digit) {
-        for (std::size_t i = c.begin; i < c.end; ++i) {
+      for (std::size_t i = b; i < e; ++i) ++h[(src_k[i] >> shift) & 0xFF];
+    });
+    std::uint32_t sum = 0;
+    for (int d = 0; d < 256; ++d) {
+      std::uint32_t digit_total = 0;
+      for (std::size_t u = 0; u < chunks; ++u) {
+        const std::uint32_t c_count = scratch.histograms[u][d];
+        scratch.histograms[u][d] = sum;
+        sum += c_count;
+        digit_total += c_count;
+      }
+      if (digit_total == n) constant_digit = true;
+    }
+    if (!constant_digit) {
+      for_chunks(n, chunks, [&](std::size_t b, std::size_t e, std::size_t t) {
+        auto& h = scratch.histograms[t];
+        for (std::size_t i = b; i < e; ++i) {
           const std::uint32_t pos = h[(src_k[i] >> shift) & 0xFF]++;
           dst_k[pos] = src_k[i];
           if (has_values) dst_v[pos] = src_v[i];
         }
-      }
+      });
     }
     if (!constant_digit) {
       std::swap(src_k, dst_k);

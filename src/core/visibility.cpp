@@ -1,7 +1,5 @@
 #include "core/visibility.hpp"
 
-#include <omp.h>
-
 #include <algorithm>
 #include <cmath>
 #include <numbers>
@@ -139,21 +137,22 @@ void count_pixels(const VisibilityMap& map, std::size_t objects, int threads, st
   const int t_count = threads_for(n, threads);
   if (scratch.size() < static_cast<std::size_t>(t_count)) scratch.resize(static_cast<std::size_t>(t_count));
   counts.assign(objects, 0);
-#pragma omp parallel num_threads(t_count)
-  {
-    const int t = omp_get_thread_num();
-    auto& h = scratch[static_cast<std::size_t>(t)];
-    h.assign(objects + 1, 0);
-    const Chunk c = chunk_of(n, t, t_count);
-    for (std::size_t i = c.begin; i < c.end; ++i) ++h[map.ids[i]];
-#pragma omp barrier
-#pragma omp for schedule(static)
-    for (std::size_t k = 0; k < objects; ++k) {
-      std::uint32_t sum = 0;
-      for (int u = 0; u < t_count; ++u) sum += scratch[static_cast<std::size_t>(u)][k + 1];
-      counts[k] = sum;
-    }
+  const auto chunks = static_cast<std::size_t>(t_count);
+  for (std::size_t t = 0; t < chunks; ++t) scratch[t].resize(objects + 1);  // outside the tasks: may allocate
+  for_chunks(n, chunks, [&](std::size_t b, std::size_t e, std::size_t t) {
+    auto& h = scratch[t];
+    std::fill(h.begin(), h.end(), 0u);
+    for (std::size_t i = b; i < e; ++i) ++h[map.ids[i]];
+  });
+  if (chunks == 1) {
+    std::copy(scratch[0].begin() + 1, scratch[0].end(), counts.begin());
+    return;
   }
+  parallel_for(objects, t_count, [&](std::size_t k) {
+    std::uint32_t sum = 0;
+    for (std::size_t u = 0; u < chunks; ++u) sum += scratch[u][k + 1];
+    counts[k] = sum;
+  });
 }
 
 int cull_and_choose_bits(std::span<const std::uint32_t> counts, double pixel_scale, const Config& config,
@@ -181,14 +180,13 @@ void shade(const CameraRig& cam, const VisibilityMap& map, std::span<const Objec
   rgba.resize(4 * n);
   const Vec3 light = normalize({0.4f, 0.8f, 0.45f});
   const Vec3 view = {-cam.forward.x, -cam.forward.y, -cam.forward.z};
-#pragma omp parallel for num_threads(threads_for(n, threads)) schedule(static)
-  for (std::size_t i = 0; i < n; ++i) {
+  parallel_for(n, threads, [&](std::size_t i) {
     std::uint8_t* out = &rgba[4 * i];
     out[3] = 255;
     const std::uint32_t id = map.ids[i];
     if (id == 0) {
       out[0] = kColourBackground[0], out[1] = kColourBackground[1], out[2] = kColourBackground[2];
-      continue;
+      return;
     }
     const std::uint8_t* base = state[id - 1] == ObjectState::colliding ? kColourColliding
                                : state[id - 1] == ObjectState::free    ? kColourFree
@@ -200,7 +198,7 @@ void shade(const CameraRig& cam, const VisibilityMap& map, std::span<const Objec
     const float k = 0.25f + 0.6f * diffuse + 0.15f * facing;
     for (int ch = 0; ch < 3; ++ch)
       out[ch] = static_cast<std::uint8_t>(std::min(255.0f, static_cast<float>(base[ch]) * k + 0.5f));
-  }
+  });
 }
 
 }  // namespace viscd::detail

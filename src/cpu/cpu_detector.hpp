@@ -5,7 +5,7 @@
 
 namespace viscd::detail {
 
-/// The fast CPU backend: tiled rasterizer + LBVH broadphase, OpenMP on all cores.
+/// The fast CPU backend: tiled rasterizer + LBVH broadphase on all cores (Config::executor).
 class CpuDetector final : public PipelineDetector {
  public:
   explicit CpuDetector(const Config& config) : PipelineDetector(config) {}

@@ -18,17 +18,15 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
 
   // Bin: rectangle per sphere, count per tile, scan, scatter. The order inside a bin is not
   // deterministic; the (depth, id) comparison below makes the result independent of it.
-  const int t_n = threads_for(n, threads);
-#pragma omp parallel for num_threads(t_n) schedule(static)
-  for (std::size_t k = 0; k < n; ++k) {
+  parallel_for(n, threads, [&](std::size_t k) {
     const PixelRect r = sphere_rect(cam, spheres[k]);
     rects_[k] = r;
-    if (r.x0 >= r.x1 || r.y0 >= r.y1) continue;
+    if (r.x0 >= r.x1 || r.y0 >= r.y1) return;
     for (int ty = r.y0 / kTile; ty <= (r.y1 - 1) / kTile; ++ty)
       for (int tx = r.x0 / kTile; tx <= (r.x1 - 1) / kTile; ++tx)
         std::atomic_ref<std::uint32_t>(tile_count_[static_cast<std::size_t>(ty * tiles_x + tx)])
             .fetch_add(1, std::memory_order_relaxed);
-  }
+  });
   std::uint32_t sum = 0;
   for (std::size_t t = 0; t < tiles; ++t) {
     tile_offset_[t] = sum;
@@ -37,10 +35,9 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
   tile_offset_[tiles] = sum;
   tile_items_.resize(sum);
   std::copy(tile_offset_.begin(), tile_offset_.end() - 1, tile_count_.begin());  // becomes the cursor
-#pragma omp parallel for num_threads(t_n) schedule(static)
-  for (std::size_t k = 0; k < n; ++k) {
+  parallel_for(n, threads, [&](std::size_t k) {
     const PixelRect r = rects_[k];
-    if (r.x0 >= r.x1 || r.y0 >= r.y1) continue;
+    if (r.x0 >= r.x1 || r.y0 >= r.y1) return;
     for (int ty = r.y0 / kTile; ty <= (r.y1 - 1) / kTile; ++ty)
       for (int tx = r.x0 / kTile; tx <= (r.x1 - 1) / kTile; ++tx) {
         const std::uint32_t slot =
@@ -48,13 +45,14 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
                 .fetch_add(1, std::memory_order_relaxed);
         tile_items_[slot] = static_cast<std::uint32_t>(k);
       }
-  }
+  });
 
   // Rasterise tiles in parallel; every pixel belongs to exactly one tile.
   const bool normals = !map.normal.empty();
   const std::size_t W = static_cast<std::size_t>(map.width);
-#pragma omp parallel for num_threads(threads_for(tiles* kTile* kTile, threads)) schedule(dynamic, 1)
-  for (std::size_t t = 0; t < tiles; ++t) {
+  // One task per tile: tiles differ a lot in work, and small tasks balance it.
+  auto tile_task = [&](std::uint32_t task) {
+    const std::size_t t = task;
     const int tx = static_cast<int>(t % static_cast<std::size_t>(tiles_x)),
               ty = static_cast<int>(t / static_cast<std::size_t>(tiles_x));
     const int x0 = tx * kTile, y0 = ty * kTile;
@@ -132,6 +130,11 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
       if (normals)
         for (int px = x0; px < x1; ++px) write_normal(cam, spheres, map, px, py);
     }
+  };
+  if (threads_for(tiles * kTile * kTile, threads) == 1) {
+    for (std::size_t t = 0; t < tiles; ++t) tile_task(static_cast<std::uint32_t>(t));
+  } else {
+    run_tasks(static_cast<std::uint32_t>(tiles), tile_task);
   }
 }
 
