@@ -12,7 +12,7 @@ packages=(
   glslang-tools xvfb xauth
   libbullet-dev libfcl-dev
   python3-matplotlib
-  clang libclang-rt-14-dev libomp-dev
+  clang libclang-rt-14-dev
 )
 
 missing=()
