@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <random>
 #include <span>
@@ -21,6 +23,26 @@ inline std::vector<Sphere> random_spheres_by_half_extent(std::size_t n, std::uin
   std::uniform_real_distribution<float> c(-half_extent, half_extent), r(rmin, rmax);
   std::vector<Sphere> s(n);
   for (auto& sp : s) sp = {c(rng), c(rng), c(rng), r(rng)};
+  return s;
+}
+
+/// `count` pairs of spheres near (1e5, 0, -1e5), where boxes round the most, whose float overlap
+/// test sits exactly at equality or one ulp to either side (the second radius is chosen so).
+inline std::vector<Sphere> float_boundary_pairs(int count, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1, 1);
+  std::vector<Sphere> s;
+  for (int k = 0; k < count; ++k) {
+    const float cx = 1e5f + u(rng) * 1000, cy = u(rng) * 50, cz = -1e5f + u(rng) * 1000;
+    const float dx = u(rng) * 3, dy = u(rng) * 3, dz = u(rng) * 3;
+    const Sphere a{cx, cy, cz, std::fabs(u(rng)) + 0.1f};
+    Sphere b{cx + dx, cy + dy, cz + dz, 0};
+    const float fx = a.x - b.x, fy = a.y - b.y, fz = a.z - b.z;
+    const float d = std::sqrt(fx * fx + fy * fy + fz * fz);
+    b.r = std::nextafter(std::max(0.0f, d - a.r), (k % 3 == 0) ? 0.0f : (k % 3 == 1) ? 1e9f : b.r);
+    s.push_back(a);
+    s.push_back(b);
+  }
   return s;
 }
 

@@ -54,20 +54,7 @@ TEST_P(ConformancePairs, TouchingOnAGrid) {
 
 TEST_P(ConformancePairs, TouchingAtTheFloatBoundary) {
   // Pairs whose float test sits exactly at equality or one ulp to either side, near 1e5.
-  std::mt19937 rng(11);
-  std::uniform_real_distribution<float> u(-1, 1);
-  std::vector<Sphere> s;
-  for (int k = 0; k < 300; ++k) {
-    const float cx = 1e5f + u(rng) * 1000, cy = u(rng) * 50, cz = -1e5f + u(rng) * 1000;
-    const Sphere a{cx, cy, cz, std::fabs(u(rng)) + 0.1f};
-    Sphere b{cx + u(rng) * 3, cy + u(rng) * 3, cz + u(rng) * 3, 0};
-    const float fx = a.x - b.x, fy = a.y - b.y, fz = a.z - b.z;
-    const float d = std::sqrt(fx * fx + fy * fy + fz * fz);
-    b.r = std::nextafter(std::max(0.0f, d - a.r), (k % 3 == 0) ? 0.0f : (k % 3 == 1) ? 1e9f : b.r);
-    s.push_back(a);
-    s.push_back(b);
-  }
-  check(s, "float boundary");
+  check(test::float_boundary_pairs(300, 11), "float boundary");
 }
 
 TEST_P(ConformancePairs, HugeAndTinyRadii) {

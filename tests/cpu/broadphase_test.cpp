@@ -89,21 +89,7 @@ TEST(CpuBroadphase, TouchingOnAGrid) {
 TEST(CpuBroadphase, TouchingAtTheFloatBoundary) {
   // Radii chosen so the float test sits exactly at (or one ulp around) equality, at large
   // coordinates where boxes round the most: the tree must never miss what the test accepts.
-  std::mt19937 rng(11);
-  std::uniform_real_distribution<float> u(-1, 1);
-  std::vector<Sphere> s;
-  for (int k = 0; k < 600; ++k) {
-    const float cx = 1e5f + u(rng) * 1000, cy = u(rng) * 50, cz = -1e5f + u(rng) * 1000;
-    const float dx = u(rng) * 3, dy = u(rng) * 3, dz = u(rng) * 3;
-    const Sphere a{cx, cy, cz, std::fabs(u(rng)) + 0.1f};
-    Sphere b{cx + dx, cy + dy, cz + dz, 0};
-    const float fx = a.x - b.x, fy = a.y - b.y, fz = a.z - b.z;
-    const float d = std::sqrt(fx * fx + fy * fy + fz * fz);
-    b.r = std::nextafter(std::max(0.0f, d - a.r), (k % 3 == 0) ? 0.0f : (k % 3 == 1) ? 1e9f : b.r);
-    s.push_back(a);
-    s.push_back(b);
-  }
-  check_exact(s, "float boundary");
+  check_exact(test::float_boundary_pairs(600, 11), "float boundary");
 }
 
 TEST(CpuBroadphase, PairsThatUninflatedBoxesWouldMiss) {
