@@ -196,7 +196,6 @@ std::uint64_t available_memory_bytes() {
   if (getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY) {
     // The limit counts the address space already mapped too.
     std::ifstream status("/proc/self/status");
-    std::string key;
     std::uint64_t used_kib = 0;
     std::string line;
     while (std::getline(status, line))

@@ -442,11 +442,19 @@ Status AtomicFile::commit() {
   return {};
 }
 
-Status write_text(const std::filesystem::path& path, std::string_view text) {
+namespace {
+// Creates the AtomicFile, lets `fill` write it, commits it: every path-taking writer below.
+template <class F>
+Status write_whole(const std::filesystem::path& path, F&& fill) {
   auto f = AtomicFile::create(path);
   if (!f) return Status::failure(f.error());
-  if (Status s = f.value().write(text); !s) return s;
+  if (Status s = fill(f.value()); !s) return s;
   return f.value().commit();
+}
+}  // namespace
+
+Status write_text(const std::filesystem::path& path, std::string_view text) {
+  return write_whole(path, [&](AtomicFile& f) { return f.write(text); });
 }
 
 Status write_spheres_csv(const std::filesystem::path& path, std::span<const Sphere> spheres) {
@@ -481,10 +489,7 @@ Status write_pairs_csv(AtomicFile& out, std::span<const Pair> pairs) {
 }
 
 Status write_pairs_csv(const std::filesystem::path& path, std::span<const Pair> pairs) {
-  auto f = AtomicFile::create(path);
-  if (!f) return Status::failure(f.error());
-  if (Status s = write_pairs_csv(f.value(), pairs); !s) return s;
-  return f.value().commit();
+  return write_whole(path, [&](AtomicFile& f) { return write_pairs_csv(f, pairs); });
 }
 
 std::string stats_json(const FrameStats& st, std::string_view backend) {
@@ -520,10 +525,7 @@ Status write_png(AtomicFile& out, std::span<const std::uint8_t> rgba, int width,
 }
 
 Status write_png(const std::filesystem::path& path, std::span<const std::uint8_t> rgba, int width, int height) {
-  auto f = AtomicFile::create(path);
-  if (!f) return Status::failure(f.error());
-  if (Status s = write_png(f.value(), rgba, width, height); !s) return s;
-  return f.value().commit();
+  return write_whole(path, [&](AtomicFile& f) { return write_png(f, rgba, width, height); });
 }
 
 std::uint64_t pairs_hash(std::span<const Pair> pairs) {
