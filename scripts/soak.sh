@@ -32,7 +32,10 @@ wait "$pid"
 rc=$?
 trap - EXIT
 echo "soak: viscd run exited $rc after $(($(date +%s) - start)) s"
-python3 - "$out" <<'PY'
+# Debian's matplotlib belongs to the system python; prefer it over another python3 on PATH.
+py=python3
+[[ -x /usr/bin/python3 ]] && py=/usr/bin/python3
+"$py" - "$out" <<'PY'
 import csv, statistics, sys
 rows = list(csv.DictReader(open(sys.argv[1] + "/memory.csv")))
 rss = [int(r["rss_kib"]) for r in rows]
