@@ -160,12 +160,7 @@ Result<Config> make_config(const PipelineOptions& o) {
 }
 
 Status check_map_size(int width, int height, std::string_view option) {
-  if (width > kMaxMapSide || height > kMaxMapSide ||
-      static_cast<std::uint64_t>(width) * static_cast<std::uint64_t>(height) > kMaxMapPixels)
-    return Status::failure(std::string(option) + ": " + std::to_string(width) + "x" + std::to_string(height) +
-                           " is too large for a visibility map: at most " + std::to_string(kMaxMapSide) +
-                           " pixels a side and " + std::to_string(kMaxMapPixels) +
-                           " pixels in all (8192x8192); a smaller --map-size is scaled to the screen");
+  if (Status s = validate_map_size(width, height); !s) return Status::failure(std::string(option) + ": " + s.error());
   return {};
 }
 

@@ -73,6 +73,8 @@ class Detector {
 /// Checks spheres for the input rules (finite, 0 <= r, magnitudes <= kMaxCoordinate) and the
 /// object limit; the error names the first bad sphere by index.
 [[nodiscard]] Status validate_spheres(std::span<const Sphere> spheres);
+/// Checks a visibility map size against kMaxMapSide and kMaxMapPixels; the error names "WxH".
+[[nodiscard]] Status validate_map_size(int width, int height);
 /// Checks a camera (positive size, 0 < fov < 180, 0 < near < far, eye != target, up not parallel,
 /// every coordinate and plane distance finite and at most kMaxCoordinate in magnitude).
 [[nodiscard]] Status validate_camera(const Camera& camera);

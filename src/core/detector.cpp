@@ -57,6 +57,16 @@ Status validate_spheres(std::span<const Sphere> spheres) {
   return {};
 }
 
+Status validate_map_size(int width, int height) {
+  if (width <= kMaxMapSide && height <= kMaxMapSide &&
+      static_cast<std::uint64_t>(width) * static_cast<std::uint64_t>(height) <= kMaxMapPixels)
+    return {};
+  return Status::failure("visibility map " + std::to_string(width) + "x" + std::to_string(height) +
+                         " is too large: at most " + std::to_string(kMaxMapSide) + " pixels a side and " +
+                         std::to_string(kMaxMapPixels) + " pixels in all (8192x8192); a smaller map works, " +
+                         "its counts are scaled to the screen");
+}
+
 Status validate_camera(const Camera& c) {
   auto finite3 = [](const float* v) { return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]); };
   if (!finite3(c.eye) || !finite3(c.target) || !finite3(c.up))

@@ -17,9 +17,9 @@ inline constexpr std::size_t kParallelThreshold = 4096;
 /// Hardware threads of this machine (at least 1).
 [[nodiscard]] int hardware_threads();
 
-/// Threads to use: `requested` > 0 as given but at most what the machine has (or what a caller's
-/// executor offers), else all of them.
-[[nodiscard]] int resolve_threads(int requested);
+/// Threads to use: `requested` > 0 as given but at most `available` (0: the machine's hardware
+/// threads; a caller's executor passes its concurrency), else all of them.
+[[nodiscard]] int resolve_threads(int requested, int available = 0);
 
 /// Threads for a loop of n elements: 1 below the threshold.
 inline int threads_for(std::size_t n, int threads) { return n < kParallelThreshold ? 1 : threads; }

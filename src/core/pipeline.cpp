@@ -28,12 +28,7 @@ Status validate_frame(std::span<const Sphere> spheres, const Camera* camera, con
       return Status::failure("visibility map size must be W x H with both positive, or 0 x 0 for the screen size");
     const int w = config.map_width ? config.map_width : camera->width;
     const int h = config.map_height ? config.map_height : camera->height;
-    if (w > kMaxMapSide || h > kMaxMapSide ||
-        static_cast<std::uint64_t>(w) * static_cast<std::uint64_t>(h) > kMaxMapPixels)
-      return Status::failure("visibility map " + std::to_string(w) + "x" + std::to_string(h) +
-                             " is too large: at most " + std::to_string(kMaxMapSide) + " pixels a side and " +
-                             std::to_string(kMaxMapPixels) + " pixels in all (set a smaller map size; counts " +
-                             "are scaled to the screen)");
+    if (Status s = validate_map_size(w, h); !s) return s;
   }
   return {};
 }
@@ -65,8 +60,7 @@ Status PipelineDetector::detect_frame(std::span<const Sphere> spheres, const Cam
   if (Status s = validate_frame(spheres, camera, config_); !s) return s;
   // Every parallel stage of this frame runs on the caller's executor, or on viscd's pool.
   const ExecutorScope scope(config_.executor);
-  const int available = config_.executor ? std::max(1, config_.executor->concurrency()) : resolve_threads(0);
-  const int threads = config_.threads > 0 ? std::min(config_.threads, available) : available;
+  const int threads = resolve_threads(config_.threads, config_.executor ? config_.executor->concurrency() : 0);
   const std::size_t n = spheres.size();
   FrameStats& stats = out.stats;
   std::string layout = std::move(stats.layout);  // keep its buffer: no allocation per frame

@@ -129,8 +129,8 @@ int hardware_threads() {
   return n;
 }
 
-int resolve_threads(int requested) {
-  const int available = hardware_threads();
+int resolve_threads(int requested, int available) {
+  available = available > 0 ? available : hardware_threads();
   return requested > 0 ? std::min(requested, available) : available;
 }
 

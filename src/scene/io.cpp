@@ -302,9 +302,8 @@ Result<Camera> parse_camera(std::string_view text, std::string_view source) {
       return {};
     };
     auto integer = [&](int& dst) -> std::string {
-      const bool in_range =
-          (v.is_number_unsigned() && v.get<std::uint64_t>() >= 1 && v.get<std::uint64_t>() <= 65536) ||
-          (v.is_number_integer() && v.get<std::int64_t>() >= 1 && v.get<std::int64_t>() <= 65536);
+      // is_number_integer covers unsigned values too; one beyond INT64_MAX reads as negative.
+      const bool in_range = v.is_number_integer() && v.get<std::int64_t>() >= 1 && v.get<std::int64_t>() <= 65536;
       if (!in_range) return "\"" + key + "\": expected an integer number of pixels in 1..65536";
       dst = static_cast<int>(v.get<std::int64_t>());
       return {};
