@@ -14,8 +14,8 @@
 #include <random>
 #include <vector>
 
-#include "core/parallel.hpp"
-#include "core/radix_sort.hpp"
+#include "cpu/parallel.hpp"
+#include "cpu/radix_sort.hpp"
 #include "viscd/viscd.hpp"
 
 namespace {

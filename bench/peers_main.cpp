@@ -27,10 +27,10 @@
 #include <vector>
 
 #include "bench_util.hpp"
-#include "core/broadphase.hpp"
 #include "core/morton.hpp"
-#include "core/parallel.hpp"
-#include "core/radix_sort.hpp"
+#include "cpu/broadphase.hpp"
+#include "cpu/parallel.hpp"
+#include "cpu/radix_sort.hpp"
 #include "peers.hpp"
 #include "viscd/viscd.hpp"
 
@@ -47,6 +47,7 @@ struct Options {
   int threads = 0;  // as Config::threads: 0 = all hardware threads
   std::uint64_t seed = 1;
   std::string scene = "ring";
+  float packing = 0.04f;  // SceneParams::packing
   std::string csv;
   std::vector<std::string> methods;  // empty: viscd, viscd_1t and every peer built in
   bool stages = false;
@@ -93,6 +94,7 @@ Scene make_scene(const Options& opt, std::uint32_t n) {
   params.kind = parse_scene_kind(opt.scene).value();
   params.objects = n;
   params.seed = opt.seed;
+  params.packing = opt.packing;
   return Scene::make(params);
 }
 
@@ -395,7 +397,7 @@ int run_sort_bits(Options opt, bool objects_given) {
     for (int b = 0; b < 3; ++b) {
       const int bits = 16 << b;
       const detail::MortonLayout layout =
-          detail::make_layout(Layout::extended, bits, extent.bounds, extent.mean_diameter);
+          detail::make_layout(Layout::extended, bits, extent.bounds, extent.mean_diameter());
       const detail::MortonEncoder encoder(layout, extent.bounds);
       std::vector<std::uint64_t> codes(n);
       for (std::uint32_t k = 0; k < n; ++k) {
@@ -427,7 +429,7 @@ struct TraversalCount {
   std::uint64_t leaf_hits = 0;  // leaves whose box overlaps: candidates for the exact test
 };
 
-// A counting replica of detail::for_each_overlap_after (core/lbvh.hpp): same order, same pruning.
+// A counting replica of detail::for_each_overlap_after (cpu/lbvh_build.hpp): same order, same pruning.
 void count_traversal(const detail::Lbvh& bvh, std::uint32_t p, const detail::Aabb& box, TraversalCount& c) {
   if (bvh.leaves < 2) return;
   std::vector<std::uint32_t> stack;
@@ -545,6 +547,8 @@ int main(int argc, char** argv) {
   app.add_option("--threads", opt.threads, "viscd worker threads, 0 = all")->check(CLI::NonNegativeNumber);
   app.add_option("--seed", opt.seed, "scene seed");
   app.add_option("--scene", opt.scene, "ring, box or clusters")->check(CLI::IsMember({"ring", "box", "clusters"}));
+  app.add_option("--packing", opt.packing, "volume fraction of the spheres (0.04: 0.135 pairs per object in the ring)")
+      ->check(CLI::Range(0.001f, 0.5f));
   app.add_option("--csv", opt.csv, "write the table as CSV to this file");
   app.add_option("--methods", opt.methods, "methods to compare (default: viscd, viscd_1t and every peer built in)")
       ->delimiter(',');

@@ -1,5 +1,6 @@
 #pragma once
-// Linear BVH over sorted Morton keys: build and fit (stage 7), traversal (stage 8).
+// Linear BVH over sorted Morton keys: the tree every backend builds (stage 7) and its validation.
+// The CPU build, fit and traversal are cpu/lbvh_build.hpp; the gl backend's are its shaders.
 //
 // Build: Karras 2012, "Maximizing Parallelism in the Construction of BVHs, Octrees, and k-d
 // Trees" (HPG), one independent task per internal node. n leaves (sorted positions 0..n-1) and
@@ -20,7 +21,6 @@
 // Fit: bottom-up, one task per leaf; at each internal node an atomic arrival counter lets the
 // second task through (the first task's box write happens-before it by acq_rel ordering).
 
-#include <atomic>
 #include <bit>
 #include <cstdint>
 #include <span>
@@ -54,74 +54,11 @@ struct Lbvh {
   Aabb root_box;
 };
 
-/// Builds the topology over `sorted_keys` (ascending) of width `key_bits` = 8 * sizeof(K).
-template <class K>
-void build_lbvh(std::span<const K> sorted_keys, Lbvh& bvh, int threads);
-/// Fits boxes bottom-up; leaf_boxes[p] is the box of the leaf at sorted position p.
-void fit_lbvh(std::span<const Aabb> leaf_boxes, Lbvh& bvh, int threads);
 /// Checks parent/child links, that every leaf appears once, that every stored box contains its
 /// subtree's boxes and that `last` is each subtree's largest position. Returns "" when valid,
 /// else what is wrong. O(n). Used by tests and under VISCD_VALIDATE.
 [[nodiscard]] std::string validate_lbvh(const Lbvh& bvh, std::span<const Aabb> leaf_boxes);
 /// Depth of the deepest leaf (root = depth 0; a tree of one leaf has depth 0).
 [[nodiscard]] int lbvh_depth(const Lbvh& bvh);
-
-/// Calls f(q) for every leaf of the subtree under internal node `root` whose box overlaps `box`.
-/// The stack holds kStackDepth entries and a Karras tree is at most 96 deep; should a deeper tree
-/// ever come in, the overflowing subtree is finished by recursion, so no leaf is ever dropped.
-template <class F>
-inline void for_each_overlap_in_subtree(const Lbvh& bvh, std::uint32_t root, const Aabb& box, F&& f) {
-  std::uint32_t stack[kStackDepth];
-  int sp = 0;
-  std::uint32_t node = root;
-  for (;;) {
-    const BvhNode& nd = bvh.nodes[node];
-    std::uint32_t next = kNoParent;
-    for (int c = 0; c < 2; ++c) {
-      if (!overlaps(nd.box[c], box)) continue;
-      const std::uint32_t ch = nd.child[c];
-      if (ch & kLeafBit) {
-        f(ch & ~kLeafBit);
-      } else if (next == kNoParent) {
-        next = ch;
-      } else if (sp < kStackDepth) {
-        stack[sp++] = ch;
-      } else {
-        for_each_overlap_in_subtree(bvh, ch, box, f);  // unreachable for build_lbvh's trees
-      }
-    }
-    if (next != kNoParent) {
-      node = next;
-    } else if (sp > 0) {
-      node = stack[--sp];
-    } else {
-      return;
-    }
-  }
-}
-
-/// Calls f(q) for every leaf q > p whose box overlaps `box`, so that each pair is found once.
-///
-/// Walks up from leaf p: at every ancestor where p lies in the left subtree, the right subtree
-/// holds only positions > p (Karras ranges are contiguous) and is searched; where p lies in the
-/// right subtree, the left one holds only positions < p and is skipped. This tests one box per
-/// such ancestor instead of two per level on a descent from the root, and needs no range checks.
-template <class F>
-inline void for_each_overlap_after(const Lbvh& bvh, std::uint32_t p, const Aabb& box, F&& f) {
-  if (bvh.leaves < 2) return;
-  std::uint32_t child = p | kLeafBit;
-  std::uint32_t node = bvh.leaf_parent[p];
-  while (node != kNoParent) {
-    const BvhNode& nd = bvh.nodes[node];
-    if (nd.child[0] == child && overlaps(nd.box[1], box)) {
-      if (nd.child[1] & kLeafBit)
-        f(nd.child[1] & ~kLeafBit);
-      else
-        for_each_overlap_in_subtree(bvh, nd.child[1], box, f);
-    }
-    child = node;
-    node = bvh.parent[node];
-  }
-}
 
 }  // namespace viscd::detail

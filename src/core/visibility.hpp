@@ -1,7 +1,8 @@
 #pragma once
-// Visibility map (stage 1), pixel counts (2), culling and mu (3), shading (9): the parts
-// shared by the reference and cpu backends. Both rasterizers call the same `hit()` per pixel and
-// resolve depth ties by the smaller object id, so their id maps are equal bit for bit.
+// The visibility rules every backend shares: the camera and its map (stage 1's rays), the ray-sphere
+// hit every CPU rasterizer evaluates per pixel (both resolve depth ties by the smaller object id,
+// so their id maps are equal bit for bit), the conservative screen rectangle of a sphere, culling
+// and m (stage 3), and the state colours (stage 9).
 
 #include <cstdint>
 #include <span>
@@ -52,22 +53,6 @@ inline float hit(const CameraRig& cam, const Vec3& d, const Sphere& s) {
   return -1.0f;
 }
 
-/// The id map (object index + 1, 0 = background) and view depth of each map pixel; normals
-/// (unit, world space, 3 floats per pixel) only when asked for (shading).
-struct VisibilityMap {
-  int width = 0, height = 0;
-  std::vector<std::uint32_t> ids;
-  std::vector<float> depth;
-  std::vector<float> normal;
-  void resize(int w, int h, bool with_normals);
-};
-
-/// Fills the normal of a map pixel from its id and depth.
-void write_normal(const CameraRig& cam, std::span<const Sphere> spheres, VisibilityMap& map, int px, int py);
-
-/// The reference rasterizer: for every pixel, every sphere. O(W H N); the oracle.
-void rasterize_reference(const CameraRig& cam, std::span<const Sphere> spheres, VisibilityMap& map);
-
 /// Conservative map-pixel rectangle [x0, x1) x [y0, y1) that contains every pixel whose centre
 /// ray can hit the sphere; empty (x0 >= x1) when the sphere is wholly outside near..far.
 struct PixelRect {
@@ -77,18 +62,10 @@ struct PixelRect {
 };
 [[nodiscard]] PixelRect sphere_rect(const CameraRig& cam, const Sphere& s);
 
-/// Stage 2: pixels per object over the map, with per-thread histograms (`scratch` reused).
-void count_pixels(const VisibilityMap& map, std::size_t objects, int threads, std::vector<std::uint32_t>& counts,
-                  std::vector<std::vector<std::uint32_t>>& scratch);
-
 /// Stage 3: screen-scaled pixels, mu over all N, active set (pixels >= lambda, or all when
 /// culling is off), and m from Eq. (1) or Config::bits. Fills stats.active/mean_pixels.
 int cull_and_choose_bits(std::span<const std::uint32_t> counts, double pixel_scale, const Config& config,
                          std::vector<float>& pixels, std::vector<std::uint32_t>& active, FrameStats& stats);
-
-/// Stage 9: lit spheres, red colliding, blue free, yellow culled; dark background. RGBA8.
-void shade(const CameraRig& cam, const VisibilityMap& map, std::span<const ObjectState> state, int threads,
-           std::vector<std::uint8_t>& rgba);
 
 /// The paper's colours, RGB.
 inline constexpr std::uint8_t kColourColliding[3] = {220, 40, 40};

@@ -1,6 +1,6 @@
 #pragma once
-#include "core/broadphase.hpp"
-#include "core/pipeline.hpp"
+#include "cpu/broadphase.hpp"
+#include "cpu/pipeline.hpp"
 #include "cpu/raster.hpp"
 
 namespace viscd::detail {

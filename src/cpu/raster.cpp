@@ -4,7 +4,7 @@
 #include <atomic>
 #include <limits>
 
-#include "core/parallel.hpp"
+#include "cpu/parallel.hpp"
 
 namespace viscd::detail {
 

@@ -7,7 +7,7 @@
 #include <span>
 #include <vector>
 
-#include "core/visibility.hpp"
+#include "cpu/visibility.hpp"
 
 namespace viscd::detail {
 

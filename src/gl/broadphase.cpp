@@ -3,7 +3,7 @@
 #include <cmath>
 #include <cstring>
 
-#include "core/broadphase.hpp"
+#include "core/frame_rules.hpp"
 #include "core/stopwatch.hpp"
 #include "gl/gl_detector.hpp"
 
@@ -228,8 +228,8 @@ Status GlDetector::run_broadphase(std::span<const Sphere> spheres, std::span<con
   shader::FrameInfo zero_info{};
   zero_info.active_count = n;  // the shaders read n from FrameInfo
   glNamedBufferSubData(info_.get(), 0, sizeof zero_info, &zero_info);
-  const detail::ActiveExtent e = detail::active_extent(spheres, active, 1);
-  const detail::MortonLayout layout = detail::make_layout(config_.layout, bits, e.bounds, e.mean_diameter);
+  const detail::ActiveExtent e = detail::extent_of(spheres, active, 0, active.size());
+  const detail::MortonLayout layout = detail::make_layout(config_.layout, bits, e.bounds, e.mean_diameter());
   stats.bits = bits;
   stats.layout = layout.to_string();
   stats.active = n;

@@ -5,8 +5,7 @@
 #include <cstring>
 #include <new>
 
-#include "core/broadphase.hpp"
-#include "core/pipeline.hpp"
+#include "core/frame_rules.hpp"
 #include "core/stopwatch.hpp"
 
 namespace viscd {

@@ -6,7 +6,7 @@
 #include <thread>
 #include <vector>
 
-#include "core/parallel.hpp"
+#include "cpu/parallel.hpp"
 #include "test_util.hpp"
 #include "viscd/viscd.hpp"
 

@@ -6,7 +6,7 @@
 #include <fstream>
 #include <numeric>
 
-#include "core/pipeline.hpp"
+#include "cpu/pipeline.hpp"
 #include "test_util.hpp"
 
 namespace viscd {

@@ -3,7 +3,7 @@
 // the copied-back tree valid, pairs exactly equal.
 #include <numeric>
 
-#include "core/broadphase.hpp"
+#include "cpu/broadphase.hpp"
 #include "gl_test_util.hpp"
 
 namespace viscd::test {

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "core/broadphase.hpp"
+#include "cpu/broadphase.hpp"
 #include "cpu/cpu_detector.hpp"
 #include "gl_test_util.hpp"
 

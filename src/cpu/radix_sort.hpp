@@ -14,7 +14,7 @@
 #include <span>
 #include <vector>
 
-#include "core/parallel.hpp"
+#include "cpu/parallel.hpp"
 #include "viscd/assert.hpp"
 
 namespace viscd::detail {

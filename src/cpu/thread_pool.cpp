@@ -10,7 +10,7 @@
 #include <thread>
 #include <vector>
 
-#include "core/parallel.hpp"
+#include "cpu/parallel.hpp"
 
 namespace viscd::detail {
 namespace {

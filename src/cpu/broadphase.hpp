@@ -1,14 +1,15 @@
 #pragma once
 // Stages 4-8 over an active set: Morton layout, codes, radix sort, Karras build, fit, query.
-// Exact: the result equals brute force over the active set for every m (tests/core/).
+// Exact: the result equals brute force over the active set for every m (tests/cpu/).
 
 #include <cstdint>
 #include <span>
 #include <vector>
 
-#include "core/lbvh.hpp"
+#include "core/frame_rules.hpp"
 #include "core/morton.hpp"
-#include "core/radix_sort.hpp"
+#include "cpu/lbvh_build.hpp"
+#include "cpu/radix_sort.hpp"
 #include "viscd/config.hpp"
 #include "viscd/frame.hpp"
 #include "viscd/result.hpp"
@@ -16,19 +17,9 @@
 
 namespace viscd::detail {
 
-/// Bounds of the active centres and their mean diameter (stage 4's inputs).
-struct ActiveExtent {
-  Aabb bounds;
-  float mean_diameter = 0;
-};
+/// The extent of the active set, in parallel chunks (core's extent_of, merged in chunk order).
 [[nodiscard]] ActiveExtent active_extent(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
                                          int threads);
-
-/// The pair-memory cap of Config (0 = none): an error naming the count when `pairs` exceed it.
-/// `at_least`: the search stopped at the cap, so the frame has `pairs` or more.
-[[nodiscard]] Status check_pair_cap(std::size_t pairs, std::size_t cap, bool at_least = false);
-/// Pairs the cap allows (0 = no cap: the largest count).
-[[nodiscard]] std::size_t pairs_within_cap(std::size_t cap);
 
 /// Sorts pair keys (i << 32 | j) and writes them as pairs. `max_index` bounds i and j.
 void sort_pair_keys(std::vector<std::uint64_t>& keys, std::uint32_t max_index, int threads,

@@ -1,9 +1,9 @@
 // The reference backend: per-pixel ray casting against every sphere and brute-force pairs.
 // Deliberately simple; every other backend is tested against it.
 
-#include "core/broadphase.hpp"
-#include "core/pipeline.hpp"
 #include "core/stopwatch.hpp"
+#include "cpu/broadphase.hpp"
+#include "cpu/pipeline.hpp"
 
 namespace viscd {
 namespace detail {
@@ -25,7 +25,7 @@ class ReferenceDetector final : public PipelineDetector {
     Stopwatch sw;
     const ActiveExtent e = active_extent(spheres, active, threads);
     stats.bits = bits;
-    stats.layout = make_layout(config_.layout, bits, e.bounds, e.mean_diameter).to_string();
+    stats.layout = make_layout(config_.layout, bits, e.bounds, e.mean_diameter()).to_string();
     stats.stage_ms[static_cast<std::size_t>(Stage::layout)] = sw.lap();
     const bool complete = brute_force_pairs(spheres, active, pairs, pairs_within_cap(config_.pair_memory_cap));
     stats.stage_ms[static_cast<std::size_t>(Stage::query)] = sw.lap();

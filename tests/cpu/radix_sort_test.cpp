@@ -4,7 +4,7 @@
 #include <numeric>
 #include <random>
 
-#include "core/radix_sort.hpp"
+#include "cpu/radix_sort.hpp"
 
 namespace viscd::detail {
 namespace {

@@ -1,4 +1,4 @@
-#include "core/broadphase.hpp"
+#include "cpu/broadphase.hpp"
 
 #include <algorithm>
 #include <array>
@@ -7,57 +7,22 @@
 #include <limits>
 #include <new>
 
-#include "core/parallel.hpp"
 #include "core/stopwatch.hpp"
+#include "cpu/parallel.hpp"
 
 namespace viscd::detail {
 
 ActiveExtent active_extent(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int threads) {
-  const std::size_t n = active.size();
-  constexpr float kInf = std::numeric_limits<float>::infinity();
-  // Partial results per chunk, combined in chunk order: the same for every executor.
-  struct Partial {
-    float lx = kInf, ly = kInf, lz = kInf, hx = -kInf, hy = -kInf, hz = -kInf;
-    double d = 0;
-  };
+  // Partial extents per chunk, merged in chunk order: the same for every executor.
   constexpr std::size_t kMaxChunks = 64;
-  std::array<Partial, kMaxChunks> part{};
+  std::array<ActiveExtent, kMaxChunks> part{};
+  const std::size_t n = active.size();
   const std::size_t chunks = std::min<std::size_t>(kMaxChunks, static_cast<std::size_t>(threads_for(n, threads)));
-  for_chunks(n, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
-    Partial p;
-    for (std::size_t k = b; k < e; ++k) {
-      const Sphere& s = spheres[active[k]];
-      p.lx = std::min(p.lx, s.x), p.ly = std::min(p.ly, s.y), p.lz = std::min(p.lz, s.z);
-      p.hx = std::max(p.hx, s.x), p.hy = std::max(p.hy, s.y), p.hz = std::max(p.hz, s.z);
-      p.d += 2.0 * s.r;
-    }
-    part[c] = p;
-  });
-  float lx = kInf, ly = kInf, lz = kInf, hx = -kInf, hy = -kInf, hz = -kInf;
-  double d = 0;
-  for (std::size_t c = 0; c < chunks; ++c) {
-    const Partial& p = part[c];
-    lx = std::min(lx, p.lx), ly = std::min(ly, p.ly), lz = std::min(lz, p.lz);
-    hx = std::max(hx, p.hx), hy = std::max(hy, p.hy), hz = std::max(hz, p.hz);
-    d += p.d;
-  }
-  ActiveExtent e;
-  e.bounds = Aabb{{lx, ly, lz}, {hx, hy, hz}};
-  e.mean_diameter = n ? static_cast<float>(d / static_cast<double>(n)) : 0.f;
-  return e;
-}
-
-std::size_t pairs_within_cap(std::size_t cap) {
-  return cap == 0 ? std::numeric_limits<std::size_t>::max() : cap / sizeof(Pair);
-}
-
-Status check_pair_cap(std::size_t pairs, std::size_t cap, bool at_least) {
-  if (!at_least && pairs <= pairs_within_cap(cap)) return {};
-  const char* more = at_least ? "at least " : "";
-  return Status::failure("frame has " + std::string(more) + std::to_string(pairs) + " colliding pairs, which need " +
-                         more + std::to_string(pairs * sizeof(Pair)) + " bytes, over the pair memory cap of " +
-                         std::to_string(cap) +
-                         " bytes (raise it with Config::pair_memory_cap, or the tool's --max-pair-memory)");
+  for_chunks(n, chunks,
+             [&](std::size_t b, std::size_t e, std::size_t c) { part[c] = extent_of(spheres, active, b, e); });
+  ActiveExtent all;
+  for (std::size_t c = 0; c < chunks; ++c) all.merge(part[c]);
+  return all;
 }
 
 void sort_pair_keys(std::vector<std::uint64_t>& keys, std::uint32_t max_index, int threads,
@@ -111,7 +76,7 @@ Status LbvhBroadphase::run(std::span<const Sphere> spheres, std::span<const std:
   VISCD_ASSERT(bits == 16 || bits == 32 || bits == 64, "Morton width must be 16, 32 or 64");
   Stopwatch sw;
   const ActiveExtent extent = active_extent(spheres, active, threads);
-  layout_ = make_layout(layout, bits, extent.bounds, extent.mean_diameter);
+  layout_ = make_layout(layout, bits, extent.bounds, extent.mean_diameter());
   bits_ = bits;
   stats.bits = bits;
   layout_.write(stats.layout);

@@ -1,12 +1,12 @@
-#include "core/pipeline.hpp"
+#include "cpu/pipeline.hpp"
 
 #include <algorithm>
 #include <new>
 #include <optional>
 
-#include "core/broadphase.hpp"
-#include "core/parallel.hpp"
 #include "core/stopwatch.hpp"
+#include "cpu/broadphase.hpp"
+#include "cpu/parallel.hpp"
 
 namespace viscd::detail {
 
@@ -15,37 +15,6 @@ std::uint64_t PipelineDetector::memory_bytes() const {
       bytes_of(map_.ids) + bytes_of(map_.depth) + bytes_of(map_.normal) + bytes_of(counts_) + bytes_of(active_);
   for (const auto& s : count_scratch_) b += bytes_of(s);
   return b + backend_memory_bytes();
-}
-
-Status validate_frame(std::span<const Sphere> spheres, const Camera* camera, const Config& config) {
-  if (config.threads < 0)
-    return Status::failure("Config::threads = " + std::to_string(config.threads) +
-                           ": expected 0 (all cores) or a positive count");
-  if (Status s = validate_spheres(spheres); !s) return s;
-  if (camera) {
-    if (Status s = validate_camera(*camera); !s) return s;
-    if (config.map_width < 0 || config.map_height < 0 || (config.map_width == 0) != (config.map_height == 0))
-      return Status::failure("visibility map size must be W x H with both positive, or 0 x 0 for the screen size");
-    const int w = config.map_width ? config.map_width : camera->width;
-    const int h = config.map_height ? config.map_height : camera->height;
-    if (Status s = validate_map_size(w, h); !s) return s;
-  }
-  return {};
-}
-
-std::string out_of_memory_message(std::size_t objects, const Camera* camera, const Config& config) {
-  std::string m = "out of memory in a frame of " + std::to_string(objects) + " objects";
-  if (camera) {
-    const int w = config.map_width ? config.map_width : camera->width;
-    const int h = config.map_height ? config.map_height : camera->height;
-    m += " with a " + std::to_string(w) + "x" + std::to_string(h) + " visibility map";
-  }
-  m += config.pair_memory_cap
-           ? " (pair memory cap " + std::to_string(config.pair_memory_cap) +
-                 " bytes: a lower cap makes such a frame fail early; or free memory)"
-           : " (no pair memory cap is set: Config::pair_memory_cap, the tool's --max-pair-memory, makes a frame "
-             "with too many pairs fail early)";
-  return m;
 }
 
 Status PipelineDetector::detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) {

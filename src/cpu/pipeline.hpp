@@ -6,21 +6,11 @@
 #include <span>
 #include <vector>
 
-#include "core/visibility.hpp"
+#include "core/frame_rules.hpp"
+#include "cpu/visibility.hpp"
 #include "viscd/detector.hpp"
 
 namespace viscd::detail {
-
-/// Capacity of a vector in bytes (what it holds, not what it uses).
-template <class T>
-std::uint64_t bytes_of(const std::vector<T>& v) {
-  return static_cast<std::uint64_t>(v.capacity()) * sizeof(T);
-}
-
-/// The checks every backend makes on a frame's input: spheres, camera, the map size, threads.
-[[nodiscard]] Status validate_frame(std::span<const Sphere> spheres, const Camera* camera, const Config& config);
-/// The error of a frame that ran out of memory: its size, and what to change.
-[[nodiscard]] std::string out_of_memory_message(std::size_t objects, const Camera* camera, const Config& config);
 
 class PipelineDetector : public Detector {
  public:

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <random>
 
-#include "core/lbvh.hpp"
+#include "cpu/lbvh_build.hpp"
 
 namespace viscd::detail {
 namespace {

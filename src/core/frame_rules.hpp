@@ -1,0 +1,56 @@
+#pragma once
+// The frame's rules that do not depend on where a stage runs, shared by every backend: input
+// validation, the pair-memory cap, the active set's extent (stage 4's inputs) and the message of
+// a frame that ran out of memory.
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "core/geometry.hpp"
+#include "viscd/config.hpp"
+#include "viscd/result.hpp"
+#include "viscd/types.hpp"
+
+namespace viscd::detail {
+
+/// Capacity of a vector in bytes (what it holds, not what it uses).
+template <class T>
+std::uint64_t bytes_of(const std::vector<T>& v) {
+  return static_cast<std::uint64_t>(v.capacity()) * sizeof(T);
+}
+
+/// The checks every backend makes on a frame's input: spheres, camera, the map size, threads.
+[[nodiscard]] Status validate_frame(std::span<const Sphere> spheres, const Camera* camera, const Config& config);
+/// The error of a frame that ran out of memory: its size, and what to change.
+[[nodiscard]] std::string out_of_memory_message(std::size_t objects, const Camera* camera, const Config& config);
+
+/// The pair-memory cap of Config (0 = none): an error naming the count when `pairs` exceed it.
+/// `at_least`: the search stopped at the cap, so the frame has `pairs` or more.
+[[nodiscard]] Status check_pair_cap(std::size_t pairs, std::size_t cap, bool at_least = false);
+/// Pairs the cap allows (0 = no cap: the largest count).
+[[nodiscard]] std::size_t pairs_within_cap(std::size_t cap);
+
+/// Bounds of the active centres and the sum of their diameters; partial extents of parts of the
+/// active set merge in any grouping to the same bounds (the sum is a double: merged in a fixed
+/// order, it is the same for every executor).
+struct ActiveExtent {
+  Aabb bounds;
+  double diameter_sum = 0;
+  std::size_t count = 0;
+
+  void merge(const ActiveExtent& e) {
+    bounds.grow(e.bounds);
+    diameter_sum += e.diameter_sum;
+    count += e.count;
+  }
+  [[nodiscard]] float mean_diameter() const {
+    return count ? static_cast<float>(diameter_sum / static_cast<double>(count)) : 0.f;
+  }
+};
+/// The extent of spheres[active[k]] for k in [begin, end).
+[[nodiscard]] ActiveExtent extent_of(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                                     std::size_t begin, std::size_t end);
+
+}  // namespace viscd::detail

@@ -1,0 +1,39 @@
+#pragma once
+// The CPU side of the visibility map: the map itself, the reference ray caster (the oracle),
+// pixel counts (stage 2) and shading (stage 9), shared by the reference and cpu backends. The cpu
+// backend's fast rasterizer is cpu/raster.hpp; the camera, hit() and the culling rule are
+// core/visibility.hpp.
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "core/visibility.hpp"
+
+namespace viscd::detail {
+
+/// The id map (object index + 1, 0 = background) and view depth of each map pixel; normals
+/// (unit, world space, 3 floats per pixel) only when asked for (shading).
+struct VisibilityMap {
+  int width = 0, height = 0;
+  std::vector<std::uint32_t> ids;
+  std::vector<float> depth;
+  std::vector<float> normal;
+  void resize(int w, int h, bool with_normals);
+};
+
+/// Fills the normal of a map pixel from its id and depth.
+void write_normal(const CameraRig& cam, std::span<const Sphere> spheres, VisibilityMap& map, int px, int py);
+
+/// The reference rasterizer: for every pixel, every sphere. O(W H N); the oracle.
+void rasterize_reference(const CameraRig& cam, std::span<const Sphere> spheres, VisibilityMap& map);
+
+/// Stage 2: pixels per object over the map, with per-thread histograms (`scratch` reused).
+void count_pixels(const VisibilityMap& map, std::size_t objects, int threads, std::vector<std::uint32_t>& counts,
+                  std::vector<std::vector<std::uint32_t>>& scratch);
+
+/// Stage 9: lit spheres, red colliding, blue free, yellow culled; dark background. RGBA8.
+void shade(const CameraRig& cam, const VisibilityMap& map, std::span<const ObjectState> state, int threads,
+           std::vector<std::uint8_t>& rgba);
+
+}  // namespace viscd::detail
