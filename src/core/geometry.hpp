@@ -33,10 +33,11 @@ struct Aabb {
   }
 };
 
-/// Closed-interval overlap (touching boxes overlap).
+/// Closed-interval overlap (touching boxes overlap). Bitwise & rather than &&: in a traversal the
+/// outcome of each comparison is unpredictable, and one branch on the result costs less than six.
 inline bool overlaps(const Aabb& a, const Aabb& b) {
-  return a.lo.x <= b.hi.x && b.lo.x <= a.hi.x && a.lo.y <= b.hi.y && b.lo.y <= a.hi.y && a.lo.z <= b.hi.z &&
-         b.lo.z <= a.hi.z;
+  return (a.lo.x <= b.hi.x) & (b.lo.x <= a.hi.x) & (a.lo.y <= b.hi.y) & (b.lo.y <= a.hi.y) & (a.lo.z <= b.hi.z) &
+         (b.lo.z <= a.hi.z);
 }
 
 /// The overlap test (docs/architecture.md, "Contracts"), exactly as every backend evaluates it:
@@ -55,9 +56,12 @@ inline bool overlap_exact(const Sphere& a, const Sphere& b) {
 /// float rounds too. Inflating r by 2^-19 (16 ulps) of (|c|max + r), plus 1e-21 absolute, covers
 /// all of it, so the tree never rejects a pair the exact test accepts; the extra candidates it
 /// lets through are rejected by overlap_exact. (docs/architecture.md, "Exactness".)
-inline Aabb conservative_box(const Sphere& s) {
+inline float conservative_half_extent(const Sphere& s) {
   const float m = std::max({std::fabs(s.x), std::fabs(s.y), std::fabs(s.z)});
-  const float r = s.r + (m + s.r) * 0x1p-19f + 1e-21f;
+  return s.r + (m + s.r) * 0x1p-19f + 1e-21f;
+}
+inline Aabb conservative_box(const Sphere& s) {
+  const float r = conservative_half_extent(s);
   return Aabb{{s.x - r, s.y - r, s.z - r}, {s.x + r, s.y + r, s.z + r}};
 }
 

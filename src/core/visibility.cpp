@@ -82,6 +82,7 @@ int cull_and_choose_bits(std::span<const std::uint32_t> counts, double pixel_sca
   const std::size_t n = counts.size();
   pixels.resize(n);
   active.clear();
+  active.reserve(n);  // at most every object: no allocation as the active count changes
   double total = 0;
   for (std::size_t k = 0; k < n; ++k) {
     const double px = static_cast<double>(counts[k]) * pixel_scale;

@@ -8,6 +8,7 @@
 #include <new>
 
 #include "core/stopwatch.hpp"
+#include "cpu/grow.hpp"
 #include "cpu/parallel.hpp"
 
 namespace viscd::detail {
@@ -25,14 +26,32 @@ ActiveExtent active_extent(std::span<const Sphere> spheres, std::span<const std:
   return all;
 }
 
-void sort_pair_keys(std::vector<std::uint64_t>& keys, std::uint32_t max_index, int threads,
-                    RadixScratch<std::uint64_t>& scratch, std::vector<Pair>& out) {
-  const int key_bits = 32 + std::bit_width(max_index);
-  radix_sort<std::uint64_t>(keys, {}, key_bits, threads, scratch);
-  out.resize(keys.size());
-  parallel_for(keys.size(), threads, [&](std::size_t k) {
-    out[k] = Pair{static_cast<std::uint32_t>(keys[k] >> 32), static_cast<std::uint32_t>(keys[k])};
-  });
+void sort_chunk_pairs(std::span<const std::vector<std::uint64_t>> lists, std::uint32_t objects,
+                      std::vector<std::uint32_t>& offsets, std::vector<Pair>& out) {
+  std::size_t total = 0;
+  for (const auto& list : lists) total += list.size();
+  resize_with_headroom(out, total);
+  // Counting sort by i: counts, exclusive prefix (offsets[i] = start of i's partners), scatter.
+  resize_with_headroom(offsets, static_cast<std::size_t>(objects) + 1);
+  std::fill(offsets.begin(), offsets.end(), 0u);
+  for (const auto& list : lists)
+    for (const std::uint64_t key : list) ++offsets[(key >> 32) + 1];
+  for (std::size_t i = 1; i <= objects; ++i) offsets[i] += offsets[i - 1];
+  for (const auto& list : lists)
+    for (const std::uint64_t key : list)
+      out[offsets[key >> 32]++] = Pair{static_cast<std::uint32_t>(key >> 32), static_cast<std::uint32_t>(key)};
+  // Now offsets[i] is where i's partners end. Each object has a few partners: insertion sort by j.
+  std::uint32_t begin = 0;
+  for (std::size_t i = 0; i < objects; ++i) {
+    const std::uint32_t end = offsets[i];
+    for (std::uint32_t a = begin + 1; a < end; ++a) {
+      const Pair p = out[a];
+      std::uint32_t b = a;
+      for (; b > begin && out[b - 1].j > p.j; --b) out[b] = out[b - 1];
+      out[b] = p;
+    }
+    begin = end;
+  }
 }
 
 template <>
@@ -54,7 +73,7 @@ std::uint64_t LbvhBroadphase::memory_bytes() const {
                     bytes(scratch16_.values) + bytes(scratch32_.keys) + bytes(scratch32_.values) +
                     bytes(scratch64_.keys) + bytes(scratch64_.values) + bytes(sorted_ids_) + bytes(sorted_spheres_) +
                     bytes(leaf_boxes_) + bytes(bvh_.nodes) + bytes(bvh_.parent) + bytes(bvh_.leaf_parent) +
-                    bytes(bvh_.arrivals) + bytes(pair_keys_) + bytes(pair_scratch_.keys);
+                    bytes(bvh_.arrivals) + bytes(pair_offsets_);
   for (const auto& t : chunk_pairs_) b += bytes(t);
   return b;
 }
@@ -183,18 +202,9 @@ Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const
   std::size_t total = 0;
   for (std::size_t c = 0; c < chunks; ++c) total += chunk_pairs_[c].size();
   if (Status s = check_pair_cap(total, pair_memory_cap); !s) return s;
-  // Chunks cover the same leaves every frame, but their pair counts drift as objects move: twice
-  // its count in reserve keeps a chunk's list from allocating in a steady state.
-  for (std::size_t c = 0; c < chunks; ++c) chunk_pairs_[c].reserve(2 * chunk_pairs_[c].size());
-  pair_keys_.resize(total);
-  std::size_t offset = 0;
-  for (std::size_t c = 0; c < chunks; ++c) {
-    const auto& local = chunk_pairs_[c];
-    std::copy(local.begin(), local.end(), pair_keys_.begin() + static_cast<std::ptrdiff_t>(offset));
-    offset += local.size();
-  }
-  const std::uint32_t max_index = n ? active.back() : 0;  // active is ascending
-  sort_pair_keys(pair_keys_, max_index, threads, pair_scratch_, pairs);
+  for (std::size_t c = 0; c < chunks; ++c) keep_headroom(chunk_pairs_[c]);
+  const std::uint32_t objects = n ? active.back() + 1 : 0;  // active is ascending
+  sort_chunk_pairs(std::span(chunk_pairs_.data(), chunks), objects, pair_offsets_, pairs);
   stats.pairs = pairs.size();
   ms(Stage::query) = sw.lap();
   return {};

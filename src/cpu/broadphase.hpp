@@ -21,9 +21,18 @@ namespace viscd::detail {
 [[nodiscard]] ActiveExtent active_extent(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
                                          int threads);
 
-/// Sorts pair keys (i << 32 | j) and writes them as pairs. `max_index` bounds i and j.
-void sort_pair_keys(std::vector<std::uint64_t>& keys, std::uint32_t max_index, int threads,
-                    RadixScratch<std::uint64_t>& scratch, std::vector<Pair>& out);
+/// A chunk's pair list covers the same objects every frame, but its count drifts as they move:
+/// once the list is more than two-thirds full it gets room for twice its count, so frames whose
+/// counts wander by up to half do not allocate.
+inline void keep_headroom(std::vector<std::uint64_t>& list) {
+  if (3 * list.size() > 2 * list.capacity()) list.reserve(2 * list.size());
+}
+
+/// Writes the pairs of per-chunk lists (keys i << 32 | j, i < j < objects) into `out` sorted by
+/// (i, j): a counting sort by i, then each object's few partners by j. O(pairs + objects);
+/// `offsets` is scratch (objects + 1 entries), kept between frames.
+void sort_chunk_pairs(std::span<const std::vector<std::uint64_t>> lists, std::uint32_t objects,
+                      std::vector<std::uint32_t>& offsets, std::vector<Pair>& out);
 
 /// The LBVH broadphase. Keeps every buffer between frames: after the first frame of a given size,
 /// run() allocates nothing unless the pair count grows. Not thread-safe.
@@ -66,8 +75,7 @@ class LbvhBroadphase {
   std::vector<Aabb> leaf_boxes_;
   Lbvh bvh_;
   std::vector<std::vector<std::uint64_t>> chunk_pairs_;
-  std::vector<std::uint64_t> pair_keys_;
-  RadixScratch<std::uint64_t> pair_scratch_;
+  std::vector<std::uint32_t> pair_offsets_;
 };
 
 /// O(n^2) brute force over the active set: the oracle. Pairs come out sorted. Stops and returns

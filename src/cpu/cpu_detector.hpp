@@ -1,11 +1,11 @@
 #pragma once
-#include "cpu/broadphase.hpp"
+#include "cpu/bucket_broadphase.hpp"
 #include "cpu/pipeline.hpp"
 #include "cpu/raster.hpp"
 
 namespace viscd::detail {
 
-/// The fast CPU backend: tiled rasterizer + LBVH broadphase on all cores (Config::executor).
+/// The fast CPU backend: tiled rasterizer + bucketed LBVH broadphase on all cores (Config::executor).
 class CpuDetector final : public PipelineDetector {
  public:
   explicit CpuDetector(const Config& config) : PipelineDetector(config) {}
@@ -14,7 +14,7 @@ class CpuDetector final : public PipelineDetector {
     return raster_.memory_bytes() + broadphase_.memory_bytes();
   }
   /// The broadphase of the last frame (tree, codes), for tests.
-  [[nodiscard]] const LbvhBroadphase& lbvh() const { return broadphase_; }
+  [[nodiscard]] const BucketBroadphase& lbvh() const { return broadphase_; }
 
  private:
   void rasterize(const CameraRig& cam, std::span<const Sphere> spheres, int threads) override {
@@ -26,7 +26,7 @@ class CpuDetector final : public PipelineDetector {
   }
 
   TiledRasterizer raster_;
-  LbvhBroadphase broadphase_;
+  BucketBroadphase broadphase_;
 };
 
 }  // namespace viscd::detail

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <bit>
 
+#include "cpu/grow.hpp"
 #include "cpu/parallel.hpp"
 
 namespace viscd::detail {
@@ -32,9 +33,9 @@ void build_lbvh(std::span<const K> sorted_keys, Lbvh& bvh, int threads) {
     bvh.leaf_parent.assign(static_cast<std::size_t>(n), kNoParent);
     return;
   }
-  bvh.nodes.resize(static_cast<std::size_t>(n - 1));
-  bvh.parent.resize(static_cast<std::size_t>(n - 1));
-  bvh.leaf_parent.resize(static_cast<std::size_t>(n));
+  resize_with_headroom(bvh.nodes, static_cast<std::size_t>(n - 1));
+  resize_with_headroom(bvh.parent, static_cast<std::size_t>(n - 1));
+  resize_with_headroom(bvh.leaf_parent, static_cast<std::size_t>(n));
   bvh.parent[0] = kNoParent;
   const K* keys = sorted_keys.data();
   parallel_for(static_cast<std::size_t>(n - 1), threads, [&](std::size_t node_index) {
@@ -96,7 +97,8 @@ void fit_lbvh(std::span<const Aabb> leaf_boxes, Lbvh& bvh, int threads) {
     bvh.root_box = leaf_boxes[0];
     return;
   }
-  bvh.arrivals.assign(n - 1, 0);
+  resize_with_headroom(bvh.arrivals, n - 1);
+  std::fill(bvh.arrivals.begin(), bvh.arrivals.end(), 0u);
   parallel_for(n, threads, [&](std::size_t p) {
     std::uint32_t child = static_cast<std::uint32_t>(p) | kLeafBit;
     std::uint32_t node = bvh.leaf_parent[p];

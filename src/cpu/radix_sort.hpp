@@ -14,6 +14,7 @@
 #include <span>
 #include <vector>
 
+#include "cpu/grow.hpp"
 #include "cpu/parallel.hpp"
 #include "viscd/assert.hpp"
 
@@ -43,9 +44,9 @@ void radix_sort(std::span<K> keys, std::span<std::uint32_t> values, int key_bits
   const std::size_t n = keys.size();
   if (n < 2) return;
   if (scratch.keys.size() < n) {
-    scratch.keys.resize(n);
+    resize_with_headroom(scratch.keys, n);
   }
-  if (has_values && scratch.values.size() < n) scratch.values.resize(n);
+  if (has_values && scratch.values.size() < n) resize_with_headroom(scratch.values, n);
   const int t_count = n < kRadixParallelThreshold ? 1 : threads;
   if (scratch.histograms.size() < static_cast<std::size_t>(t_count)) scratch.histograms.resize(t_count);
 

@@ -1,0 +1,351 @@
+#include "cpu/bucket_broadphase.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <bit>
+#include <cmath>
+#include <limits>
+#include <new>
+
+#include "core/stopwatch.hpp"
+#include "cpu/broadphase.hpp"
+#include "cpu/grow.hpp"
+#include "cpu/lbvh_build.hpp"
+#include "cpu/parallel.hpp"
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
+namespace viscd::detail {
+namespace {
+
+constexpr std::uint32_t kNone = 0xFFFFFFFFu;
+
+/// Bit l set when the sphere (x, y, z, r) passes overlap_exact() with lane l of `b`: the same
+/// float operations in the same order (the test is symmetric: (a - b)^2 == (b - a)^2 exactly).
+inline std::uint32_t overlap_mask(const BucketLanes& b, float x, float y, float z, float r) {
+#if defined(__SSE2__)
+  static_assert(kBucket % 4 == 0);
+  const __m128 px = _mm_set1_ps(x), py = _mm_set1_ps(y), pz = _mm_set1_ps(z), pr = _mm_set1_ps(r);
+  std::uint32_t mask = 0;
+  for (std::uint32_t l = 0; l < kBucket; l += 4) {
+    const __m128 dx = _mm_sub_ps(px, _mm_load_ps(b.x + l));
+    const __m128 dy = _mm_sub_ps(py, _mm_load_ps(b.y + l));
+    const __m128 dz = _mm_sub_ps(pz, _mm_load_ps(b.z + l));
+    const __m128 s = _mm_add_ps(pr, _mm_load_ps(b.r + l));
+    const __m128 d2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
+    mask |= static_cast<std::uint32_t>(_mm_movemask_ps(_mm_cmple_ps(d2, _mm_mul_ps(s, s)))) << l;
+  }
+  return mask;
+#else
+  std::uint32_t mask = 0;
+  for (std::uint32_t l = 0; l < kBucket; ++l) {
+    const float dx = x - b.x[l], dy = y - b.y[l], dz = z - b.z[l];
+    const float s = r + b.r[l];
+    mask |= static_cast<std::uint32_t>(dx * dx + dy * dy + dz * dz <= s * s) << l;
+  }
+  return mask;
+#endif
+}
+
+/// Bit l set when lane l's conservative box (conservative_box()'s bounds, computed with the same
+/// operations) overlaps `box`. Branch-free: which lanes pass is unpredictable.
+inline std::uint32_t lanes_overlapping(const BucketLanes& b, const Aabb& box) {
+#if defined(__SSE2__)
+  const __m128 lox = _mm_set1_ps(box.lo.x), loy = _mm_set1_ps(box.lo.y), loz = _mm_set1_ps(box.lo.z);
+  const __m128 hix = _mm_set1_ps(box.hi.x), hiy = _mm_set1_ps(box.hi.y), hiz = _mm_set1_ps(box.hi.z);
+  std::uint32_t mask = 0;
+  for (std::uint32_t l = 0; l < kBucket; l += 4) {
+    const __m128 h = _mm_load_ps(b.h + l);
+    const __m128 x = _mm_load_ps(b.x + l), y = _mm_load_ps(b.y + l), z = _mm_load_ps(b.z + l);
+    const __m128 ox = _mm_and_ps(_mm_cmple_ps(_mm_sub_ps(x, h), hix), _mm_cmple_ps(lox, _mm_add_ps(x, h)));
+    const __m128 oy = _mm_and_ps(_mm_cmple_ps(_mm_sub_ps(y, h), hiy), _mm_cmple_ps(loy, _mm_add_ps(y, h)));
+    const __m128 oz = _mm_and_ps(_mm_cmple_ps(_mm_sub_ps(z, h), hiz), _mm_cmple_ps(loz, _mm_add_ps(z, h)));
+    mask |= static_cast<std::uint32_t>(_mm_movemask_ps(_mm_and_ps(_mm_and_ps(ox, oy), oz))) << l;
+  }
+  return mask;
+#else
+  std::uint32_t mask = 0;
+  for (std::uint32_t l = 0; l < kBucket; ++l) {
+    const float h = b.h[l];
+    const bool o = (b.x[l] - h <= box.hi.x) & (box.lo.x <= b.x[l] + h) & (b.y[l] - h <= box.hi.y) &
+                   (box.lo.y <= b.y[l] + h) & (b.z[l] - h <= box.hi.z) & (box.lo.z <= b.z[l] + h);
+    mask |= static_cast<std::uint32_t>(o) << l;
+  }
+  return mask;
+#endif
+}
+
+inline std::uint64_t pair_key(std::uint32_t a, std::uint32_t b) {
+  return a < b ? (std::uint64_t{a} << 32 | b) : (std::uint64_t{b} << 32 | a);
+}
+
+}  // namespace
+
+template <>
+std::vector<std::uint16_t>& BucketBroadphase::keys<std::uint16_t>() {
+  return keys16_;
+}
+template <>
+std::vector<std::uint32_t>& BucketBroadphase::keys<std::uint32_t>() {
+  return keys32_;
+}
+template <>
+std::vector<std::uint64_t>& BucketBroadphase::keys<std::uint64_t>() {
+  return keys64_;
+}
+template <>
+RadixScratch<std::uint16_t>& BucketBroadphase::scratch<std::uint16_t>() {
+  return scratch16_;
+}
+template <>
+RadixScratch<std::uint32_t>& BucketBroadphase::scratch<std::uint32_t>() {
+  return scratch32_;
+}
+template <>
+RadixScratch<std::uint64_t>& BucketBroadphase::scratch<std::uint64_t>() {
+  return scratch64_;
+}
+
+std::uint64_t BucketBroadphase::memory_bytes() const {
+  std::uint64_t b =
+      bytes_of(keys16_) + bytes_of(keys32_) + bytes_of(keys64_) + bytes_of(bucket_keys16_) + bytes_of(bucket_keys32_) +
+      bytes_of(bucket_keys64_) + bytes_of(scratch16_.keys) + bytes_of(scratch16_.values) + bytes_of(scratch32_.keys) +
+      bytes_of(scratch32_.values) + bytes_of(scratch64_.keys) + bytes_of(scratch64_.values) + bytes_of(sorted_ids_) +
+      bytes_of(previous_ids_) + bytes_of(rank_) + bytes_of(lanes_) + bytes_of(bucket_boxes_) + bytes_of(bvh_.nodes) +
+      bytes_of(bvh_.parent) + bytes_of(bvh_.leaf_parent) + bytes_of(bvh_.arrivals) + bytes_of(pair_offsets_);
+  for (const auto& t : chunk_pairs_) b += bytes_of(t);
+  return b;
+}
+
+std::vector<std::uint64_t> BucketBroadphase::sorted_codes() const {
+  const auto n = static_cast<std::ptrdiff_t>(sorted_ids_.size());
+  switch (bits_) {
+    case 16:
+      return {keys16_.begin(), keys16_.begin() + n};
+    case 32:
+      return {keys32_.begin(), keys32_.begin() + n};
+    default:
+      return {keys64_.begin(), keys64_.begin() + n};
+  }
+}
+
+Status BucketBroadphase::run(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
+                             Layout layout, int threads, std::size_t pair_memory_cap, std::vector<Pair>& pairs,
+                             FrameStats& stats) {
+  VISCD_ASSERT(bits == 16 || bits == 32 || bits == 64, "Morton width must be 16, 32 or 64");
+  Stopwatch sw;
+  const ActiveExtent extent = active_extent(spheres, active, threads);
+  layout_ = make_layout(layout, bits, extent.bounds, extent.mean_diameter());
+  if (bits != bits_) previous_ids_.clear();  // the last order was by codes of another width
+  bits_ = bits;
+  stats.bits = bits;
+  layout_.write(stats.layout);
+  stats.stage_ms[static_cast<std::size_t>(Stage::layout)] = sw.lap();
+  switch (bits) {
+    case 16:
+      return run_keys<std::uint16_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);
+    case 32:
+      return run_keys<std::uint32_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);
+    default:
+      return run_keys<std::uint64_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);
+  }
+}
+
+// Stage 6 from the last frame's order: the objects still active keep their last order, new ones
+// follow by index, and an insertion sort by (code, object id) finishes. Gives up (false) when the
+// shifts exceed a budget linear in n, so a frame where much moved far costs at most about twice a
+// sort from scratch. On success key[0..n) and sorted_ids_ hold the sorted codes and objects.
+template <class K>
+bool BucketBroadphase::sort_from_previous(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                                          std::vector<K>& key) {
+  const std::size_t n = active.size();
+  if (previous_ids_.empty()) return false;
+  rank_.assign(spheres.size(), kNone);
+  for (std::size_t k = 0; k < n; ++k) rank_[active[k]] = static_cast<std::uint32_t>(k);
+  std::vector<K>& sk = scratch<K>().keys;  // the radix sort's scratch, free until a fallback
+  if (sk.size() < n) resize_with_headroom(sk, n);
+  std::size_t p = 0;
+  for (const std::uint32_t id : previous_ids_) {
+    if (id >= rank_.size() || rank_[id] == kNone) continue;
+    sk[p] = key[rank_[id]];
+    sorted_ids_[p++] = id;
+    rank_[id] = kNone;
+  }
+  for (std::size_t k = 0; k < n; ++k) {
+    if (rank_[active[k]] == kNone) continue;
+    sk[p] = key[k];
+    sorted_ids_[p++] = active[k];
+  }
+  VISCD_ASSERT(p == n, "every active object is placed once");
+  const std::uint64_t budget = 16 * static_cast<std::uint64_t>(n) + 1024;
+  std::uint64_t moves = 0;
+  std::uint32_t* ids = sorted_ids_.data();
+  for (std::size_t i = 1; i < n; ++i) {
+    const K kk = sk[i];
+    const std::uint32_t id = ids[i];
+    std::size_t j = i;
+    while (j > 0 && (sk[j - 1] > kk || (sk[j - 1] == kk && ids[j - 1] > id))) {
+      sk[j] = sk[j - 1];
+      ids[j] = ids[j - 1];
+      --j;
+    }
+    sk[j] = kk;
+    ids[j] = id;
+    moves += i - j;
+    if (moves > budget) {
+      sort_report_ = {false, moves};
+      return false;
+    }
+  }
+  std::copy(sk.begin(), sk.begin() + static_cast<std::ptrdiff_t>(n), key.begin());
+  sort_report_ = {true, moves};
+  return true;
+}
+
+template <class K>
+void BucketBroadphase::sort_codes(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                                  std::vector<K>& key, int threads) {
+  const std::size_t n = active.size();
+  sort_report_ = {};
+  if (n > 1 && sort_from_previous<K>(spheres, active, key)) return;
+  // From scratch: values start as the active ids in ascending order, and the sort is stable, so
+  // key ties end up by object id, as in the insertion sort.
+  for (std::size_t k = 0; k < n; ++k) sorted_ids_[k] = active[k];
+  radix_sort<K>(std::span<K>(key.data(), n), std::span<std::uint32_t>(sorted_ids_.data(), n), 8 * sizeof(K), threads,
+                scratch<K>());
+}
+
+template <class K>
+Status BucketBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                                  const Aabb& bounds, int threads, std::size_t pair_memory_cap,
+                                  std::vector<Pair>& pairs, FrameStats& stats) {
+  auto ms = [&](Stage s) -> double& { return stats.stage_ms[static_cast<std::size_t>(s)]; };
+  Stopwatch sw;
+  const std::size_t n = active.size();
+  std::vector<K>& key = keys<K>();
+  if (key.size() < n) resize_with_headroom(key, n);
+  resize_with_headroom(sorted_ids_, n);
+
+  // Stage 5: codes, in active order.
+  const MortonEncoder encoder(layout_, bounds);
+  parallel_for(n, threads, [&](std::size_t k) {
+    const Sphere& s = spheres[active[k]];
+    key[k] = static_cast<K>(encoder.encode(s.x, s.y, s.z));
+  });
+  ms(Stage::codes) = sw.lap();
+
+  // Stage 6: sort, then remember the order for the next frame.
+  sort_codes<K>(spheres, active, key, threads);
+  resize_with_headroom(previous_ids_, n);
+  std::copy(sorted_ids_.begin(), sorted_ids_.end(), previous_ids_.begin());
+  ms(Stage::sort) = sw.lap();
+
+  // Stage 7: the tree over buckets (Karras over each bucket's first code), then the lanes, the
+  // bucket boxes and the fit.
+  const std::size_t buckets = (n + kBucket - 1) / kBucket;
+  std::vector<K>* bucket_keys = nullptr;
+  if constexpr (sizeof(K) == 2)
+    bucket_keys = &bucket_keys16_;
+  else if constexpr (sizeof(K) == 4)
+    bucket_keys = &bucket_keys32_;
+  else
+    bucket_keys = &bucket_keys64_;
+  resize_with_headroom(*bucket_keys, buckets);
+  for (std::size_t b = 0; b < buckets; ++b) (*bucket_keys)[b] = key[b * kBucket];
+  build_lbvh<K>(std::span<const K>(bucket_keys->data(), buckets), bvh_, threads);
+  ms(Stage::build) = sw.lap();
+  if (lanes_.size() != buckets) {
+    resize_with_headroom(lanes_, buckets);
+    resize_with_headroom(bucket_boxes_, buckets);
+  }
+  constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
+  parallel_for(buckets, threads, [&](std::size_t b) {
+    BucketLanes& ln = lanes_[b];
+    Aabb box;
+    const std::size_t first = b * kBucket;
+    for (std::uint32_t l = 0; l < kBucket; ++l) {
+      if (first + l < n) {
+        const Sphere& s = spheres[sorted_ids_[first + l]];
+        const float e = conservative_half_extent(s);  // conservative_box() is s -/+ e
+        box.grow(Aabb{{s.x - e, s.y - e, s.z - e}, {s.x + e, s.y + e, s.z + e}});
+        ln.x[l] = s.x, ln.y[l] = s.y, ln.z[l] = s.z, ln.r[l] = s.r, ln.h[l] = e;
+      } else {
+        ln.x[l] = ln.y[l] = ln.z[l] = kNan;
+        ln.r[l] = 0;
+        ln.h[l] = kNan;
+      }
+    }
+    bucket_boxes_[b] = box;
+  });
+  fit_lbvh(bucket_boxes_, bvh_, threads);
+  ms(Stage::fit) = sw.lap();
+#ifdef VISCD_VALIDATE
+  {
+    const std::string problem = validate_lbvh(bvh_, bucket_boxes_);
+    VISCD_ASSERT(problem.empty(), problem.c_str());
+  }
+#endif
+
+  // Stage 8. Buckets are cut into chunks, several per thread because the work per bucket varies;
+  // each chunk keeps its own pair list. The pair cap is enforced while searching: chunks publish
+  // their counts every kPublish pairs, and all stop once the frame is over the cap, before the
+  // pairs' memory is taken. An allocation failure inside a task is carried out of it.
+  constexpr std::size_t kPublish = 4096;
+  const std::size_t allowed = pairs_within_cap(pair_memory_cap);
+  std::atomic<std::size_t> published{0};
+  std::atomic<bool> stop{false}, out_of_memory{false};
+  const std::size_t chunks = threads_for(n, threads) == 1 ? 1 : std::min<std::size_t>(buckets, 8 * threads);
+  if (chunk_pairs_.size() < chunks) chunk_pairs_.resize(chunks);
+  for (std::size_t c = 0; c < chunks; ++c) chunk_pairs_[c].clear();  // also when n = 0 runs no chunk
+  const std::uint32_t* ids = sorted_ids_.data();
+  for_chunks(buckets, chunks, [&](std::size_t begin, std::size_t end, std::size_t c) {
+    auto& local = chunk_pairs_[c];
+    auto emit = [&](std::uint32_t a, std::uint32_t b) {
+      local.push_back(pair_key(a, b));
+      if (local.size() % kPublish == 0 && published.fetch_add(kPublish, std::memory_order_relaxed) + kPublish > allowed)
+        stop.store(true, std::memory_order_relaxed);
+    };
+    try {
+      for (std::size_t b = begin; b < end; ++b) {
+        if (stop.load(std::memory_order_relaxed)) return;
+        const BucketLanes& lb = lanes_[b];
+        const std::uint32_t first = static_cast<std::uint32_t>(b * kBucket);
+        const std::uint32_t count = static_cast<std::uint32_t>(std::min<std::size_t>(kBucket, n - first));
+        // Pairs inside the bucket: lane i against the lanes after it.
+        for (std::uint32_t i = 0; i + 1 < count; ++i) {
+          std::uint32_t m = overlap_mask(lb, lb.x[i], lb.y[i], lb.z[i], lb.r[i]) & (~0u << (i + 1));
+          for (; m; m &= m - 1) emit(ids[first + i], ids[first + static_cast<std::uint32_t>(std::countr_zero(m))]);
+        }
+        // Pairs with every later bucket whose box overlaps this one's.
+        for_each_overlap_after(bvh_, static_cast<std::uint32_t>(b), bucket_boxes_[b], [&](std::uint32_t q) {
+          const BucketLanes& lq = lanes_[q];
+          const std::uint32_t qfirst = q * kBucket;
+          // Only this bucket's lanes whose boxes reach into the other bucket's box can pair.
+          for (std::uint32_t near = lanes_overlapping(lb, bucket_boxes_[q]); near; near &= near - 1) {
+            const auto i = static_cast<std::uint32_t>(std::countr_zero(near));
+            for (std::uint32_t m = overlap_mask(lq, lb.x[i], lb.y[i], lb.z[i], lb.r[i]); m; m &= m - 1)
+              emit(ids[first + i], ids[qfirst + static_cast<std::uint32_t>(std::countr_zero(m))]);
+          }
+        });
+      }
+    } catch (const std::bad_alloc&) {
+      out_of_memory.store(true);
+      stop.store(true);
+    }
+  });
+  if (out_of_memory.load()) throw std::bad_alloc();
+  if (stop.load()) return check_pair_cap(published.load(), pair_memory_cap, true);
+  std::size_t total = 0;
+  for (std::size_t c = 0; c < chunks; ++c) total += chunk_pairs_[c].size();
+  if (Status s = check_pair_cap(total, pair_memory_cap); !s) return s;
+  for (std::size_t c = 0; c < chunks; ++c) keep_headroom(chunk_pairs_[c]);
+  const std::uint32_t objects = n ? active.back() + 1 : 0;  // active is ascending
+  sort_chunk_pairs(std::span(chunk_pairs_.data(), chunks), objects, pair_offsets_, pairs);
+  stats.pairs = pairs.size();
+  ms(Stage::query) = sw.lap();
+  return {};
+}
+
+}  // namespace viscd::detail

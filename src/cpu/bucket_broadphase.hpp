@@ -1,0 +1,106 @@
+#pragma once
+// The cpu backend's broadphase (stages 4-8): the paper's LBVH with its leaves widened to buckets of
+// kBucket consecutive objects in Morton order, and a sort that starts from the last frame's order.
+// Exact: the result equals brute force over the active set for every m (tests/cpu/).
+//
+// Why buckets (docs/benchmarks.md, "The broadphase at the limit"): with one leaf per object most of
+// the build, fit and query time goes to the bottom levels of the tree, where boxes hardly prune.
+// Cutting the tree at kBucket objects makes it kBucket times smaller (it fits in L2 at 10^5
+// objects), and the objects of two buckets whose boxes overlap are compared all against all with
+// SIMD lanes, out of contiguous arrays.
+//
+//   stage 4  layout:  extent of the active centres, Morton layout (shared with every backend)
+//   stage 5  codes:   one code per active object
+//   stage 6  sort:    the last frame's order, filtered to this frame's active set, then insertion
+//                     sort by (code, object id) while few objects move far; else an LSD radix sort.
+//                     Both give the same order: by code, ties by object id.
+//   stage 7  build:   Karras over the first code of each bucket; fit: objects gathered into
+//                     per-bucket lanes (x, y, z, r and the conservative half extent), bucket boxes,
+//                     bottom-up fit
+//   stage 8  query:   per bucket, pairs inside it, then every later bucket whose box overlaps (the
+//                     walk up from the leaf); per object of the bucket a box test, then the exact
+//                     test against the other bucket's lanes; pairs sorted at the end.
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "core/frame_rules.hpp"
+#include "core/lbvh.hpp"
+#include "core/morton.hpp"
+#include "cpu/radix_sort.hpp"
+#include "viscd/config.hpp"
+#include "viscd/frame.hpp"
+#include "viscd/result.hpp"
+#include "viscd/types.hpp"
+
+namespace viscd::detail {
+
+/// Objects per leaf bucket: 16 beat 4 and 8 (docs/benchmarks.md, "The broadphase at the limit").
+inline constexpr std::uint32_t kBucket = 16;
+
+/// The objects of one bucket in lanes; unused lanes hold NaN centres, which overlap nothing.
+struct alignas(32) BucketLanes {
+  float x[kBucket], y[kBucket], z[kBucket], r[kBucket];
+  float h[kBucket];  ///< half extent of the object's conservative_box()
+};
+
+/// How the last frame's stage 6 went (for tests and the bench).
+struct SortReport {
+  bool reused = false;      ///< insertion sort from the last frame's order
+  std::uint64_t moves = 0;  ///< element shifts the insertion sort made (also when it gave up)
+};
+
+class BucketBroadphase {
+ public:
+  /// Finds all overlapping pairs among spheres[active[k]] (active ascending) with m-bit codes.
+  /// Writes sorted pairs, stats.bits, stats.layout and the stage times of stages 4-8.
+  /// Fails only when the pairs would exceed pair_memory_cap bytes (0 = no cap).
+  [[nodiscard]] Status run(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
+                           Layout layout, int threads, std::size_t pair_memory_cap, std::vector<Pair>& pairs,
+                           FrameStats& stats);
+
+  /// Inspection for tests: the last frame's tree over buckets, the bucket boxes, the objects in
+  /// sorted order, the sorted codes (widened to 64 bits) and how the sort went.
+  [[nodiscard]] const Lbvh& tree() const { return bvh_; }
+  [[nodiscard]] std::span<const Aabb> leaf_boxes() const { return bucket_boxes_; }
+  [[nodiscard]] std::span<const std::uint32_t> sorted_objects() const { return sorted_ids_; }
+  [[nodiscard]] std::vector<std::uint64_t> sorted_codes() const;
+  [[nodiscard]] const SortReport& sort_report() const { return sort_report_; }
+  /// Forget the last frame's order: the next frame sorts from scratch.
+  void reset_order() { previous_ids_.clear(); }
+  /// Bytes of every buffer held (capacities).
+  [[nodiscard]] std::uint64_t memory_bytes() const;
+
+ private:
+  template <class K>
+  Status run_keys(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, const Aabb& bounds,
+                  int threads, std::size_t pair_memory_cap, std::vector<Pair>& pairs, FrameStats& stats);
+  template <class K>
+  void sort_codes(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, std::vector<K>& key,
+                  int threads);
+  template <class K>
+  bool sort_from_previous(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, std::vector<K>& key);
+  template <class K>
+  std::vector<K>& keys();
+  template <class K>
+  RadixScratch<K>& scratch();
+
+  MortonLayout layout_;
+  int bits_ = 32;
+  std::vector<std::uint16_t> keys16_, bucket_keys16_;
+  std::vector<std::uint32_t> keys32_, bucket_keys32_;
+  std::vector<std::uint64_t> keys64_, bucket_keys64_;
+  RadixScratch<std::uint16_t> scratch16_;
+  RadixScratch<std::uint32_t> scratch32_;
+  RadixScratch<std::uint64_t> scratch64_;
+  std::vector<std::uint32_t> sorted_ids_, previous_ids_, rank_;
+  SortReport sort_report_;
+  std::vector<BucketLanes> lanes_;
+  std::vector<Aabb> bucket_boxes_;
+  Lbvh bvh_;
+  std::vector<std::vector<std::uint64_t>> chunk_pairs_;
+  std::vector<std::uint32_t> pair_offsets_;
+};
+
+}  // namespace viscd::detail

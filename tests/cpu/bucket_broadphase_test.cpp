@@ -1,0 +1,181 @@
+// The cpu backend's bucketed broadphase against brute force, over single frames and over moving
+// sequences that exercise the sort from the last frame's order: small motion for many frames,
+// teleports, N growing and shrinking, active sets changing, all objects identical, the Morton
+// width changing. Also the pair sort and the order the sort produces.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <numeric>
+#include <random>
+
+#include "cpu/broadphase.hpp"
+#include "cpu/bucket_broadphase.hpp"
+#include "test_util.hpp"
+
+namespace viscd {
+namespace {
+
+using test::oracle_pairs;
+using test::random_spheres_by_half_extent;
+using test::same_pairs;
+
+std::vector<std::uint32_t> all_of(std::size_t n) {
+  std::vector<std::uint32_t> a(n);
+  std::iota(a.begin(), a.end(), 0u);
+  return a;
+}
+
+// One frame through `bp` against brute force, the tree's invariants and the sort's contract:
+// codes ascending, ties by object id, each active object once.
+void check_frame(detail::BucketBroadphase& bp, const std::vector<Sphere>& s, const std::vector<std::uint32_t>& active,
+                 int bits, const std::string& what, int threads = 2) {
+  std::vector<Pair> pairs;
+  FrameStats stats;
+  const Status st = bp.run(s, active, bits, Layout::extended, threads, 0, pairs, stats);
+  ASSERT_TRUE(st.ok()) << what << ": " << st.error();
+  ASSERT_TRUE(same_pairs(pairs, oracle_pairs(s, &active))) << what;
+  ASSERT_EQ(detail::validate_lbvh(bp.tree(), bp.leaf_boxes()), "") << what;
+  // Every bucket box holds its objects' conservative boxes.
+  const auto ids = bp.sorted_objects();
+  ASSERT_EQ(ids.size(), active.size()) << what;
+  for (std::size_t p = 0; p < ids.size(); ++p)
+    ASSERT_TRUE(bp.leaf_boxes()[p / detail::kBucket].contains(detail::conservative_box(s[ids[p]]))) << what;
+  const std::vector<std::uint64_t> codes = bp.sorted_codes();
+  for (std::size_t p = 1; p < ids.size(); ++p)
+    ASSERT_TRUE(codes[p - 1] < codes[p] || (codes[p - 1] == codes[p] && ids[p - 1] < ids[p]))
+        << what << ": sorted order broken at " << p;
+  std::vector<std::uint32_t> sorted_ids(ids.begin(), ids.end());
+  std::sort(sorted_ids.begin(), sorted_ids.end());
+  ASSERT_EQ(sorted_ids, active) << what << ": not a permutation of the active set";
+}
+
+TEST(BucketBroadphase, CountsAroundBucketMultiples) {
+  for (std::size_t n : {0u, 1u, 2u, 3u, 15u, 16u, 17u, 31u, 32u, 33u, 47u, 48u, 49u, 255u, 256u, 257u}) {
+    const auto s = random_spheres_by_half_extent(n, n + 1, 2.0f + 0.1f * static_cast<float>(n));
+    for (int bits : {16, 32, 64}) {
+      detail::BucketBroadphase bp;
+      check_frame(bp, s, all_of(n), bits, "n = " + std::to_string(n) + ", m = " + std::to_string(bits));
+    }
+  }
+}
+
+TEST(BucketBroadphase, DenseAndDegenerateSets) {
+  detail::BucketBroadphase bp;
+  // Everything overlaps everything: one bucket's all-pairs path and the cross path at once.
+  check_frame(bp, std::vector<Sphere>(70, Sphere{1, 2, 3, 0.5f}), all_of(70), 32, "identical");
+  check_frame(bp, std::vector<Sphere>(70, Sphere{1, 2, 3, 0}), all_of(70), 16, "identical points");
+  // Touching on a line, one radius that covers all, tiny radii.
+  std::vector<Sphere> line;
+  for (int k = 0; k < 100; ++k) line.push_back({static_cast<float>(k), 0, 0, 0.5f});
+  check_frame(bp, line, all_of(line.size()), 32, "touching line");
+  auto huge = random_spheres_by_half_extent(300, 9, 50.0f, 0.01f, 0.2f);
+  huge[137].r = 1e4f;
+  check_frame(bp, huge, all_of(huge.size()), 64, "one huge among tiny");
+  check_frame(bp, test::float_boundary_pairs(200, 4), all_of(400), 32, "pairs at the float boundary");
+}
+
+TEST(BucketBroadphase, SubsetsOfActiveObjects) {
+  const auto s = random_spheres_by_half_extent(2000, 11, 12.0f);
+  std::mt19937 rng(3);
+  detail::BucketBroadphase bp;
+  for (int frame = 0; frame < 12; ++frame) {
+    std::vector<std::uint32_t> active;
+    const unsigned keep = 1 + rng() % 4;  // 1/keep of the objects, a different subset each frame
+    for (std::uint32_t k = 0; k < s.size(); ++k)
+      if (rng() % keep == 0) active.push_back(k);
+    check_frame(bp, s, active, 32, "subset frame " + std::to_string(frame));
+  }
+}
+
+// A moving sequence: objects drift a little every frame, so the sort starts from the last order.
+TEST(BucketBroadphase, MovingSequencesStayExact) {
+  auto s = random_spheres_by_half_extent(3000, 5, 14.0f, 0.2f, 0.6f);
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<float> step(-0.001f, 0.001f), far(-14.0f, 14.0f);
+  detail::BucketBroadphase bp;
+  int reused = 0;
+  for (int frame = 0; frame < 40; ++frame) {
+    for (Sphere& x : s) x.x += step(rng), x.y += step(rng), x.z += step(rng);
+    check_frame(bp, s, all_of(s.size()), 32, "small motion, frame " + std::to_string(frame), 1 + frame % 2);
+    reused += bp.sort_report().reused;
+  }
+  // Frames after the first start from the last order (which is what this test is about); a frame
+  // whose shifts exceed the budget sorts from scratch, also exactly.
+  EXPECT_GE(reused, 35);
+
+  // Teleports: a few objects jump anywhere; then every object does.
+  for (int k = 0; k < 30; ++k) s[rng() % s.size()] = Sphere{far(rng), far(rng), far(rng), 0.4f};
+  check_frame(bp, s, all_of(s.size()), 32, "a few teleports");
+  for (Sphere& x : s) x = Sphere{far(rng), far(rng), far(rng), x.r};
+  check_frame(bp, s, all_of(s.size()), 32, "everything teleports");
+  EXPECT_FALSE(bp.sort_report().reused) << "a shuffled frame should exceed the insertion sort's budget";
+
+  // N grows and shrinks between frames; indices keep their meaning for the objects that stay.
+  for (std::size_t n : {3100u, 4000u, 2500u, 10u, 0u, 1u, 3000u}) {
+    auto grown = s;
+    grown.resize(n, Sphere{0, 0, 0, 0.3f});
+    for (std::size_t k = s.size(); k < n; ++k) grown[k] = Sphere{far(rng), far(rng), far(rng), 0.3f};
+    check_frame(bp, grown, all_of(n), 32, "N = " + std::to_string(n));
+  }
+
+  // All objects identical for a few frames, then apart again.
+  std::vector<Sphere> same(500, Sphere{2, 2, 2, 0.1f});
+  for (int frame = 0; frame < 3; ++frame) check_frame(bp, same, all_of(same.size()), 32, "identical, moving");
+  check_frame(bp, s, all_of(s.size()), 32, "apart again");
+
+  // The Morton width changes: the last order is dropped, the result stays exact.
+  for (int bits : {16, 64, 32, 16}) check_frame(bp, s, all_of(s.size()), bits, "m = " + std::to_string(bits));
+}
+
+TEST(BucketBroadphase, SortFromScratchGivesTheSameResult) {
+  // The same frame through a broadphase that has seen the last frame and one that has not.
+  auto s = random_spheres_by_half_extent(5000, 21, 20.0f);
+  detail::BucketBroadphase warm, cold;
+  std::vector<Pair> pw, pc;
+  FrameStats fs;
+  for (int frame = 0; frame < 5; ++frame) {
+    for (Sphere& x : s) x.x += 0.01f;
+    cold.reset_order();
+    ASSERT_TRUE(warm.run(s, all_of(s.size()), 32, Layout::extended, 2, 0, pw, fs).ok());
+    ASSERT_TRUE(cold.run(s, all_of(s.size()), 32, Layout::extended, 2, 0, pc, fs).ok());
+    EXPECT_FALSE(cold.sort_report().reused);
+    EXPECT_EQ(pw, pc);
+    EXPECT_TRUE(std::equal(warm.sorted_objects().begin(), warm.sorted_objects().end(), cold.sorted_objects().begin(),
+                           cold.sorted_objects().end()));
+    EXPECT_EQ(warm.sorted_codes(), cold.sorted_codes());
+  }
+}
+
+TEST(BucketBroadphase, PairCapIsEnforcedWhileSearching) {
+  const std::vector<Sphere> s(3000, Sphere{0, 0, 0, 1});  // 4.5 M pairs
+  detail::BucketBroadphase bp;
+  std::vector<Pair> pairs;
+  FrameStats fs;
+  const Status st = bp.run(s, all_of(s.size()), 32, Layout::extended, 2, 64 * 1024, pairs, fs);
+  ASSERT_FALSE(st.ok());
+  EXPECT_NE(st.error().find("pair memory cap"), std::string::npos) << st.error();
+  EXPECT_LT(bp.memory_bytes(), std::uint64_t{4} << 20) << "the cap must stop the search before memory is taken";
+}
+
+TEST(SortChunkPairs, EqualsAFullSort) {
+  std::mt19937 rng(2);
+  for (std::uint32_t objects : {1u, 2u, 50u, 1000u}) {
+    std::vector<std::vector<std::uint64_t>> lists(5);
+    std::vector<Pair> want;
+    for (int k = 0; k < 3000 && objects > 1; ++k) {
+      auto i = static_cast<std::uint32_t>(rng() % objects), j = static_cast<std::uint32_t>(rng() % objects);
+      if (i == j) continue;
+      if (i > j) std::swap(i, j);
+      lists[rng() % lists.size()].push_back(std::uint64_t{i} << 32 | j);
+      want.push_back({i, j});
+    }
+    std::sort(want.begin(), want.end(), [](Pair a, Pair b) { return a.i < b.i || (a.i == b.i && a.j < b.j); });
+    std::vector<std::uint32_t> offsets;
+    std::vector<Pair> got;
+    detail::sort_chunk_pairs(lists, objects, offsets, got);
+    EXPECT_TRUE(same_pairs(got, want)) << objects << " objects";
+  }
+}
+
+}  // namespace
+}  // namespace viscd
