@@ -17,6 +17,7 @@
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -164,6 +165,22 @@ struct Runner {
   std::vector<double> frame_ms, pair_counts, candidate_counts;  // timed frames only
 };
 
+// How much faster an independent loop runs on `threads` threads than on one, on this machine now:
+// a shared VM's second core is not always a whole core, which bounds every threaded figure.
+double parallel_probe(int threads) {
+  std::vector<float> v(std::size_t{1} << 21, 1.0f);
+  auto time_loop = [&](int t) {
+    const auto start = std::chrono::steady_clock::now();
+    detail::parallel_for(v.size(), t, [&](std::size_t i) { v[i] = std::sqrt(v[i] + 1.0f) * 0.5f; });
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  };
+  std::vector<double> one, all;
+  for (int r = 0; r < 7; ++r) one.push_back(time_loop(1)), all.push_back(time_loop(threads));  // interleaved
+  std::sort(one.begin(), one.end());
+  std::sort(all.begin(), all.end());
+  return one[one.size() / 2] / all[all.size() / 2];
+}
+
 int run_peers(const Options& opt) {
   std::vector<std::string> names = opt.methods;
   if (names.empty()) {
@@ -185,6 +202,8 @@ int run_peers(const Options& opt) {
       "turns per block; viscd threads %d; %d core(s) held busy by spinning processes\n",
       opt.scene.c_str(), opt.warmup, opt.repeats, opt.frames, detail::resolve_threads(opt.threads), opt.busy);
   std::printf("# ms per frame = update + query + exact sphere test (viscd: detect(), pairs sorted)\n");
+  std::printf("# this machine now: an independent loop runs %.2fx faster on %d threads than on 1\n",
+              parallel_probe(detail::resolve_threads(opt.threads)), detail::resolve_threads(opt.threads));
 
   for (const std::uint32_t n : opt.objects) {
     const Scene start = make_scene(opt, n);
@@ -293,6 +312,8 @@ int run_stages(const Options& opt) {
       "repeat(s) after %d warm-up\n",
       opt.scene.c_str(), threads, opt.frames, opt.repeats, opt.warmup);
   std::printf("# wall = detect() incl. input validation; query includes the pair sort and object states\n");
+  std::printf("# this machine now: an independent loop runs %.2fx faster on %d threads than on 1\n",
+              parallel_probe(detail::hardware_threads()), detail::hardware_threads());
   std::printf("%9s %4s", "objects", "bits");
   for (Stage s : kBroadphaseStages) std::printf(" %9s", std::string(stage_name(s)).c_str());
   std::printf(" %9s %9s %9s  %s\n", "stages", "wall", "pairs", "layout");
