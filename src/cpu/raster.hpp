@@ -1,12 +1,17 @@
 #pragma once
-// The cpu backend's visibility map: spheres binned into 32x32-pixel tiles by a conservative
-// screen rectangle, tiles rasterised in parallel. Each pixel keeps the nearest hit, ties to the
-// smaller id, with the same hit() as the reference, so both maps are equal bit for bit.
+// The cpu backend's visibility map (stage 1) with the pixel counts (stage 2) fused into it.
+// Spheres are sorted front to back by a coarse depth key and binned into 32x32-pixel tiles by a
+// conservative screen rectangle; tiles are rasterised in parallel. Per sphere and row only a
+// conservative span of the projected disc is tested, with the same hit() expressions as the
+// reference, and rows and tiles already covered by nearer hits are skipped. Each pixel keeps the
+// nearest hit, ties to the smaller id, so the map equals the reference's bit for bit; each tile
+// counts its pixels per object while writing them out (docs/architecture.md, "Visibility map").
 
 #include <cstdint>
 #include <span>
 #include <vector>
 
+#include "cpu/radix_sort.hpp"
 #include "cpu/visibility.hpp"
 
 namespace viscd::detail {
@@ -15,17 +20,34 @@ class TiledRasterizer {
  public:
   /// Tile edge in pixels.
   static constexpr int kTile = 32;
-  /// Fills map (already sized to the rig's map) from the spheres. Not thread-safe.
+  /// Fills map (already sized to the rig's map) from the spheres, and map.counts with the pixels
+  /// of each sphere (map.has_counts). Not thread-safe.
   void run(const CameraRig& cam, std::span<const Sphere> spheres, int threads, VisibilityMap& map);
   /// Bytes of the binning buffers.
-  [[nodiscard]] std::uint64_t memory_bytes() const {
-    return rects_.capacity() * sizeof(PixelRect) +
-           (tile_count_.capacity() + tile_offset_.capacity() + tile_items_.capacity()) * sizeof(std::uint32_t);
-  }
+  [[nodiscard]] std::uint64_t memory_bytes() const;
+
+  /// What a tile needs of a sphere, prepared once per frame.
+  struct Prepared {
+    // hit()'s per-sphere terms (eye - centre, and |eye - centre|^2 - r^2), same float expressions.
+    float ox, oy, oz, c;
+    /// Lower bound of any hit's depth; and of every later sphere's in the depth order.
+    float near_depth, key_floor;
+    std::uint32_t id;  // index + 1
+    std::int32_t x0, y0, x1, y1;
+    /// Row spans: a pixel (px, py) can be hit only if |px - (m0 + m1 ny)|^2 <= e0 + ny (e1 + ny e2)
+    /// (ny of row py), widened by a pixel; else (spans false) the rectangle's row.
+    bool spans;
+    double m0, m1, e0, e1, e2;
+  };
 
  private:
-  std::vector<PixelRect> rects_;
-  std::vector<std::uint32_t> tile_count_, tile_offset_, tile_items_;
+  std::vector<Prepared> prep_;
+  std::vector<std::uint16_t> keys_;
+  std::vector<std::uint32_t> order_;
+  RadixScratch<std::uint16_t> sort_scratch_;
+  std::vector<std::uint32_t> chunk_tile_count_, tile_offset_, tile_items_, tile_counts_;
+  std::vector<float> col_x_, col_y_, col_z_, row_x_, row_y_, row_z_;
+  std::vector<double> row_ny_;
 };
 
 }  // namespace viscd::detail

@@ -24,6 +24,7 @@ void VisibilityMap::resize(int w, int h, bool with_normals) {
   ids.resize(n);
   depth.resize(n);
   normal.resize(with_normals ? 3 * n : 0);
+  has_counts = false;
 }
 
 void write_normal(const CameraRig& cam, std::span<const Sphere> spheres, VisibilityMap& map, int px, int py) {
@@ -71,6 +72,10 @@ void rasterize_reference(const CameraRig& cam, std::span<const Sphere> spheres, 
 
 void count_pixels(const VisibilityMap& map, std::size_t objects, int threads, std::vector<std::uint32_t>& counts,
                   std::vector<std::vector<std::uint32_t>>& scratch) {
+  if (map.has_counts && map.counts.size() == objects) {  // counted while rasterising
+    counts.assign(map.counts.begin(), map.counts.end());
+    return;
+  }
   const std::size_t n = map.ids.size();
   const int t_count = threads_for(n, threads);
   if (scratch.size() < static_cast<std::size_t>(t_count)) scratch.resize(static_cast<std::size_t>(t_count));

@@ -13,12 +13,16 @@
 namespace viscd::detail {
 
 /// The id map (object index + 1, 0 = background) and view depth of each map pixel; normals
-/// (unit, world space, 3 floats per pixel) only when asked for (shading).
+/// (unit, world space, 3 floats per pixel) only when asked for (shading). A rasterizer that counts
+/// pixels per object while writing the map (the cpu backend's) leaves them in `counts` and sets
+/// `has_counts`; resize() clears it, so counts never outlive the map they were taken from.
 struct VisibilityMap {
   int width = 0, height = 0;
   std::vector<std::uint32_t> ids;
   std::vector<float> depth;
   std::vector<float> normal;
+  std::vector<std::uint32_t> counts;
+  bool has_counts = false;
   void resize(int w, int h, bool with_normals);
 };
 
@@ -28,7 +32,8 @@ void write_normal(const CameraRig& cam, std::span<const Sphere> spheres, Visibil
 /// The reference rasterizer: for every pixel, every sphere. O(W H N); the oracle.
 void rasterize_reference(const CameraRig& cam, std::span<const Sphere> spheres, VisibilityMap& map);
 
-/// Stage 2: pixels per object over the map, with per-thread histograms (`scratch` reused).
+/// Stage 2: pixels per object over the map: the rasterizer's counts when it left them for
+/// `objects` objects, else per-thread histograms over the id map (`scratch` reused).
 void count_pixels(const VisibilityMap& map, std::size_t objects, int threads, std::vector<std::uint32_t>& counts,
                   std::vector<std::vector<std::uint32_t>>& scratch);
 
