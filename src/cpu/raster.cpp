@@ -18,32 +18,88 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 /// Pixels whose centre lies within this much of a (widened) span or extent are included.
 constexpr double kPixelMargin = 1.0 / 16;
 
-/// Depth-order key: the top 16 bits of a non-negative float, monotone in its value.
+/// Depth-order key: the top 16 bits of a non-negative float, monotone in its value; kCulled for
+/// spheres no pixel can see.
+constexpr std::uint16_t kCulled = 0xFFFF;
 std::uint16_t depth_key(float near_depth) {
   return near_depth > 0.0f ? static_cast<std::uint16_t>(std::bit_cast<std::uint32_t>(near_depth) >> 16) : 0;
 }
 float key_floor(std::uint16_t key) { return std::bit_cast<float>(static_cast<std::uint32_t>(key) << 16); }
 
-using Vec3d = std::array<double, 3>;
-double dot(const Vec3d& a, const Vec3d& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+/// The camera in double, for the per-sphere bounds.
+struct View {
+  double ex, ey, ez;
+  double f[3], rt[3], up[3];
+  double ff, rr, uu, fr, fu, ur;  // dot products of the (float, so not exactly orthonormal) axes
+  double near_plane, far_plane;
+  // Pixel coordinates of a direction: px = nx * sx + cx, py = -ny * sy + cy (CameraRig::dir).
+  double sx, sy, cx, cy;
+  int w, h;
+  explicit View(const CameraRig& cam) {
+    ex = cam.eye.x, ey = cam.eye.y, ez = cam.eye.z;
+    const Vec3* axes[3] = {&cam.forward, &cam.right, &cam.up};
+    double* out[3] = {f, rt, up};
+    for (int i = 0; i < 3; ++i) out[i][0] = axes[i]->x, out[i][1] = axes[i]->y, out[i][2] = axes[i]->z;
+    auto dot = [](const double* a, const double* b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; };
+    ff = dot(f, f), rr = dot(rt, rt), uu = dot(up, up), fr = dot(f, rt), fu = dot(f, up), ur = dot(up, rt);
+    near_plane = cam.near_plane, far_plane = cam.far_plane;
+    sx = static_cast<double>(cam.map_w) / (2.0 * static_cast<double>(cam.tan_half_x));
+    sy = static_cast<double>(cam.map_h) / (2.0 * static_cast<double>(cam.tan_half_y));
+    cx = 0.5 * cam.map_w - 0.5, cy = 0.5 * cam.map_h - 0.5;
+    w = cam.map_w, h = cam.map_h;
+  }
+};
+
+/// A sphere widened to the radius R that holds every ray hit() can accept: hit() decides on a
+/// float discriminant that cancels near the centre of spheres small against their distance |o|,
+/// so R = sqrt(r^2 + 2^-19 |o|^2) as sphere_rect (docs/architecture.md, "Visibility map"), plus
+/// 2e-4 (|o|_1 + r): twice sphere_rect's slack, and far more than the float rounding of a ray's
+/// direction or of the depth t (relative 1e-5 at most, at a 179.9 degree field of view).
+struct Reach {
+  double o[3];         // eye - centre
+  double rr, k;        // R and |o|^2 - R^2
+  double of, ou, or_;  // o . forward, o . up, o . right
+  double cz;           // view depth of the centre
+  [[nodiscard]] bool visible(const View& v) const { return !(cz + rr < v.near_plane || cz - rr > v.far_plane); }
+  /// A lower bound of hit()'s t on the sphere (float, rounded down).
+  [[nodiscard]] float near_depth() const {
+    const double d = cz - rr;
+    if (!(d > 0)) return 0.0f;
+    const auto f = static_cast<float>(d);
+    return static_cast<double>(f) > d ? std::nextafter(f, 0.0f) : f;
+  }
+};
+Reach reach(const View& v, const Sphere& s) {
+  Reach q;
+  q.o[0] = v.ex - s.x, q.o[1] = v.ey - s.y, q.o[2] = v.ez - s.z;
+  const double r = s.r, o2 = q.o[0] * q.o[0] + q.o[1] * q.o[1] + q.o[2] * q.o[2];
+  const double l1 = std::fabs(q.o[0]) + std::fabs(q.o[1]) + std::fabs(q.o[2]);
+  q.rr = std::sqrt(r * r + 0x1p-19 * o2) + 2e-4 * (l1 + r) + 1e-6;
+  q.k = o2 - q.rr * q.rr;
+  auto dot = [&](const double* a) { return q.o[0] * a[0] + q.o[1] * a[1] + q.o[2] * a[2]; };
+  q.of = dot(v.f), q.ou = dot(v.up), q.or_ = dot(v.rt);
+  q.cz = -q.of;
+  return q;
+}
 
 /// The directions d = f + a u + b v (u, v screen coordinates: nx or ny) whose line from the eye
-/// passes within R of the centre: Q = (o.d)^2 - |d|^2 (|o|^2 - R^2) >= 0, o = eye - centre,
-/// k = |o|^2 - R^2 > 0. For fixed v, Q = la u^2 + 2 (b0 + b1 v) u + (c0 + c1 v + c2 v^2); with
-/// la < 0 its solutions are the u between the roots, which exist where the discriminant
-/// D(v) = d0 + d1 v + d2 v^2 >= 0. All in double from the camera's float vectors.
+/// passes within R of the centre: Q = (o.d)^2 - |d|^2 k >= 0, k = |o|^2 - R^2 > 0. For fixed v,
+/// Q = la u^2 + 2 (b0 + b1 v) u + (c0 + c1 v + c2 v^2); with la < 0 its solutions are the u
+/// between the roots, which exist where the discriminant D(v) = d0 + d1 v + d2 v^2 >= 0. Bounded
+/// exactly when the widened sphere lies wholly in front of (or behind) the eye's plane.
 struct Conic {
   bool bounded = false;  // la < 0 by a margin: every row (or column) is a bounded interval
   double la = 0, b0 = 0, b1 = 0, d0 = 0, d1 = 0, d2 = 0;
 };
-Conic conic(const Vec3d& o, double k, const Vec3d& f, const Vec3d& a, const Vec3d& b) {
+// oa, ob: o.a, o.b; aa, bb, fa, fb, ab: dot products of the axes.
+Conic conic(double of, double oa, double ob, double k, double ff, double aa, double bb, double fa, double fb,
+            double ab) {
   Conic q;
-  const double of = dot(o, f), oa = dot(o, a), ob = dot(o, b);
-  q.la = oa * oa - k * dot(a, a);
-  q.bounded = q.la < -1e-6 * (oa * oa + k * dot(a, a));
-  q.b0 = of * oa - k * dot(f, a);
-  q.b1 = ob * oa - k * dot(b, a);
-  const double c0 = of * of - k * dot(f, f), c1 = 2 * (of * ob - k * dot(f, b)), c2 = ob * ob - k * dot(b, b);
+  q.la = oa * oa - k * aa;
+  q.bounded = q.la < -1e-6 * (oa * oa + k * aa);
+  q.b0 = of * oa - k * fa;
+  q.b1 = ob * oa - k * ab;
+  const double c0 = of * of - k * ff, c1 = 2 * (of * ob - k * fb), c2 = ob * ob - k * bb;
   q.d0 = q.b0 * q.b0 - q.la * c0;
   q.d1 = 2 * q.b0 * q.b1 - q.la * c1;
   q.d2 = q.b1 * q.b1 - q.la * c2;
@@ -55,47 +111,35 @@ bool v_range(const Conic& q, double& lo, double& hi) {
   if (!q.bounded || !(q.d2 < -1e-9 * (q.b1 * q.b1 + std::fabs(q.d2 - q.b1 * q.b1)))) return false;
   const double disc = q.d1 * q.d1 - 4 * q.d2 * q.d0;
   if (!(disc >= 0)) return false;
-  const double sq = std::sqrt(disc), r0 = (-q.d1 - sq) / (2 * q.d2), r1 = (-q.d1 + sq) / (2 * q.d2);
+  const double sq = std::sqrt(disc), inv = 0.5 / q.d2, r0 = (-q.d1 - sq) * inv, r1 = (-q.d1 + sq) * inv;
   lo = std::min(r0, r1), hi = std::max(r0, r1);
   return std::isfinite(lo) && std::isfinite(hi);
 }
+/// First and one-past-last pixel whose centre lies in [lo, hi] (widened by kPixelMargin), within
+/// [0, n).
+void pixel_range(double lo, double hi, int n, int& a, int& b) {
+  lo = std::clamp(lo - kPixelMargin, -1.0, static_cast<double>(n));
+  hi = std::clamp(hi + kPixelMargin, -1.0, static_cast<double>(n));
+  const int l = static_cast<int>(lo), h = static_cast<int>(hi);  // truncation; then ceil and floor:
+  a = std::max(0, l + (static_cast<double>(l) < lo ? 1 : 0));
+  b = std::min(n, h - (static_cast<double>(h) > hi ? 1 : 0) + 1);
+}
 
-/// Tightens the rectangle to the projection of the widened sphere and prepares its row spans.
-/// R is the radius sphere_rect widens to so as to hold every ray hit() can accept
-/// (docs/architecture.md, "Visibility map"), with twice its relative slack (>= 2e-4 |o|, far more
-/// than the float rounding of a ray's direction); rows and columns whose centre lies within
-/// kPixelMargin of the extent are kept. Where a quadratic is unbounded or ill-conditioned the
-/// rectangle stays as it is (and rows use its full width).
-void prepare_spans(const CameraRig& cam, const Sphere& s, TiledRasterizer::Prepared& p) {
+/// The pixel rectangle of a visible sphere (its widened projection; the whole map where that is
+/// unbounded) and its row spans.
+void prepare(const View& v, const Reach& q, TiledRasterizer::Prepared& p) {
+  p.x0 = 0, p.y0 = 0, p.x1 = v.w, p.y1 = v.h;
   p.spans = false;
-  const Vec3d o{static_cast<double>(cam.eye.x) - s.x, static_cast<double>(cam.eye.y) - s.y,
-                static_cast<double>(cam.eye.z) - s.z};
-  const double r = s.r, o2 = dot(o, o), len = std::sqrt(o2);
-  const double rr = std::sqrt(r * r + 0x1p-19 * o2) + 2e-4 * (len + r) + 1e-6;
-  const double k = o2 - rr * rr;
-  if (!(k > 0)) return;  // the eye is inside (or at) the widened sphere
-  const Vec3d f{cam.forward.x, cam.forward.y, cam.forward.z}, rt{cam.right.x, cam.right.y, cam.right.z},
-      up{cam.up.x, cam.up.y, cam.up.z};
-  // Pixel coordinates: px = nx * sx + (W - 1) / 2 and py = -ny * sy + (H - 1) / 2 (CameraRig::dir).
-  const double sx = static_cast<double>(cam.map_w) / (2.0 * static_cast<double>(cam.tan_half_x));
-  const double sy = static_cast<double>(cam.map_h) / (2.0 * static_cast<double>(cam.tan_half_y));
-  const double cx = 0.5 * cam.map_w - 0.5, cy = 0.5 * cam.map_h - 0.5;
-  auto clampd = [](double v, int hi) { return static_cast<int>(std::clamp(v, 0.0, static_cast<double>(hi))); };
-  const Conic rows = conic(o, k, f, rt, up);  // u = nx, v = ny
+  if (!(q.k > 0)) return;  // the eye is inside (or at) the widened sphere
+  const Conic rows = conic(q.of, q.or_, q.ou, q.k, v.ff, v.rr, v.uu, v.fr, v.fu, v.ur);  // u = nx, v = ny
   double lo = 0, hi = 0;
-  if (v_range(rows, lo, hi)) {  // rows [py(hi), py(lo)]
-    p.y0 = std::max(p.y0, clampd(std::ceil(-hi * sy + cy - kPixelMargin), cam.map_h));
-    p.y1 = std::min(p.y1, clampd(std::floor(-lo * sy + cy + kPixelMargin) + 1, cam.map_h));
-  }
-  const Conic cols = conic(o, k, f, up, rt);  // u = ny, v = nx
-  if (v_range(cols, lo, hi)) {
-    p.x0 = std::max(p.x0, clampd(std::ceil(lo * sx + cx - kPixelMargin), cam.map_w));
-    p.x1 = std::min(p.x1, clampd(std::floor(hi * sx + cx + kPixelMargin) + 1, cam.map_w));
-  }
+  if (v_range(rows, lo, hi)) pixel_range(-hi * v.sy + v.cy, -lo * v.sy + v.cy, v.h, p.y0, p.y1);
+  const Conic cols = conic(q.of, q.ou, q.or_, q.k, v.ff, v.uu, v.rr, v.fu, v.fr, v.ur);  // u = ny, v = nx
+  if (v_range(cols, lo, hi)) pixel_range(lo * v.sx + v.cx, hi * v.sx + v.cx, v.w, p.x0, p.x1);
   if (!rows.bounded) return;
   // Row spans in pixels: centre m0 + m1 ny, half width squared e0 + e1 ny + e2 ny^2.
-  const double sc = sx / rows.la;
-  p.m0 = -rows.b0 * sc + cx;
+  const double sc = v.sx / rows.la;
+  p.m0 = -rows.b0 * sc + v.cx;
   p.m1 = -rows.b1 * sc;
   p.e0 = rows.d0 * sc * sc;
   p.e1 = rows.d1 * sc * sc;
@@ -133,47 +177,96 @@ struct Planes {
   __m128 near, far;
 };
 
-/// hit() for 4 pixels of a tile row at `i`, kept where nearer (ties to the smaller id). Loads
-/// aligned or not. Returns the lanes it changed.
-template <bool kAligned>
-inline __m128 shade_in(TileBuffers& buf, int i, const Lanes& s, const Planes& pl) {
-  auto load = [](const float* q) { return kAligned ? _mm_load_ps(q) : _mm_loadu_ps(q); };
-  auto load_i = [](const std::uint32_t* q) {
-    return kAligned ? _mm_load_si128(reinterpret_cast<const __m128i*>(q))
-                    : _mm_loadu_si128(reinterpret_cast<const __m128i*>(q));
+/// Writes w pixels of a map row, 4 at a time from quad(i) -> (ids, depths) of pixels i..i+3
+/// (read past w only within the tile). Whole cache lines (ids and depth are 64-byte aligned, so
+/// both rows reach a line boundary together) are streamed past the caches: nothing reads the
+/// map again this frame, and a line is written by one tile only, so it never moves between cores.
+/// The partial lines at either end, shared with the next tile, are stored as usual.
+template <class Quad>
+inline void stream_row(std::uint32_t* ids, float* depth, int w, Quad&& quad) {
+  auto store = [&](int i, int count) {
+    const auto [vi, vd] = quad(i);
+    alignas(16) std::uint32_t qi[4];
+    alignas(16) float qd[4];
+    _mm_store_si128(reinterpret_cast<__m128i*>(qi), vi);
+    _mm_store_ps(qd, vd);
+    for (int k = 0; k < count; ++k) ids[i + k] = qi[k], depth[i + k] = qd[k];
   };
-  auto store = [](float* q, __m128 v) { kAligned ? _mm_store_ps(q, v) : _mm_storeu_ps(q, v); };
-  auto store_i = [](std::uint32_t* q, __m128i v) {
-    kAligned ? _mm_store_si128(reinterpret_cast<__m128i*>(q), v) : _mm_storeu_si128(reinterpret_cast<__m128i*>(q), v);
-  };
-  const __m128 vx = load(buf.dx + i), vy = load(buf.dy + i), vz = load(buf.dz + i), va = load(buf.a + i);
-  const __m128 bb = load(buf.best + i);
-  // hit(): b = o.d, disc = b b - a c, t0 = (-b - sqrt(disc)) / a, else t1 = (-b + sqrt) / a; each
-  // operation in the same order, so every lane rounds as hit() does.
+  const auto misalign = static_cast<int>(reinterpret_cast<std::uintptr_t>(ids) & 63) / 4;
+  const int head = std::min(w, misalign ? 16 - misalign : 0);
+  int i = 0;
+  for (; i + 4 <= head; i += 4) store(i, 4);
+  if (i < head) store(i, head - i), i = head;
+  for (; i + 16 <= w; i += 16)
+    for (int k = 0; k < 16; k += 4) {
+      const auto [vi, vd] = quad(i + k);
+      _mm_stream_si128(reinterpret_cast<__m128i*>(ids + i + k), vi);
+      _mm_stream_ps(depth + i + k, vd);
+    }
+  for (; i < w; i += 4) store(i, std::min(4, w - i));
+}
+
+/// The groups of 4 pixels of one sphere that some lane may change, with hit()'s b and
+/// discriminant for them: a first pass over the sphere's pixels finds them, a second finishes
+/// hit() (sqrt, division) and keeps the nearer hits only for those.
+struct Candidates {
+  static constexpr int kMax = kT * kT / 4;
+  int n = 0;
+  alignas(16) int at[kMax];
+  __m128 b[kMax], disc[kMax];
+};
+
+/// First pass for the group at `i`: hit()'s b = o.d and disc = b b - a c, each operation in
+/// hit()'s order so every lane rounds as it does. The group is kept if a lane has disc >= 0 (else
+/// hit() misses) where the pixel's nearest hit so far is not nearer than near_depth (else nothing
+/// on this sphere can beat it: every hit has t >= near_depth). Branch-free.
+inline void screen(const TileBuffers& buf, int i, const Lanes& s, __m128 near_depth, Candidates& c) {
+  const __m128 vx = _mm_loadu_ps(buf.dx + i), vy = _mm_loadu_ps(buf.dy + i), vz = _mm_loadu_ps(buf.dz + i);
   const __m128 b = _mm_add_ps(_mm_add_ps(_mm_mul_ps(s.ox, vx), _mm_mul_ps(s.oy, vy)), _mm_mul_ps(s.oz, vz));
-  const __m128 disc = _mm_sub_ps(_mm_mul_ps(b, b), _mm_mul_ps(va, s.c));
-  const __m128 real = _mm_cmpge_ps(disc, _mm_setzero_ps());
-  const __m128 sq = _mm_sqrt_ps(_mm_and_ps(disc, real));
-  const __m128 nb = _mm_xor_ps(b, _mm_set1_ps(-0.0f));
-  const __m128 t0 = _mm_div_ps(_mm_sub_ps(nb, sq), va);
-  const __m128 in0 = _mm_and_ps(_mm_cmpge_ps(t0, pl.near), _mm_cmple_ps(t0, pl.far));
-  __m128 hv = t0, hit = _mm_and_ps(real, in0);
-  if (_mm_movemask_ps(_mm_andnot_ps(in0, real)) != 0) [[unlikely]] {  // the front root is clipped
-    const __m128 t1 = _mm_div_ps(_mm_add_ps(nb, sq), va);
-    const __m128 in1 = _mm_and_ps(_mm_cmpge_ps(t1, pl.near), _mm_cmple_ps(t1, pl.far));
-    hv = select(in0, t0, t1);
-    hit = _mm_and_ps(real, _mm_or_ps(in0, in1));
+  const __m128 disc = _mm_sub_ps(_mm_mul_ps(b, b), _mm_mul_ps(_mm_loadu_ps(buf.a + i), s.c));
+  const __m128 open =
+      _mm_and_ps(_mm_cmpge_ps(disc, _mm_setzero_ps()), _mm_cmpge_ps(_mm_loadu_ps(buf.best + i), near_depth));
+  c.at[c.n] = i;
+  c.b[c.n] = b;
+  c.disc[c.n] = disc;
+  c.n += _mm_movemask_ps(open) != 0;
+}
+
+/// Second pass: the rest of hit() for each kept group (t0 = (-b - sqrt(disc)) / a if in
+/// [near, far], else t1 = (-b + sqrt(disc)) / a if in range, else a miss), kept where nearer than
+/// the pixel's best, ties to the smaller id. Returns whether any pixel changed.
+inline bool resolve(TileBuffers& buf, const Candidates& c, const Lanes& s, const Planes& pl) {
+  __m128 any = _mm_setzero_ps();
+  for (int e = 0; e < c.n; ++e) {
+    const int i = c.at[e];
+    const __m128 b = c.b[e], disc = c.disc[e], va = _mm_loadu_ps(buf.a + i);
+    const __m128 real = _mm_cmpge_ps(disc, _mm_setzero_ps());
+    const __m128 sq = _mm_sqrt_ps(_mm_and_ps(disc, real));
+    const __m128 nb = _mm_xor_ps(b, _mm_set1_ps(-0.0f));
+    const __m128 t0 = _mm_div_ps(_mm_sub_ps(nb, sq), va);
+    const __m128 in0 = _mm_and_ps(_mm_cmpge_ps(t0, pl.near), _mm_cmple_ps(t0, pl.far));
+    __m128 hv = t0, hit = _mm_and_ps(real, in0);
+    if (_mm_movemask_ps(_mm_andnot_ps(in0, real)) != 0) [[unlikely]] {  // the front root is clipped
+      const __m128 t1 = _mm_div_ps(_mm_add_ps(nb, sq), va);
+      const __m128 in1 = _mm_and_ps(_mm_cmpge_ps(t1, pl.near), _mm_cmple_ps(t1, pl.far));
+      hv = select(in0, t0, t1);
+      hit = _mm_and_ps(real, _mm_or_ps(in0, in1));
+    }
+    // hit() returns a root in [near, far] (near > 0) or -1: a hit is a lane with `hit` set.
+    const __m128 bb = _mm_loadu_ps(buf.best + i);
+    const __m128i bi = _mm_loadu_si128(reinterpret_cast<const __m128i*>(buf.id + i));
+    // ids < 2^31 (validate_spheres), so the signed compare orders them.
+    const __m128 smaller_id = _mm_castsi128_ps(_mm_cmplt_epi32(s.id, bi));
+    const __m128 better =
+        _mm_and_ps(hit, _mm_or_ps(_mm_cmplt_ps(hv, bb), _mm_and_ps(_mm_cmpeq_ps(hv, bb), smaller_id)));
+    const __m128i better_i = _mm_castps_si128(better);
+    _mm_storeu_ps(buf.best + i, select(better, hv, bb));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(buf.id + i), select(better_i, s.id, bi));
+    __m128i* slot = reinterpret_cast<__m128i*>(buf.slot + i);
+    _mm_storeu_si128(slot, select(better_i, s.slot, _mm_loadu_si128(slot)));
+    any = _mm_or_ps(any, better);
   }
-  // hit() returns a root in [near, far] (near > 0) or -1: a hit is a lane with `hit` set.
-  const __m128i bi = load_i(buf.id + i);
-  // ids < 2^31 (validate_spheres), so the signed compare orders them.
-  const __m128 smaller_id = _mm_castsi128_ps(_mm_cmplt_epi32(s.id, bi));
-  const __m128 better = _mm_and_ps(hit, _mm_or_ps(_mm_cmplt_ps(hv, bb), _mm_and_ps(_mm_cmpeq_ps(hv, bb), smaller_id)));
-  const __m128i better_i = _mm_castps_si128(better);
-  store(buf.best + i, select(better, hv, bb));
-  store_i(buf.id + i, select(better_i, s.id, bi));
-  store_i(buf.slot + i, select(better_i, s.slot, load_i(buf.slot + i)));
-  return better;
+  return _mm_movemask_ps(any) != 0;
 }
 
 }  // namespace
@@ -192,45 +285,43 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
   const int tiles_x = (map.width + kT - 1) / kT, tiles_y = (map.height + kT - 1) / kT;
   const std::size_t tiles = static_cast<std::size_t>(tiles_x) * static_cast<std::size_t>(tiles_y);
 
-  // 1. Per sphere: rectangle, hit() terms, spans, depth key (unsorted order).
-  prep_.resize(n);
+  // 1. Depth keys: front to back by a lower bound of each sphere's depth (16-bit key); spheres
+  // wholly before near or beyond far get the last key and are left out.
+  const View view(cam);
   keys_.resize(n);
   order_.resize(n);
   parallel_for(n, threads, [&](std::size_t k) {
-    const Sphere& s = spheres[k];
-    Prepared& p = prep_[k];
-    const PixelRect r = sphere_rect(cam, s);
-    p.x0 = r.x0, p.y0 = r.y0, p.x1 = r.x1, p.y1 = r.y1;
-    p.id = static_cast<std::uint32_t>(k + 1);
+    const Reach q = reach(view, spheres[k]);
+    keys_[k] = q.visible(view) ? depth_key(q.near_depth()) : kCulled;
     order_[k] = static_cast<std::uint32_t>(k);
-    if (r.x0 >= r.x1 || r.y0 >= r.y1) {
-      keys_[k] = 0xFFFF;
-      return;
-    }
-    // hit()'s expressions and order, so the per-pixel results match it bit for bit.
-    p.ox = cam.eye.x - s.x, p.oy = cam.eye.y - s.y, p.oz = cam.eye.z - s.z;
-    p.c = p.ox * p.ox + p.oy * p.oy + p.oz * p.oz - s.r * s.r;
-    p.near_depth = r.near_depth;
-    keys_[k] = depth_key(r.near_depth);
-    p.key_floor = key_floor(keys_[k]);
-    prepare_spans(cam, s, p);
-    if (p.x0 >= p.x1 || p.y0 >= p.y1) keys_[k] = 0xFFFF;  // no pixel can see it
   });
+  radix_sort<std::uint16_t>(keys_, order_, 16, threads, sort_scratch_);  // stable: ties by index
+  const auto visible = static_cast<std::size_t>(std::lower_bound(keys_.begin(), keys_.end(), kCulled) - keys_.begin());
 
-  // 2. Front to back (stable: equal keys by index), then bin into tiles in that order: a count
-  // per (chunk, tile), a scan in (tile, chunk) order, a scatter per chunk. Each tile's list comes
-  // out sorted by key, whatever the number of chunks.
-  radix_sort<std::uint16_t>(keys_, order_, 16, threads, sort_scratch_);
-  const std::size_t chunks = std::max<std::size_t>(1, std::min<std::size_t>(threads_for(n, threads), n));
+  // 2. In that order: what a tile needs of each sphere, then binning into tiles: a count per
+  // (chunk, tile), a scan in (tile, chunk) order, a scatter per chunk, so each tile's list is in
+  // depth order whatever the number of chunks (and no atomics).
+  prep_.resize(visible);
+  const std::size_t chunks = std::max<std::size_t>(1, std::min<std::size_t>(threads_for(visible, threads), visible));
   chunk_tile_count_.assign(chunks * tiles, 0);
   auto for_tiles_of = [&](const Prepared& p, auto&& f) {
     for (int ty = p.y0 / kT; ty <= (p.y1 - 1) / kT; ++ty)
       for (int tx = p.x0 / kT; tx <= (p.x1 - 1) / kT; ++tx) f(static_cast<std::size_t>(ty * tiles_x + tx));
   };
-  for_chunks(n, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
+  for_chunks(visible, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
     std::uint32_t* cnt = chunk_tile_count_.data() + c * tiles;
     for (std::size_t i = b; i < e; ++i) {
-      const Prepared& p = prep_[order_[i]];
+      const std::uint32_t k = order_[i];
+      const Sphere& s = spheres[k];
+      Prepared& p = prep_[i];
+      const Reach q = reach(view, s);
+      // hit()'s expressions and order, so the per-pixel results match it bit for bit.
+      p.ox = cam.eye.x - s.x, p.oy = cam.eye.y - s.y, p.oz = cam.eye.z - s.z;
+      p.c = p.ox * p.ox + p.oy * p.oy + p.oz * p.oz - s.r * s.r;
+      p.near_depth = q.near_depth();
+      p.key_floor = key_floor(keys_[i]);
+      p.id = k + 1;
+      prepare(view, q, p);
       if (p.x0 >= p.x1 || p.y0 >= p.y1) continue;
       for_tiles_of(p, [&](std::size_t t) { ++cnt[t]; });
     }
@@ -248,13 +339,12 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
   tile_offset_[tiles] = sum;
   if (tile_items_.size() < sum) tile_items_.resize(sum + sum / 4);  // headroom: lists vary per frame
   if (tile_counts_.size() < sum + tiles) tile_counts_.resize(sum + tiles + (sum + tiles) / 4);
-  for_chunks(n, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
+  for_chunks(visible, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
     std::uint32_t* cursor = chunk_tile_count_.data() + c * tiles;
     for (std::size_t i = b; i < e; ++i) {
-      const std::uint32_t k = order_[i];
-      const Prepared& p = prep_[k];
+      const Prepared& p = prep_[i];
       if (p.x0 >= p.x1 || p.y0 >= p.y1) continue;
-      for_tiles_of(p, [&](std::size_t t) { tile_items_[cursor[t]++] = k; });
+      for_tiles_of(p, [&](std::size_t t) { tile_items_[cursor[t]++] = static_cast<std::uint32_t>(i); });
     }
   });
 
@@ -293,13 +383,16 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
     if (m == 0) {  // background only
       for (int py = y0; py < y1; ++py) {
         const std::size_t row = static_cast<std::size_t>(py) * W + static_cast<std::size_t>(x0);
-        std::fill_n(map.ids.data() + row, w, 0u);
-        std::fill_n(map.depth.data() + row, w, far_depth);
+        stream_row(map.ids.data() + row, map.depth.data() + row, w, [&](int) {
+          return std::pair{_mm_setzero_si128(), v_far_depth};
+        });
         if (normals) std::fill_n(map.normal.data() + 3 * row, 3 * w, 0.0f);
       }
+      _mm_sfence();  // the streamed rows are visible before the task counts as done
       return;
     }
     TileBuffers buf;
+    Candidates cand;
     {
       alignas(16) float first[kT];  // +inf on the map, -inf beyond its edge (never hit, never the max)
       for (int i = 0; i < kT; ++i) first[i] = i < w ? kInf : -kInf;
@@ -323,17 +416,28 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
         buf.a[r * kT + i] = ex * ex + ey * ey + ez * ez;
       }
     };
-    // The largest nearest-hit depth in the tile; recomputed now and then (it only falls).
+    // The largest nearest-hit depth in the tile: recomputed every 8 spheres once it is finite,
+    // and ever less often while some pixel has no hit (it only falls).
     float tile_max = kInf;
     bool changed = false;
+    std::uint32_t next_check = 8;
 
     for (std::uint32_t j = 0; j < m; ++j) {
       const Prepared& p = prep_[items[j]];
-      if (changed && (j & 7) == 0) {
-        __m128 mx = _mm_set1_ps(-kInf);
-        for (int q = 0; q < h * kT; q += 4) mx = _mm_max_ps(mx, _mm_load_ps(buf.best + q));
-        tile_max = hmax(mx);
-        changed = false;
+      if (j == next_check) {
+        if (changed) {
+          __m128 m0 = _mm_load_ps(buf.best), m1 = _mm_load_ps(buf.best + 4), m2 = _mm_load_ps(buf.best + 8),
+                 m3 = _mm_load_ps(buf.best + 12);
+          for (int q = 16; q < h * kT; q += 16) {
+            m0 = _mm_max_ps(m0, _mm_load_ps(buf.best + q));
+            m1 = _mm_max_ps(m1, _mm_load_ps(buf.best + q + 4));
+            m2 = _mm_max_ps(m2, _mm_load_ps(buf.best + q + 8));
+            m3 = _mm_max_ps(m3, _mm_load_ps(buf.best + q + 12));
+          }
+          tile_max = hmax(_mm_max_ps(_mm_max_ps(m0, m1), _mm_max_ps(m2, m3)));
+          changed = false;
+        }
+        next_check = tile_max == kInf ? 2 * j : j + 8;
       }
       // Every hit on this sphere has t >= near_depth, on every later one t >= key_floor: once they
       // are beyond every pixel's nearest hit so far, nothing here can change.
@@ -353,15 +457,15 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
            need &= need - 1)
         fill_rays(std::countr_zero(need));
       dirs_ready |= (rb - ra == 32 ? ~0u : (1u << (rb - ra)) - 1u) << ra;
-      __m128 any = _mm_setzero_ps();
+      const __m128 near_depth = _mm_set1_ps(p.near_depth);
+      cand.n = 0;
       if (cb - ca <= 16) {
-        // Small: the same window of k groups on every row (no per-row decisions, no branches).
+        // Small: the same window of k groups on every row (no per-row decisions).
         const int k = (cb - ca + 3) >> 2, wa = std::min(ca, kT - 4 * k);
         for (int r = ra; r < rb; ++r)
-          for (int g = 0; g < k; ++g) any = _mm_or_ps(any, shade_in<false>(buf, r * kT + wa + 4 * g, lanes, planes));
+          for (int g = 0; g < k; ++g) screen(buf, r * kT + wa + 4 * g, lanes, near_depth, cand);
       } else {
-        // Large: per row, the aligned groups around the row's span that some pixel is open in.
-        const __m128 near_depth = _mm_set1_ps(p.near_depth);
+        // Large: per row, the aligned groups around the row's span.
         for (int r = ra; r < rb; ++r) {
           int xa = ca, xb = cb;
           if (p.spans) {
@@ -375,13 +479,10 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
               if (hi < xb) xb = static_cast<int>(std::max(hi, static_cast<double>(xa)));
             }
           }
-          for (int i = xa & ~3; i < xb; i += 4) {
-            if (_mm_movemask_ps(_mm_cmpge_ps(_mm_load_ps(buf.best + r * kT + i), near_depth)) == 0) continue;
-            any = _mm_or_ps(any, shade_in<true>(buf, r * kT + i, lanes, planes));
-          }
+          for (int i = xa & ~3; i < xb; i += 4) screen(buf, r * kT + i, lanes, near_depth, cand);
         }
       }
-      changed |= _mm_movemask_ps(any) != 0;
+      if (resolve(buf, cand, lanes, planes)) changed = true;
     }
 
     // Write out row by row (background depth = far plane), and count the row's runs of equal
@@ -392,19 +493,11 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
       const std::size_t row = static_cast<std::size_t>(y0 + r) * W + static_cast<std::size_t>(x0);
       const float* best = buf.best + r * kT;
       const std::uint32_t* ids = buf.id + r * kT;
-      std::uint32_t* out_ids = map.ids.data() + row;
-      float* out_depth = map.depth.data() + row;
-      int i = 0;
-      for (; i + 4 <= w; i += 4) {
-        const __m128i vi = _mm_load_si128(reinterpret_cast<const __m128i*>(ids + i));
+      stream_row(map.ids.data() + row, map.depth.data() + row, w, [&](int i) {
+        const __m128i vi = _mm_loadu_si128(reinterpret_cast<const __m128i*>(ids + i));
         const __m128 none = _mm_castsi128_ps(_mm_cmpeq_epi32(vi, _mm_setzero_si128()));
-        _mm_storeu_si128(reinterpret_cast<__m128i*>(out_ids + i), vi);
-        _mm_storeu_ps(out_depth + i, select(none, v_far_depth, _mm_load_ps(best + i)));
-      }
-      for (; i < w; ++i) {
-        out_ids[i] = ids[i];
-        out_depth[i] = ids[i] ? best[i] : far_depth;
-      }
+        return std::pair{vi, select(none, v_far_depth, _mm_loadu_ps(best + i))};
+      });
       // Runs: bit i set where slot[i] differs from slot[i - 1] (bit 0 always).
       const std::uint32_t* slots = buf.slot + r * kT;
       std::uint32_t starts = 0;
@@ -428,6 +521,7 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
       if (normals)
         for (int px = x0; px < x1; ++px) write_normal(cam, spheres, map, px, y0 + r);
     }
+    _mm_sfence();  // the streamed rows are visible before the task counts as done
   };
   if (threads_for(tiles * kT * kT, threads) == 1) {
     for (std::size_t t = 0; t < tiles; ++t) tile_task(static_cast<std::uint32_t>(t));
@@ -441,7 +535,7 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
     const std::uint32_t* counts = tile_counts_.data() + tile_offset_[t] + t + 1;
     const std::uint32_t* items = tile_items_.data() + tile_offset_[t];
     const std::uint32_t m = tile_offset_[t + 1] - tile_offset_[t];
-    for (std::uint32_t j = 0; j < m; ++j) map.counts[items[j]] += counts[j];
+    for (std::uint32_t j = 0; j < m; ++j) map.counts[prep_[items[j]].id - 1] += counts[j];
   }
   map.has_counts = true;
 }

@@ -102,19 +102,21 @@ TEST(Raster, SingleSpheresOfEverySizeAtRandomCameras) {
     cam.near_plane = std::pow(10.0f, -3 + 2 * u01(rng));
     cam.far_plane = cam.near_plane * std::pow(10.0f, 1 + 4 * u01(rng));
     const CameraRig rig(cam, w, h);
-    // A direction inside (or a little outside) the view, a distance, a radius relative to it.
+    // A direction inside (or a little outside) the view, a distance, a radius relative to it;
+    // one in ten behind the eye, one in ten beside it (close to the eye's plane).
     const float sx = 1.3f * u(rng) * rig.tan_half_x, sy = 1.3f * u(rng) * rig.tan_half_y;
+    const float fz = trial % 10 == 3 ? -1.0f : trial % 10 == 7 ? 0.05f * u(rng) : 1.0f;
     const float dist = cam.near_plane * std::pow(10.0f, -1 + 5 * u01(rng));
     const float rel = trial % 10 == 0 ? 0.0f : std::pow(10.0f, -7 + 8 * u01(rng));
-    Sphere s{cam.eye[0] + dist * (rig.forward.x + sx * rig.right.x + sy * rig.up.x),
-             cam.eye[1] + dist * (rig.forward.y + sx * rig.right.y + sy * rig.up.y),
-             cam.eye[2] + dist * (rig.forward.z + sx * rig.right.z + sy * rig.up.z), rel * dist};
+    Sphere s{cam.eye[0] + dist * (fz * rig.forward.x + sx * rig.right.x + sy * rig.up.x),
+             cam.eye[1] + dist * (fz * rig.forward.y + sx * rig.right.y + sy * rig.up.y),
+             cam.eye[2] + dist * (fz * rig.forward.z + sx * rig.right.z + sy * rig.up.z), rel * dist};
     const std::vector<Sphere> one{s};
     const Oracle want = reference(rig, one);
     hits += want.counts[0] > 0;
     ASSERT_TRUE(matches(want, rig, one)) << "trial " << trial << ", fov " << fov << ", r/d " << rel;
   }
-  EXPECT_GT(hits, 4000);  // most cases see something (the rest: clipped by near or far)
+  EXPECT_GT(hits, 3000);  // most cases see something (the rest: clipped by near or far)
 }
 
 TEST(Raster, SubPixelSpheresNearTheAxisOfANarrowView) {
