@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <bit>
 #include <cmath>
 #include <limits>
@@ -69,7 +70,7 @@ struct Reach {
     return static_cast<double>(f) > d ? std::nextafter(f, 0.0f) : f;
   }
 };
-Reach reach(const View& v, const Sphere& s) {
+[[gnu::always_inline]] inline Reach reach(const View& v, const Sphere& s) {
   Reach q;
   q.o[0] = v.ex - s.x, q.o[1] = v.ey - s.y, q.o[2] = v.ez - s.z;
   const double r = s.r, o2 = q.o[0] * q.o[0] + q.o[1] * q.o[1] + q.o[2] * q.o[2];
@@ -92,8 +93,8 @@ struct Conic {
   double la = 0, b0 = 0, b1 = 0, d0 = 0, d1 = 0, d2 = 0;
 };
 // oa, ob: o.a, o.b; aa, bb, fa, fb, ab: dot products of the axes.
-Conic conic(double of, double oa, double ob, double k, double ff, double aa, double bb, double fa, double fb,
-            double ab) {
+[[gnu::always_inline]] inline Conic conic(double of, double oa, double ob, double k, double ff, double aa, double bb,
+                                          double fa, double fb, double ab) {
   Conic q;
   q.la = oa * oa - k * aa;
   q.bounded = q.la < -1e-6 * (oa * oa + k * aa);
@@ -107,7 +108,7 @@ Conic conic(double of, double oa, double ob, double k, double ff, double aa, dou
 }
 /// The v where D(v) >= 0, if that is a bounded interval (the line through the centre always
 /// qualifies, so an empty one can only be rounding: then no bound).
-bool v_range(const Conic& q, double& lo, double& hi) {
+[[gnu::always_inline]] inline bool v_range(const Conic& q, double& lo, double& hi) {
   if (!q.bounded || !(q.d2 < -1e-9 * (q.b1 * q.b1 + std::fabs(q.d2 - q.b1 * q.b1)))) return false;
   const double disc = q.d1 * q.d1 - 4 * q.d2 * q.d0;
   if (!(disc >= 0)) return false;
@@ -117,7 +118,7 @@ bool v_range(const Conic& q, double& lo, double& hi) {
 }
 /// First and one-past-last pixel whose centre lies in [lo, hi] (widened by kPixelMargin), within
 /// [0, n).
-void pixel_range(double lo, double hi, int n, int& a, int& b) {
+[[gnu::always_inline]] inline void pixel_range(double lo, double hi, int n, int& a, int& b) {
   lo = std::clamp(lo - kPixelMargin, -1.0, static_cast<double>(n));
   hi = std::clamp(hi + kPixelMargin, -1.0, static_cast<double>(n));
   const int l = static_cast<int>(lo), h = static_cast<int>(hi);  // truncation; then ceil and floor:
@@ -127,7 +128,7 @@ void pixel_range(double lo, double hi, int n, int& a, int& b) {
 
 /// The pixel rectangle of a visible sphere (its widened projection; the whole map where that is
 /// unbounded) and its row spans.
-void prepare(const View& v, const Reach& q, TiledRasterizer::Prepared& p) {
+[[gnu::always_inline]] inline void prepare(const View& v, const Reach& q, TiledRasterizer::Prepared& p) {
   p.x0 = 0, p.y0 = 0, p.x1 = v.w, p.y1 = v.h;
   p.spans = false;
   if (!(q.k > 0)) return;  // the eye is inside (or at) the widened sphere
@@ -269,13 +270,21 @@ inline bool resolve(TileBuffers& buf, const Candidates& c, const Lanes& s, const
   return _mm_movemask_ps(any) != 0;
 }
 
+/// Chunks for a loop over n spheres: a few per thread, so that a worker that wakes late still
+/// takes its share (the caller starts alone), but none below 512 spheres; one below
+/// kParallelThreshold.
+std::size_t chunks_for(std::size_t n, int threads) {
+  if (threads_for(n, threads) == 1) return 1;
+  return std::clamp<std::size_t>(n / 512, 1, 4 * static_cast<std::size_t>(threads));
+}
+
 }  // namespace
 
 std::uint64_t TiledRasterizer::memory_bytes() const {
   auto b = [](const auto& v) { return static_cast<std::uint64_t>(v.capacity()) * sizeof(v[0]); };
   std::uint64_t s = b(prep_) + b(keys_) + b(order_) + b(sort_scratch_.keys) + b(sort_scratch_.values) +
                     b(sort_scratch_.histograms) + b(chunk_tile_count_) + b(tile_offset_) + b(tile_items_) +
-                    b(tile_counts_) + b(row_ny_);
+                    b(tile_counts_) + b(row_ny_) + b(background_);
   for (const auto* v : {&col_x_, &col_y_, &col_z_, &row_x_, &row_y_, &row_z_}) s += b(*v);
   return s;
 }
@@ -290,10 +299,12 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
   const View view(cam);
   keys_.resize(n);
   order_.resize(n);
-  parallel_for(n, threads, [&](std::size_t k) {
-    const Reach q = reach(view, spheres[k]);
-    keys_[k] = q.visible(view) ? depth_key(q.near_depth()) : kCulled;
-    order_[k] = static_cast<std::uint32_t>(k);
+  for_chunks(n, chunks_for(n, threads), [&](std::size_t b, std::size_t e, std::size_t) {
+    for (std::size_t k = b; k < e; ++k) {
+      const Reach q = reach(view, spheres[k]);
+      keys_[k] = q.visible(view) ? depth_key(q.near_depth()) : kCulled;
+      order_[k] = static_cast<std::uint32_t>(k);
+    }
   });
   radix_sort<std::uint16_t>(keys_, order_, 16, threads, sort_scratch_);  // stable: ties by index
   const auto visible = static_cast<std::size_t>(std::lower_bound(keys_.begin(), keys_.end(), kCulled) - keys_.begin());
@@ -302,7 +313,7 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
   // (chunk, tile), a scan in (tile, chunk) order, a scatter per chunk, so each tile's list is in
   // depth order whatever the number of chunks (and no atomics).
   prep_.resize(visible);
-  const std::size_t chunks = std::max<std::size_t>(1, std::min<std::size_t>(threads_for(visible, threads), visible));
+  const std::size_t chunks = chunks_for(visible, threads);
   chunk_tile_count_.assign(chunks * tiles, 0);
   auto for_tiles_of = [&](const Prepared& p, auto&& f) {
     for (int ty = p.y0 / kT; ty <= (p.y1 - 1) / kT; ++ty)
@@ -366,6 +377,12 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
   }
 
   // 4. Rasterise and count, one task per tile (every pixel belongs to exactly one tile).
+  // Tiles this rasterizer left as background in this map, unchanged since (same stamp, size,
+  // far plane and normals), are not written again.
+  const bool keep_background =
+      map.stamp != 0 && map.stamp == stamp_ && background_.size() == tiles && background_far_ == cam.far_plane;
+  map.stamp = 0;  // until this run is complete
+  background_.resize(tiles);
   const bool normals = !map.normal.empty();
   const std::size_t W = static_cast<std::size_t>(map.width);
   const float far_depth = cam.far_plane;
@@ -380,7 +397,8 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
     const int w = x1 - x0, h = y1 - y0;
     const std::uint32_t* items = tile_items_.data() + tile_offset_[t];
     const std::uint32_t m = tile_offset_[t + 1] - tile_offset_[t];
-    if (m == 0) {  // background only
+    if (m == 0) {                                     // background only
+      if (keep_background && background_[t]) return;  // still there from the last run
       for (int py = y0; py < y1; ++py) {
         const std::size_t row = static_cast<std::size_t>(py) * W + static_cast<std::size_t>(x0);
         stream_row(map.ids.data() + row, map.depth.data() + row, w, [&](int) {
@@ -424,6 +442,7 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
 
     for (std::uint32_t j = 0; j < m; ++j) {
       const Prepared& p = prep_[items[j]];
+      if (j + 1 < m) _mm_prefetch(reinterpret_cast<const char*>(&prep_[items[j + 1]]), _MM_HINT_T0);
       if (j == next_check) {
         if (changed) {
           __m128 m0 = _mm_load_ps(buf.best), m1 = _mm_load_ps(buf.best + 4), m2 = _mm_load_ps(buf.best + 8),
@@ -529,6 +548,9 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
     run_tasks(static_cast<std::uint32_t>(tiles), tile_task);
   }
 
+  for (std::size_t t = 0; t < tiles; ++t) background_[t] = tile_offset_[t] == tile_offset_[t + 1];
+  background_far_ = cam.far_plane;
+
   // 5. Pixel counts per object: the sum of its tiles' counts.
   map.counts.assign(n, 0);
   for (std::size_t t = 0; t < tiles; ++t) {
@@ -538,6 +560,8 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
     for (std::uint32_t j = 0; j < m; ++j) map.counts[prep_[items[j]].id - 1] += counts[j];
   }
   map.has_counts = true;
+  static std::atomic<std::uint64_t> stamps{0};
+  map.stamp = stamp_ = ++stamps;
 }
 
 }  // namespace viscd::detail

@@ -48,6 +48,10 @@ class TiledRasterizer {
   std::vector<std::uint32_t> chunk_tile_count_, tile_offset_, tile_items_, tile_counts_;
   std::vector<float> col_x_, col_y_, col_z_, row_x_, row_y_, row_z_;
   std::vector<double> row_ny_;
+  // Tiles written as background only (ids 0, depth far, normals 0) under stamp_.
+  std::vector<std::uint8_t> background_;
+  std::uint64_t stamp_ = 0;
+  float background_far_ = 0;
 };
 
 }  // namespace viscd::detail

@@ -18,6 +18,7 @@ Vec3 normalize(Vec3 a) {
 }  // namespace
 
 void VisibilityMap::resize(int w, int h, bool with_normals) {
+  if (w != width || h != height || with_normals != !normal.empty()) stamp = 0;
   width = w;
   height = h;
   const auto n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
@@ -49,6 +50,7 @@ void write_normal(const CameraRig& cam, std::span<const Sphere> spheres, Visibil
 }
 
 void rasterize_reference(const CameraRig& cam, std::span<const Sphere> spheres, VisibilityMap& map) {
+  map.stamp = 0;  // (bookkeeping: the content is no longer the cpu rasterizer's)
   for (int py = 0; py < map.height; ++py) {
     for (int px = 0; px < map.width; ++px) {
       const Vec3 d = cam.dir(px, py);

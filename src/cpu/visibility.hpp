@@ -35,6 +35,9 @@ struct CacheAligned {
 /// (unit, world space, 3 floats per pixel) only when asked for (shading). A rasterizer that counts
 /// pixels per object while writing the map (the cpu backend's) leaves them in `counts` and sets
 /// `has_counts`; resize() clears it, so counts never outlive the map they were taken from.
+/// `stamp` names the content: the cpu rasterizer sets a new one whenever it writes the map, and
+/// next time leaves alone the background tiles it wrote if the stamp is still its own. Anything
+/// else that writes the map must set it to 0 (resize() does when the size or the normals change).
 struct VisibilityMap {
   int width = 0, height = 0;
   std::vector<std::uint32_t, CacheAligned<std::uint32_t>> ids;
@@ -42,6 +45,7 @@ struct VisibilityMap {
   std::vector<float> normal;
   std::vector<std::uint32_t> counts;
   bool has_counts = false;
+  std::uint64_t stamp = 0;
   void resize(int w, int h, bool with_normals);
   /// Bytes held (capacities).
   [[nodiscard]] std::uint64_t memory_bytes() const {

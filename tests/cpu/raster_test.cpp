@@ -237,5 +237,57 @@ TEST(Raster, CountsFollowTheMapAcrossFramesAndResizes) {
   EXPECT_FALSE(m.has_counts);
 }
 
+TEST(Raster, BackgroundTilesAreKeptOnlyWhileTheyStillHoldIt) {
+  // One map and rasterizer over frames: background tiles of the last frame are not rewritten, so
+  // every way the map's content or the background can change must make them be written again.
+  const Camera base = camera_at(0, 0, 30, 0, 0, 0, 150, 100, 40);
+  TiledRasterizer r, other;
+  VisibilityMap map;
+  map.resize(150, 100, false);
+  auto frame = [&](TiledRasterizer& rr, const Camera& cam, std::span<const Sphere> s, const char* what) {
+    const CameraRig rig(cam, map.width, map.height);
+    const Oracle want = reference(rig, s);
+    rr.run(rig, s, 2, map);
+    ASSERT_EQ(map.ids, want.map.ids) << what;
+    for (std::size_t i = 0; i < map.depth.size(); ++i)
+      ASSERT_EQ(std::bit_cast<std::uint32_t>(map.depth[i]), std::bit_cast<std::uint32_t>(want.map.depth[i]))
+          << what << ", pixel " << i;
+    ASSERT_EQ(map.counts, want.counts) << what;
+  };
+  // A cluster that moves across the view, leaving tiles empty behind it and covering new ones.
+  for (int step = 0; step < 8; ++step) {
+    std::vector<Sphere> s;
+    for (int k = 0; k < 30; ++k)
+      s.push_back({-12.0f + 3.0f * static_cast<float>(step) + 0.3f * static_cast<float>(k % 6),
+                   -2.0f + 0.7f * static_cast<float>(k / 6), 0, 0.8f});
+    ASSERT_NO_FATAL_FAILURE(frame(r, base, s, "moving cluster"));
+  }
+  const std::vector<Sphere> few = {{-8, 3, 0, 1}, {6, -4, 0, 2}};
+  ASSERT_NO_FATAL_FAILURE(frame(r, base, few, "few"));
+  ASSERT_NO_FATAL_FAILURE(frame(r, base, {}, "none"));
+  // Another far plane changes the background depth everywhere.
+  Camera far = base;
+  far.far_plane = 250;
+  ASSERT_NO_FATAL_FAILURE(frame(r, far, few, "other far plane"));
+  ASSERT_NO_FATAL_FAILURE(frame(r, base, few, "far plane back"));
+  // Another writer in between: the reference, another rasterizer, a caller who sets stamp 0.
+  const std::vector<Sphere> big = {{0, 0, 0, 9}};
+  {
+    const CameraRig rig(base, map.width, map.height);
+    detail::rasterize_reference(rig, big, map);
+  }
+  ASSERT_NO_FATAL_FAILURE(frame(r, base, few, "after the reference wrote the map"));
+  ASSERT_NO_FATAL_FAILURE(frame(other, base, big, "another rasterizer"));
+  ASSERT_NO_FATAL_FAILURE(frame(r, base, few, "after another rasterizer"));
+  std::fill(map.ids.begin(), map.ids.end(), 77u);
+  map.stamp = 0;
+  ASSERT_NO_FATAL_FAILURE(frame(r, base, few, "after a caller's write"));
+  // Resized (content undefined) and back.
+  map.resize(64, 64, false);
+  ASSERT_NO_FATAL_FAILURE(frame(r, base, few, "resized"));
+  map.resize(150, 100, false);
+  ASSERT_NO_FATAL_FAILURE(frame(r, base, few, "resized back"));
+}
+
 }  // namespace
 }  // namespace viscd
