@@ -408,10 +408,11 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
       for (int i = 0; i < kT; ++i) first[i] = i < w ? kInf : -kInf;
       const __m128i zero = _mm_setzero_si128();
       _mm_storeu_si128(reinterpret_cast<__m128i*>(buf.pad), zero);
+      // (id needs no start value: it is read only where slot is set, or compared where best is
+      // +inf or -inf, where the depth alone decides.)
       for (int r = 0; r < h; ++r)
         for (int i = 0; i < kT; i += 4) {
           _mm_store_ps(buf.best + r * kT + i, _mm_load_ps(first + i));
-          _mm_store_si128(reinterpret_cast<__m128i*>(buf.id + r * kT + i), zero);
           _mm_store_si128(reinterpret_cast<__m128i*>(buf.slot + r * kT + i), zero);
         }
     }
@@ -486,13 +487,14 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
       const std::size_t row = static_cast<std::size_t>(y0 + r) * W + static_cast<std::size_t>(x0);
       const float* best = buf.best + r * kT;
       const std::uint32_t* ids = buf.id + r * kT;
+      const std::uint32_t* slots = buf.slot + r * kT;
       stream_row(map.ids.data() + row, map.depth.data() + row, w, [&](int i) {
-        const __m128i vi = _mm_loadu_si128(reinterpret_cast<const __m128i*>(ids + i));
-        const __m128 none = _mm_castsi128_ps(_mm_cmpeq_epi32(vi, _mm_setzero_si128()));
-        return std::pair{vi, select(none, v_far_depth, _mm_loadu_ps(best + i))};
+        const __m128i none =
+            _mm_cmpeq_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(slots + i)), _mm_setzero_si128());
+        const __m128i vi = _mm_andnot_si128(none, _mm_loadu_si128(reinterpret_cast<const __m128i*>(ids + i)));
+        return std::pair{vi, select(_mm_castsi128_ps(none), v_far_depth, _mm_loadu_ps(best + i))};
       });
       // Runs: bit i set where slot[i] differs from slot[i - 1] (bit 0 always).
-      const std::uint32_t* slots = buf.slot + r * kT;
       std::uint32_t starts = 0;
       for (int g = 0; g < kT; g += 4) {
         const __m128i cur = _mm_load_si128(reinterpret_cast<const __m128i*>(slots + g));
