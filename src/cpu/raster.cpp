@@ -272,9 +272,9 @@ std::size_t chunks_for(std::size_t n, int threads) {
 
 std::uint64_t TiledRasterizer::memory_bytes() const {
   auto b = [](const auto& v) { return static_cast<std::uint64_t>(v.capacity()) * sizeof(v[0]); };
-  std::uint64_t s = b(prep_) + b(keys_) + b(order_) + b(sort_scratch_.keys) + b(sort_scratch_.values) +
-                    b(sort_scratch_.histograms) + b(chunk_tile_count_) + b(tile_offset_) + b(tile_items_) +
-                    b(tile_counts_) + b(background_);
+  std::uint64_t s = b(prep_) + b(by_index_) + b(tile_span_) + b(keys_) + b(order_) + b(sort_scratch_.keys) +
+                    b(sort_scratch_.values) + b(sort_scratch_.histograms) + b(chunk_tile_count_) + b(tile_offset_) +
+                    b(tile_items_) + b(tile_counts_) + b(background_);
   for (const auto* v : {&col_x_, &col_y_, &col_z_, &row_x_, &row_y_, &row_z_}) s += b(*v);
   return s;
 }
@@ -284,50 +284,54 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
   const int tiles_x = (map.width + kT - 1) / kT, tiles_y = (map.height + kT - 1) / kT;
   const std::size_t tiles = static_cast<std::size_t>(tiles_x) * static_cast<std::size_t>(tiles_y);
 
-  // 1. Depth keys: front to back by a lower bound of each sphere's depth (16-bit key); spheres
-  // wholly before near or beyond far get the last key and are left out.
+  // 1. Per sphere, in index order (the spheres are read once, in memory order): hit()'s terms,
+  // the depth bound and key, the rectangle and its tiles. Spheres no pixel can see (wholly
+  // before near or beyond far, or off the map) get the last key and are left out.
   const View view(cam);
+  by_index_.resize(n);
+  tile_span_.resize(n);
   keys_.resize(n);
   order_.resize(n);
   for_chunks(n, chunks_for(n, threads), [&](std::size_t b, std::size_t e, std::size_t) {
     for (std::size_t k = b; k < e; ++k) {
-      const Reach q = reach(view, spheres[k]);
-      keys_[k] = q.visible(view) ? depth_key(q.near_depth()) : kCulled;
-      order_[k] = static_cast<std::uint32_t>(k);
-    }
-  });
-  radix_sort<std::uint16_t>(keys_, order_, 16, threads, sort_scratch_);  // stable: ties by index
-  const auto visible = static_cast<std::size_t>(std::lower_bound(keys_.begin(), keys_.end(), kCulled) - keys_.begin());
-
-  // 2. In that order: what a tile needs of each sphere, then binning into tiles: a count per
-  // (chunk, tile), a scan in (tile, chunk) order, a scatter per chunk, so each tile's list is in
-  // depth order whatever the number of chunks (and no atomics).
-  prep_.resize(visible);
-  const std::size_t chunks = chunks_for(visible, threads);
-  chunk_tile_count_.assign(chunks * tiles, 0);
-  auto for_tiles_of = [&](const Prepared& p, auto&& f) {
-    for (int ty = p.y0 / kT; ty <= (p.y1 - 1) / kT; ++ty)
-      for (int tx = p.x0 / kT; tx <= (p.x1 - 1) / kT; ++tx) f(static_cast<std::size_t>(ty * tiles_x + tx));
-  };
-  for_chunks(visible, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
-    std::uint32_t* cnt = chunk_tile_count_.data() + c * tiles;
-    for (std::size_t i = b; i < e; ++i) {
-      const std::uint32_t k = order_[i];
       const Sphere& s = spheres[k];
-      Prepared& p = prep_[i];
+      Prepared& p = by_index_[k];
       const Reach q = reach(view, s);
       // hit()'s expressions and order, so the per-pixel results match it bit for bit.
       p.ox = cam.eye.x - s.x, p.oy = cam.eye.y - s.y, p.oz = cam.eye.z - s.z;
       p.c = p.ox * p.ox + p.oy * p.oy + p.oz * p.oz - s.r * s.r;
       p.near_depth = q.near_depth();
-      p.key_floor = key_floor(keys_[i]);
-      p.id = k + 1;
+      p.id = static_cast<std::uint32_t>(k + 1);
       prepare(view, q, p);
+      const bool seen = q.visible(view) && p.x0 < p.x1 && p.y0 < p.y1;
+      keys_[k] = seen ? depth_key(p.near_depth) : kCulled;
+      p.key_floor = key_floor(keys_[k]);
+      order_[k] = static_cast<std::uint32_t>(k);
+      tile_span_[k] =
+          seen ? TileSpan{static_cast<std::uint16_t>(p.x0 / kT), static_cast<std::uint16_t>(p.y0 / kT),
+                          static_cast<std::uint16_t>((p.x1 - 1) / kT), static_cast<std::uint16_t>((p.y1 - 1) / kT)}
+               : TileSpan{1, 1, 0, 0};
     }
-    for (std::size_t i = b; i < e; ++i) {  // apart, so the loop above has no branch to mispredict
-      const Prepared& p = prep_[i];
-      if (p.x0 >= p.x1 || p.y0 >= p.y1) continue;
-      for_tiles_of(p, [&](std::size_t t) { ++cnt[t]; });
+  });
+
+  // 2. Front to back (stable: equal keys by index), then binning into tiles in that order: a
+  // count per (chunk, tile), a scan in (tile, chunk) order, a scatter per chunk, so each tile's
+  // list is in depth order whatever the number of chunks (and no atomics).
+  radix_sort<std::uint16_t>(keys_, order_, 16, threads, sort_scratch_);
+  const auto visible = static_cast<std::size_t>(std::lower_bound(keys_.begin(), keys_.end(), kCulled) - keys_.begin());
+  const std::size_t chunks = chunks_for(visible, threads);
+  chunk_tile_count_.assign(chunks * tiles, 0);
+  prep_.resize(visible);
+  auto for_tiles_of = [&](const TileSpan& ts, auto&& f) {
+    for (int ty = ts.ty0; ty <= ts.ty1; ++ty)
+      for (int tx = ts.tx0; tx <= ts.tx1; ++tx) f(static_cast<std::size_t>(ty * tiles_x + tx));
+  };
+  for_chunks(visible, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
+    std::uint32_t* cnt = chunk_tile_count_.data() + c * tiles;
+    for (std::size_t i = b; i < e; ++i) {
+      const std::uint32_t k = order_[i];
+      prep_[i] = by_index_[k];  // in depth order: the tiles read them in memory order
+      for_tiles_of(tile_span_[k], [&](std::size_t t) { ++cnt[t]; });
     }
   });
   tile_offset_.resize(tiles + 1);
@@ -346,9 +350,8 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
   for_chunks(visible, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
     std::uint32_t* cursor = chunk_tile_count_.data() + c * tiles;
     for (std::size_t i = b; i < e; ++i) {
-      const Prepared& p = prep_[i];
-      if (p.x0 >= p.x1 || p.y0 >= p.y1) continue;
-      for_tiles_of(p, [&](std::size_t t) { tile_items_[cursor[t]++] = static_cast<std::uint32_t>(i); });
+      for_tiles_of(tile_span_[order_[i]],
+                   [&](std::size_t t) { tile_items_[cursor[t]++] = static_cast<std::uint32_t>(i); });
     }
   });
 
@@ -533,7 +536,7 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
     const std::uint32_t* counts = tile_counts_.data() + tile_offset_[t] + t + 1;
     const std::uint32_t* items = tile_items_.data() + tile_offset_[t];
     const std::uint32_t m = tile_offset_[t + 1] - tile_offset_[t];
-    for (std::uint32_t j = 0; j < m; ++j) map.counts[prep_[items[j]].id - 1] += counts[j];
+    for (std::uint32_t j = 0; j < m; ++j) map.counts[order_[items[j]]] += counts[j];
   }
   map.has_counts = true;
   static std::atomic<std::uint64_t> stamps{0};

@@ -38,7 +38,12 @@ class TiledRasterizer {
   };
 
  private:
-  std::vector<Prepared> prep_;
+  /// The tiles a sphere's rectangle touches, inclusive (tx0 > tx1: none).
+  struct TileSpan {
+    std::uint16_t tx0, ty0, tx1, ty1;
+  };
+  std::vector<Prepared> by_index_, prep_;  // by sphere index; the visible ones in depth order
+  std::vector<TileSpan> tile_span_;
   std::vector<std::uint16_t> keys_;
   std::vector<std::uint32_t> order_;
   RadixScratch<std::uint16_t> sort_scratch_;
