@@ -1,6 +1,7 @@
 #include "cpu/raster.hpp"
 
 #include <emmintrin.h>
+#include <xmmintrin.h>
 
 #include <algorithm>
 #include <array>
@@ -10,6 +11,7 @@
 #include <limits>
 
 #include "cpu/parallel.hpp"
+#include "viscd/assert.hpp"
 
 namespace viscd::detail {
 namespace {
@@ -51,92 +53,86 @@ struct View {
   }
 };
 
-/// A sphere widened to the radius R that holds every ray hit() can accept: hit() decides on a
-/// float discriminant that cancels near the centre of spheres small against their distance |o|,
-/// so R = sqrt(r^2 + 2^-19 |o|^2) as sphere_rect (docs/architecture.md, "Visibility map"), plus
-/// 2e-4 (|o|_1 + r): twice sphere_rect's slack, and far more than the float rounding of a ray's
-/// direction or of the depth t (relative 1e-5 at most, at a 179.9 degree field of view).
-struct Reach {
-  double o[3];         // eye - centre
-  double rr, k;        // R and |o|^2 - R^2
-  double of, ou, or_;  // o . forward, o . up, o . right
-  double cz;           // view depth of the centre
-  [[nodiscard]] bool visible(const View& v) const { return !(cz + rr < v.near_plane || cz - rr > v.far_plane); }
-  /// A lower bound of hit()'s t on the sphere (float, rounded down).
-  [[nodiscard]] float near_depth() const {
-    const double d = cz - rr;
-    if (!(d > 0)) return 0.0f;
-    const auto f = static_cast<float>(d);  // > 0: d is at least the float's half ulp
-    return static_cast<double>(f) > d ? std::bit_cast<float>(std::bit_cast<std::uint32_t>(f) - 1) : f;
-  }
+/// Two spheres at a time (SSE2 double lanes): the sphere widened to the radius R that holds every
+/// ray hit() can accept, and its projection. hit() decides on a float discriminant that cancels
+/// near the centre of spheres small against their distance |o|, so R = sqrt(r^2 + 2^-19 |o|^2) as
+/// sphere_rect (docs/architecture.md, "Visibility map"), plus 2e-4 (|o|_1 + r): twice
+/// sphere_rect's slack, and far more than the float rounding of a ray's direction or of the
+/// depth t (relative 1e-5 at most, at a 179.9 degree field of view).
+///
+/// The projection: the directions d = f + a u + b v (u, v screen coordinates, nx or ny) whose
+/// line from the eye passes within R of the centre, Q = (o.d)^2 - |d|^2 k >= 0 with o = eye -
+/// centre and k = |o|^2 - R^2 > 0. For fixed v, Q = la u^2 + 2 (b0 + b1 v) u + (c0 + c1 v +
+/// c2 v^2); with la < 0 its solutions are the u between the roots, which exist where the
+/// discriminant D(v) = d0 + d1 v + d2 v^2 >= 0: for d2 < 0 an interval of v, the extent of the
+/// projection along that screen axis. Bounded exactly when the widened sphere lies wholly in
+/// front of (or behind) the eye's plane; else (or where rounding could make it unreliable: la or
+/// d2 not clearly negative, no real roots, a root not finite) that axis is not bounded.
+struct Bounds2 {
+  alignas(16) double rr[2], cz[2];        // R, view depth of the centre
+  alignas(16) double lo[2][2], hi[2][2];  // [axis: 0 rows (ny), 1 columns (nx)][lane]
+  int ok[2];                              // bit lane: that axis is bounded
 };
-[[gnu::always_inline]] inline Reach reach(const View& v, const Sphere& s) {
-  Reach q;
-  q.o[0] = v.ex - s.x, q.o[1] = v.ey - s.y, q.o[2] = v.ez - s.z;
-  const double r = s.r, o2 = q.o[0] * q.o[0] + q.o[1] * q.o[1] + q.o[2] * q.o[2];
-  const double l1 = std::fabs(q.o[0]) + std::fabs(q.o[1]) + std::fabs(q.o[2]);
-  q.rr = std::sqrt(r * r + 0x1p-19 * o2) + 2e-4 * (l1 + r) + 1e-6;
-  q.k = o2 - q.rr * q.rr;
-  auto dot = [&](const double* a) { return q.o[0] * a[0] + q.o[1] * a[1] + q.o[2] * a[2]; };
-  q.of = dot(v.f), q.ou = dot(v.up), q.or_ = dot(v.rt);
-  q.cz = -q.of;
-  return q;
+inline void bounds2(const View& v, const Sphere& s0, const Sphere& s1, Bounds2& out) {
+  auto pair = [](double a, double b) { return _mm_set_pd(b, a); };  // lane 0 = a
+  auto c = [](double x) { return _mm_set1_pd(x); };
+  const __m128d sign = c(-0.0), zero = _mm_setzero_pd();
+  auto abs = [&](__m128d x) { return _mm_andnot_pd(sign, x); };
+  auto add = [](__m128d x, __m128d y) { return _mm_add_pd(x, y); };
+  auto sub = [](__m128d x, __m128d y) { return _mm_sub_pd(x, y); };
+  auto mul = [](__m128d x, __m128d y) { return _mm_mul_pd(x, y); };
+  const __m128d ox = sub(c(v.ex), pair(s0.x, s1.x)), oy = sub(c(v.ey), pair(s0.y, s1.y)),
+                oz = sub(c(v.ez), pair(s0.z, s1.z)), r = pair(s0.r, s1.r);
+  const __m128d o2 = add(add(mul(ox, ox), mul(oy, oy)), mul(oz, oz));
+  const __m128d l1 = add(add(abs(ox), abs(oy)), abs(oz));
+  const __m128d rr = add(add(_mm_sqrt_pd(add(mul(r, r), mul(c(0x1p-19), o2))), mul(c(2e-4), add(l1, r))), c(1e-6));
+  const __m128d k = sub(o2, mul(rr, rr));
+  auto dot = [&](const double* a) { return add(add(mul(ox, c(a[0])), mul(oy, c(a[1]))), mul(oz, c(a[2]))); };
+  const __m128d of = dot(v.f), ou = dot(v.up), orr = dot(v.rt);
+  _mm_store_pd(out.rr, rr);
+  _mm_store_pd(out.cz, _mm_xor_pd(of, sign));
+  const __m128d k_pos = _mm_cmpgt_pd(k, zero);  // else the eye is inside (or at) the widened sphere
+  auto extent = [&](int axis, __m128d oa, __m128d ob, double aa, double bb, double fa, double fb, double ab) {
+    const __m128d oa2 = mul(oa, oa), kaa = mul(k, c(aa));
+    const __m128d la = sub(oa2, kaa);
+    __m128d ok = _mm_and_pd(k_pos, _mm_cmplt_pd(la, mul(c(-1e-6), add(oa2, kaa))));
+    const __m128d b0 = sub(mul(of, oa), mul(k, c(fa))), b1 = sub(mul(ob, oa), mul(k, c(ab)));
+    const __m128d c0 = sub(mul(of, of), mul(k, c(v.ff))), c1 = mul(c(2), sub(mul(of, ob), mul(k, c(fb)))),
+                  c2 = sub(mul(ob, ob), mul(k, c(bb)));
+    const __m128d b1b1 = mul(b1, b1);
+    const __m128d d0 = sub(mul(b0, b0), mul(la, c0)), d1 = sub(mul(c(2), mul(b0, b1)), mul(la, c1)),
+                  d2 = sub(b1b1, mul(la, c2));
+    ok = _mm_and_pd(ok, _mm_cmplt_pd(d2, mul(c(-1e-9), add(b1b1, abs(sub(d2, b1b1))))));
+    const __m128d disc = sub(mul(d1, d1), mul(c(4), mul(d2, d0)));
+    ok = _mm_and_pd(ok, _mm_cmpge_pd(disc, zero));
+    const __m128d sq = _mm_sqrt_pd(_mm_max_pd(disc, zero)), inv = _mm_div_pd(c(0.5), d2);
+    const __m128d nd1 = _mm_xor_pd(d1, sign);
+    const __m128d r0 = mul(sub(nd1, sq), inv), r1 = mul(add(nd1, sq), inv);
+    const __m128d lo = _mm_min_pd(r0, r1), hi = _mm_max_pd(r0, r1);
+    const __m128d inf = c(std::numeric_limits<double>::infinity());
+    ok = _mm_and_pd(ok, _mm_and_pd(_mm_cmplt_pd(abs(lo), inf), _mm_cmplt_pd(abs(hi), inf)));
+    _mm_store_pd(out.lo[axis], lo);
+    _mm_store_pd(out.hi[axis], hi);
+    out.ok[axis] = _mm_movemask_pd(ok);
+  };
+  extent(0, orr, ou, v.rr, v.uu, v.fr, v.fu, v.ur);  // rows: u = nx, v = ny
+  extent(1, ou, orr, v.uu, v.rr, v.fu, v.fr, v.ur);  // columns: u = ny, v = nx
 }
-
-/// The directions d = f + a u + b v (u, v screen coordinates: nx or ny) whose line from the eye
-/// passes within R of the centre: Q = (o.d)^2 - |d|^2 k >= 0, k = |o|^2 - R^2 > 0. For fixed v,
-/// Q = la u^2 + 2 (b0 + b1 v) u + (c0 + c1 v + c2 v^2); with la < 0 its solutions are the u
-/// between the roots, which exist where the discriminant D(v) = d0 + d1 v + d2 v^2 >= 0. Bounded
-/// exactly when the widened sphere lies wholly in front of (or behind) the eye's plane.
-struct Conic {
-  bool bounded = false;  // la < 0 by a margin: every row (or column) is a bounded interval
-  double la = 0, b0 = 0, b1 = 0, d0 = 0, d1 = 0, d2 = 0;
-};
-// oa, ob: o.a, o.b; aa, bb, fa, fb, ab: dot products of the axes.
-[[gnu::always_inline]] inline Conic conic(double of, double oa, double ob, double k, double ff, double aa, double bb,
-                                          double fa, double fb, double ab) {
-  Conic q;
-  q.la = oa * oa - k * aa;
-  q.bounded = q.la < -1e-6 * (oa * oa + k * aa);
-  q.b0 = of * oa - k * fa;
-  q.b1 = ob * oa - k * ab;
-  const double c0 = of * of - k * ff, c1 = 2 * (of * ob - k * fb), c2 = ob * ob - k * bb;
-  q.d0 = q.b0 * q.b0 - q.la * c0;
-  q.d1 = 2 * q.b0 * q.b1 - q.la * c1;
-  q.d2 = q.b1 * q.b1 - q.la * c2;
-  return q;
-}
-/// The v where D(v) >= 0, if that is a bounded interval (the line through the centre always
-/// qualifies, so an empty one can only be rounding: then no bound).
-[[gnu::always_inline]] inline bool v_range(const Conic& q, double& lo, double& hi) {
-  if (!q.bounded || !(q.d2 < -1e-9 * (q.b1 * q.b1 + std::fabs(q.d2 - q.b1 * q.b1)))) return false;
-  const double disc = q.d1 * q.d1 - 4 * q.d2 * q.d0;
-  if (!(disc >= 0)) return false;
-  const double sq = std::sqrt(disc), inv = 0.5 / q.d2, r0 = (-q.d1 - sq) * inv, r1 = (-q.d1 + sq) * inv;
-  lo = std::min(r0, r1), hi = std::max(r0, r1);
-  return std::isfinite(lo) && std::isfinite(hi);
+/// A lower bound of hit()'s t on the sphere (float, rounded down).
+inline float near_depth(double cz, double rr) {
+  const double d = cz - rr;
+  if (!(d > 0)) return 0.0f;
+  const auto f = static_cast<float>(d);  // > 0: d is at least the float's half ulp
+  return static_cast<double>(f) > d ? std::bit_cast<float>(std::bit_cast<std::uint32_t>(f) - 1) : f;
 }
 /// First and one-past-last pixel whose centre lies in [lo, hi] (widened by kPixelMargin), within
 /// [0, n).
-[[gnu::always_inline]] inline void pixel_range(double lo, double hi, int n, int& a, int& b) {
+inline void pixel_range(double lo, double hi, int n, std::int32_t& a, std::int32_t& b) {
   lo = std::clamp(lo - kPixelMargin, -1.0, static_cast<double>(n));
   hi = std::clamp(hi + kPixelMargin, -1.0, static_cast<double>(n));
   const int l = static_cast<int>(lo), h = static_cast<int>(hi);  // truncation; then ceil and floor:
   a = std::max(0, l + (static_cast<double>(l) < lo ? 1 : 0));
   b = std::min(n, h - (static_cast<double>(h) > hi ? 1 : 0) + 1);
-}
-
-/// The pixel rectangle of a visible sphere: its widened projection, the whole map where that is
-/// unbounded. (Spans per row would not pay: within a 32-pixel tile row they save at most 8 groups
-/// of the cheap first pass, which is what computing one costs.)
-[[gnu::always_inline]] inline void prepare(const View& v, const Reach& q, TiledRasterizer::Prepared& p) {
-  p.x0 = 0, p.y0 = 0, p.x1 = v.w, p.y1 = v.h;
-  if (!(q.k > 0)) return;  // the eye is inside (or at) the widened sphere
-  const Conic rows = conic(q.of, q.or_, q.ou, q.k, v.ff, v.rr, v.uu, v.fr, v.fu, v.ur);  // u = nx, v = ny
-  double lo = 0, hi = 0;
-  if (v_range(rows, lo, hi)) pixel_range(-hi * v.sy + v.cy, -lo * v.sy + v.cy, v.h, p.y0, p.y1);
-  const Conic cols = conic(q.of, q.ou, q.or_, q.k, v.ff, v.uu, v.rr, v.fu, v.fr, v.ur);  // u = ny, v = nx
-  if (v_range(cols, lo, hi)) pixel_range(lo * v.sx + v.cx, hi * v.sx + v.cx, v.w, p.x0, p.x1);
 }
 
 inline __m128 select(__m128 mask, __m128 a, __m128 b) { return _mm_or_ps(_mm_and_ps(mask, a), _mm_andnot_ps(mask, b)); }
@@ -272,9 +268,9 @@ std::size_t chunks_for(std::size_t n, int threads) {
 
 std::uint64_t TiledRasterizer::memory_bytes() const {
   auto b = [](const auto& v) { return static_cast<std::uint64_t>(v.capacity()) * sizeof(v[0]); };
-  std::uint64_t s = b(prep_) + b(by_index_) + b(tile_span_) + b(keys_) + b(order_) + b(sort_scratch_.keys) +
-                    b(sort_scratch_.values) + b(sort_scratch_.histograms) + b(chunk_tile_count_) + b(tile_offset_) +
-                    b(tile_items_) + b(tile_counts_) + b(background_);
+  std::uint64_t s = b(prep_) + b(bounds_) + b(keys_) + b(order_) + b(sort_scratch_.keys) + b(sort_scratch_.values) +
+                    b(sort_scratch_.histograms) + b(chunk_tile_count_) + b(tile_offset_) + b(tile_items_) +
+                    b(tile_counts_) + b(background_);
   for (const auto* v : {&col_x_, &col_y_, &col_z_, &row_x_, &row_y_, &row_z_}) s += b(*v);
   return s;
 }
@@ -284,55 +280,71 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
   const int tiles_x = (map.width + kT - 1) / kT, tiles_y = (map.height + kT - 1) / kT;
   const std::size_t tiles = static_cast<std::size_t>(tiles_x) * static_cast<std::size_t>(tiles_y);
 
-  // 1. Per sphere, in index order (the spheres are read once, in memory order): hit()'s terms,
-  // the depth bound and key, the rectangle and its tiles. Spheres no pixel can see (wholly
-  // before near or beyond far, or off the map) get the last key and are left out.
+  // 1. Per sphere, in index order (the spheres are read in memory order): the depth bound and
+  // key and the rectangle. Spheres no pixel can see (wholly before near or beyond far, or off
+  // the map) get the last key and are left out.
+  static_assert(kMaxMapSide <= 0xFFFF, "map coordinates are kept in 16 bits");
+  VISCD_ASSERT(map.width <= kMaxMapSide && map.height <= kMaxMapSide, "visibility map larger than kMaxMapSide");
   const View view(cam);
-  by_index_.resize(n);
-  tile_span_.resize(n);
+  bounds_.resize(n);
   keys_.resize(n);
   order_.resize(n);
   for_chunks(n, chunks_for(n, threads), [&](std::size_t b, std::size_t e, std::size_t) {
-    for (std::size_t k = b; k < e; ++k) {
-      const Sphere& s = spheres[k];
-      Prepared& p = by_index_[k];
-      const Reach q = reach(view, s);
-      // hit()'s expressions and order, so the per-pixel results match it bit for bit.
-      p.ox = cam.eye.x - s.x, p.oy = cam.eye.y - s.y, p.oz = cam.eye.z - s.z;
-      p.c = p.ox * p.ox + p.oy * p.oy + p.oz * p.oz - s.r * s.r;
-      p.near_depth = q.near_depth();
-      p.id = static_cast<std::uint32_t>(k + 1);
-      prepare(view, q, p);
-      const bool seen = q.visible(view) && p.x0 < p.x1 && p.y0 < p.y1;
-      keys_[k] = seen ? depth_key(p.near_depth) : kCulled;
-      p.key_floor = key_floor(keys_[k]);
-      order_[k] = static_cast<std::uint32_t>(k);
-      tile_span_[k] =
-          seen ? TileSpan{static_cast<std::uint16_t>(p.x0 / kT), static_cast<std::uint16_t>(p.y0 / kT),
-                          static_cast<std::uint16_t>((p.x1 - 1) / kT), static_cast<std::uint16_t>((p.y1 - 1) / kT)}
-               : TileSpan{1, 1, 0, 0};
+    Bounds2 q;
+    for (std::size_t k0 = b; k0 < e; k0 += 2) {
+      bounds2(view, spheres[k0], spheres[std::min(k0 + 1, e - 1)], q);
+      for (std::size_t lane = 0; lane < 2 && k0 + lane < e; ++lane) {
+        const std::size_t k = k0 + lane;
+        // The rectangle: the projection's extent on the bounded axes, else the whole map.
+        std::int32_t x0 = 0, y0 = 0, x1 = view.w, y1 = view.h;
+        if (q.ok[0] >> lane & 1)  // rows [py(hi), py(lo)]
+          pixel_range(-q.hi[0][lane] * view.sy + view.cy, -q.lo[0][lane] * view.sy + view.cy, view.h, y0, y1);
+        if (q.ok[1] >> lane & 1)
+          pixel_range(q.lo[1][lane] * view.sx + view.cx, q.hi[1][lane] * view.sx + view.cx, view.w, x0, x1);
+        const bool seen = !(q.cz[lane] + q.rr[lane] < view.near_plane || q.cz[lane] - q.rr[lane] > view.far_plane) &&
+                          x0 < x1 && y0 < y1;
+        const float depth = near_depth(q.cz[lane], q.rr[lane]);
+        bounds_[k] = {static_cast<std::uint16_t>(x0), static_cast<std::uint16_t>(y0), static_cast<std::uint16_t>(x1),
+                      static_cast<std::uint16_t>(y1), depth};
+        keys_[k] = seen ? depth_key(depth) : kCulled;
+        order_[k] = static_cast<std::uint32_t>(k);
+      }
     }
   });
 
-  // 2. Front to back (stable: equal keys by index), then binning into tiles in that order: a
-  // count per (chunk, tile), a scan in (tile, chunk) order, a scatter per chunk, so each tile's
-  // list is in depth order whatever the number of chunks (and no atomics).
+  // 2. Front to back (stable: equal keys by index), then in that order what a tile needs of each
+  // sphere (in memory order for the tiles), and binning into tiles: a count per (chunk, tile), a
+  // scan in (tile, chunk) order, a scatter per chunk, so each tile's list is in depth order
+  // whatever the number of chunks (and no atomics).
   radix_sort<std::uint16_t>(keys_, order_, 16, threads, sort_scratch_);
   const auto visible = static_cast<std::size_t>(std::lower_bound(keys_.begin(), keys_.end(), kCulled) - keys_.begin());
   const std::size_t chunks = chunks_for(visible, threads);
   chunk_tile_count_.assign(chunks * tiles, 0);
   prep_.resize(visible);
-  auto for_tiles_of = [&](const TileSpan& ts, auto&& f) {
-    for (int ty = ts.ty0; ty <= ts.ty1; ++ty)
-      for (int tx = ts.tx0; tx <= ts.tx1; ++tx) f(static_cast<std::size_t>(ty * tiles_x + tx));
+  auto for_tiles_of = [&](const Prepared& p, auto&& f) {
+    for (int ty = p.y0 / kT; ty <= (p.y1 - 1) / kT; ++ty)
+      for (int tx = p.x0 / kT; tx <= (p.x1 - 1) / kT; ++tx) f(static_cast<std::size_t>(ty * tiles_x + tx));
   };
   for_chunks(visible, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
-    std::uint32_t* cnt = chunk_tile_count_.data() + c * tiles;
     for (std::size_t i = b; i < e; ++i) {
+      if (i + 16 < e) {  // the reads below are in depth order, so at random: fetch ahead
+        _mm_prefetch(reinterpret_cast<const char*>(&spheres[order_[i + 16]]), _MM_HINT_T0);
+        _mm_prefetch(reinterpret_cast<const char*>(&bounds_[order_[i + 16]]), _MM_HINT_T0);
+      }
       const std::uint32_t k = order_[i];
-      prep_[i] = by_index_[k];  // in depth order: the tiles read them in memory order
-      for_tiles_of(tile_span_[k], [&](std::size_t t) { ++cnt[t]; });
+      const Sphere& s = spheres[k];
+      const Bound& bd = bounds_[k];
+      Prepared& p = prep_[i];
+      // hit()'s expressions and order, so the per-pixel results match it bit for bit.
+      p.ox = cam.eye.x - s.x, p.oy = cam.eye.y - s.y, p.oz = cam.eye.z - s.z;
+      p.c = p.ox * p.ox + p.oy * p.oy + p.oz * p.oz - s.r * s.r;
+      p.near_depth = bd.near_depth;
+      p.key_floor = key_floor(keys_[i]);
+      p.id = k + 1;
+      p.x0 = bd.x0, p.y0 = bd.y0, p.x1 = bd.x1, p.y1 = bd.y1;
     }
+    std::uint32_t* cnt = chunk_tile_count_.data() + c * tiles;
+    for (std::size_t i = b; i < e; ++i) for_tiles_of(prep_[i], [&](std::size_t t) { ++cnt[t]; });
   });
   tile_offset_.resize(tiles + 1);
   std::uint32_t sum = 0;
@@ -349,10 +361,8 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
   if (tile_counts_.size() < sum + tiles) tile_counts_.resize(sum + tiles + (sum + tiles) / 4);
   for_chunks(visible, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
     std::uint32_t* cursor = chunk_tile_count_.data() + c * tiles;
-    for (std::size_t i = b; i < e; ++i) {
-      for_tiles_of(tile_span_[order_[i]],
-                   [&](std::size_t t) { tile_items_[cursor[t]++] = static_cast<std::uint32_t>(i); });
-    }
+    for (std::size_t i = b; i < e; ++i)
+      for_tiles_of(prep_[i], [&](std::size_t t) { tile_items_[cursor[t]++] = static_cast<std::uint32_t>(i); });
   });
 
   // 3. The rays: dir() = (forward + right nx) + up ny, per column and per row, exactly as

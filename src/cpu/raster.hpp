@@ -38,12 +38,13 @@ class TiledRasterizer {
   };
 
  private:
-  /// The tiles a sphere's rectangle touches, inclusive (tx0 > tx1: none).
-  struct TileSpan {
-    std::uint16_t tx0, ty0, tx1, ty1;
+  /// A sphere's rectangle and depth bound, by sphere index.
+  struct Bound {
+    std::uint16_t x0, y0, x1, y1;
+    float near_depth;
   };
-  std::vector<Prepared> by_index_, prep_;  // by sphere index; the visible ones in depth order
-  std::vector<TileSpan> tile_span_;
+  std::vector<Bound> bounds_;
+  std::vector<Prepared> prep_;  // the visible spheres in depth order
   std::vector<std::uint16_t> keys_;
   std::vector<std::uint32_t> order_;
   RadixScratch<std::uint16_t> sort_scratch_;
