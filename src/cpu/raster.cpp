@@ -24,6 +24,8 @@ constexpr double kPixelMargin = 1.0 / 16;
 /// Depth-order key: the top 16 bits of a non-negative float, monotone in its value; kCulled for
 /// spheres no pixel can see.
 constexpr std::uint16_t kCulled = 0xFFFF;
+/// Buckets of the depth sort.
+constexpr std::size_t kBuckets = 1024;
 std::uint16_t depth_key(float near_depth) {
   return near_depth > 0.0f ? static_cast<std::uint16_t>(std::bit_cast<std::uint32_t>(near_depth) >> 16) : 0;
 }
@@ -268,9 +270,8 @@ std::size_t chunks_for(std::size_t n, int threads) {
 
 std::uint64_t TiledRasterizer::memory_bytes() const {
   auto b = [](const auto& v) { return static_cast<std::uint64_t>(v.capacity()) * sizeof(v[0]); };
-  std::uint64_t s = b(prep_) + b(bounds_) + b(keys_) + b(order_) + b(sort_scratch_.keys) + b(sort_scratch_.values) +
-                    b(sort_scratch_.histograms) + b(chunk_tile_count_) + b(tile_offset_) + b(tile_items_) +
-                    b(tile_counts_) + b(background_);
+  std::uint64_t s = b(prep_) + b(bounds_) + b(keys_) + b(order_) + b(key_range_) + b(bucket_count_) +
+                    b(chunk_tile_count_) + b(tile_offset_) + b(tile_items_) + b(tile_counts_) + b(background_);
   for (const auto* v : {&col_x_, &col_y_, &col_z_, &row_x_, &row_y_, &row_z_}) s += b(*v);
   return s;
 }
@@ -289,7 +290,10 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
   bounds_.resize(n);
   keys_.resize(n);
   order_.resize(n);
-  for_chunks(n, chunks_for(n, threads), [&](std::size_t b, std::size_t e, std::size_t) {
+  const std::size_t sphere_chunks = chunks_for(n, threads);
+  key_range_.assign(2 * sphere_chunks, 0);
+  for_chunks(n, sphere_chunks, [&](std::size_t b, std::size_t e, std::size_t chunk) {
+    std::uint16_t lo = kCulled, hi = 0;
     Bounds2 q;
     for (std::size_t k0 = b; k0 < e; k0 += 2) {
       bounds2(view, spheres[k0], spheres[std::min(k0 + 1, e - 1)], q);
@@ -306,18 +310,50 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
         const float depth = near_depth(q.cz[lane], q.rr[lane]);
         bounds_[k] = {static_cast<std::uint16_t>(x0), static_cast<std::uint16_t>(y0), static_cast<std::uint16_t>(x1),
                       static_cast<std::uint16_t>(y1), depth};
-        keys_[k] = seen ? depth_key(depth) : kCulled;
-        order_[k] = static_cast<std::uint32_t>(k);
+        const std::uint16_t key = seen ? depth_key(depth) : kCulled;
+        keys_[k] = key;
+        if (seen) lo = std::min(lo, key), hi = std::max(hi, key);
       }
     }
+    key_range_[2 * chunk] = lo, key_range_[2 * chunk + 1] = hi;
   });
 
-  // 2. Front to back (stable: equal keys by index), then in that order what a tile needs of each
-  // sphere (in memory order for the tiles), and binning into tiles: a count per (chunk, tile), a
-  // scan in (tile, chunk) order, a scatter per chunk, so each tile's list is in depth order
-  // whatever the number of chunks (and no atomics).
-  radix_sort<std::uint16_t>(keys_, order_, 16, threads, sort_scratch_);
-  const auto visible = static_cast<std::size_t>(std::lower_bound(keys_.begin(), keys_.end(), kCulled) - keys_.begin());
+  // 2. Front to back: a counting sort of the seen spheres by key (stable: equal keys by index),
+  // per chunk a histogram, a scan in (bucket, chunk) order, a scatter. Keys span few values in a
+  // frame (7 bits an octave of depth), so one pass of kBuckets buckets holds them all, or all but
+  // their lowest bits (then the order is coarser, and key_floor the floor of the bucket).
+  std::uint16_t kmin = kCulled, kmax = 0;
+  for (std::size_t c = 0; c < sphere_chunks; ++c)
+    kmin = std::min(kmin, key_range_[2 * c]), kmax = std::max(kmax, key_range_[2 * c + 1]);
+  int shift = 0;
+  while (kmin <= kmax && static_cast<std::size_t>((kmax - kmin) >> shift) >= kBuckets) ++shift;
+  auto bucket = [&](std::uint16_t key) { return static_cast<std::size_t>((key - kmin) >> shift); };
+  bucket_count_.assign(sphere_chunks * kBuckets, 0);
+  for_chunks(n, sphere_chunks, [&](std::size_t b, std::size_t e, std::size_t chunk) {
+    std::uint32_t* h = bucket_count_.data() + chunk * kBuckets;
+    for (std::size_t k = b; k < e; ++k)
+      if (keys_[k] != kCulled) ++h[bucket(keys_[k])];
+  });
+  std::uint32_t seen = 0;
+  for (std::size_t u = 0; u < kBuckets; ++u)
+    for (std::size_t c = 0; c < sphere_chunks; ++c) {
+      const std::uint32_t v = bucket_count_[c * kBuckets + u];
+      bucket_count_[c * kBuckets + u] = seen;  // becomes the chunk's cursor
+      seen += v;
+    }
+  for_chunks(n, sphere_chunks, [&](std::size_t b, std::size_t e, std::size_t chunk) {
+    std::uint32_t* cursor = bucket_count_.data() + chunk * kBuckets;
+    for (std::size_t k = b; k < e; ++k)
+      if (keys_[k] != kCulled) order_[cursor[bucket(keys_[k])]++] = static_cast<std::uint32_t>(k);
+  });
+  auto floor_of = [&](std::uint16_t key) {  // a lower bound of the depth of every later sphere
+    return key_floor(static_cast<std::uint16_t>(((key - kmin) >> shift << shift) + kmin));
+  };
+
+  // 3. In that order what a tile needs of each sphere (in memory order for the tiles), and
+  // binning into tiles: a count per (chunk, tile), a scan in (tile, chunk) order, a scatter per
+  // chunk, so each tile's list is in depth order whatever the number of chunks (and no atomics).
+  const std::size_t visible = seen;
   const std::size_t chunks = chunks_for(visible, threads);
   chunk_tile_count_.assign(chunks * tiles, 0);
   prep_.resize(visible);
@@ -339,7 +375,7 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
       p.ox = cam.eye.x - s.x, p.oy = cam.eye.y - s.y, p.oz = cam.eye.z - s.z;
       p.c = p.ox * p.ox + p.oy * p.oy + p.oz * p.oz - s.r * s.r;
       p.near_depth = bd.near_depth;
-      p.key_floor = key_floor(keys_[i]);
+      p.key_floor = floor_of(keys_[k]);
       p.id = k + 1;
       p.x0 = bd.x0, p.y0 = bd.y0, p.x1 = bd.x1, p.y1 = bd.y1;
     }
@@ -365,7 +401,7 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
       for_tiles_of(prep_[i], [&](std::size_t t) { tile_items_[cursor[t]++] = static_cast<std::uint32_t>(i); });
   });
 
-  // 3. The rays: dir() = (forward + right nx) + up ny, per column and per row, exactly as
+  // 4. The rays: dir() = (forward + right nx) + up ny, per column and per row, exactly as
   // CameraRig::dir() rounds them (columns padded to whole tiles).
   const std::size_t cols = static_cast<std::size_t>(tiles_x) * kT, rows = static_cast<std::size_t>(map.height);
   col_x_.resize(cols), col_y_.resize(cols), col_z_.resize(cols);
@@ -381,7 +417,7 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
     row_x_[py] = cam.up.x * ny, row_y_[py] = cam.up.y * ny, row_z_[py] = cam.up.z * ny;
   }
 
-  // 4. Rasterise and count, one task per tile (every pixel belongs to exactly one tile).
+  // 5. Rasterise and count, one task per tile (every pixel belongs to exactly one tile).
   // Tiles this rasterizer left as background in this map, unchanged since (same stamp, size,
   // far plane and normals), are not written again.
   const bool keep_background =
@@ -540,7 +576,7 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
   for (std::size_t t = 0; t < tiles; ++t) background_[t] = tile_offset_[t] == tile_offset_[t + 1];
   background_far_ = cam.far_plane;
 
-  // 5. Pixel counts per object: the sum of its tiles' counts.
+  // 6. Pixel counts per object: the sum of its tiles' counts.
   map.counts.assign(n, 0);
   for (std::size_t t = 0; t < tiles; ++t) {
     const std::uint32_t* counts = tile_counts_.data() + tile_offset_[t] + t + 1;

@@ -12,7 +12,6 @@
 #include <span>
 #include <vector>
 
-#include "cpu/radix_sort.hpp"
 #include "cpu/visibility.hpp"
 
 namespace viscd::detail {
@@ -47,7 +46,8 @@ class TiledRasterizer {
   std::vector<Prepared> prep_;  // the visible spheres in depth order
   std::vector<std::uint16_t> keys_;
   std::vector<std::uint32_t> order_;
-  RadixScratch<std::uint16_t> sort_scratch_;
+  std::vector<std::uint16_t> key_range_;  // per chunk: smallest and largest key seen
+  std::vector<std::uint32_t> bucket_count_;
   std::vector<std::uint32_t> chunk_tile_count_, tile_offset_, tile_items_, tile_counts_;
   std::vector<float> col_x_, col_y_, col_z_, row_x_, row_y_, row_z_;
   // Tiles written as background only (ids 0, depth far, normals 0) under stamp_.

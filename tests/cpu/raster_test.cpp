@@ -186,6 +186,46 @@ TEST(Raster, ManySpheresInOneTileAndExactTies) {
   ASSERT_TRUE(matches_reference(cam, 40, 40, tie));
 }
 
+TEST(Raster, DepthsOverManyOctaves) {
+  // Spheres from just past the near plane to far away, all in front of each other on a small
+  // map: the depth keys span more values than the sort has buckets (its order is then coarser)
+  // and tiles stop early once every pixel has a hit nearer than the rest.
+  std::mt19937 rng(13);
+  std::uniform_real_distribution<float> u(-1, 1), e(0, 1);
+  Camera cam = camera_at(0, 0, 0, 0, 0, -1, 48, 40, 30);
+  cam.near_plane = 0.01f;
+  cam.far_plane = 1e7f;
+  for (int trial = 0; trial < 4; ++trial) {
+    std::vector<Sphere> s;
+    for (int k = 0; k < 2000; ++k) {
+      const float d = 0.02f * std::pow(10.0f, 8 * e(rng));  // 0.02 .. 2e6
+      s.push_back({0.3f * d * u(rng), 0.3f * d * u(rng), -d, d * (0.02f + 0.3f * e(rng))});
+    }
+    if (trial == 3) s.push_back({0, 0, -5, 1e3f});  // one hiding everything behind it
+    ASSERT_TRUE(matches_reference(cam, 48, 40, s)) << "trial " << trial;
+    ASSERT_TRUE(matches_reference(cam, 48, 40, s, 1)) << "trial " << trial << ", one thread";
+  }
+  // Depths from 0.05 to 9e5 make the sort's buckets hold 4 keys each. A wall at depth 4 fills a
+  // one-tile map; behind it a sphere A (depth key 0x4081: near depth 4.03..4.06), then spheres B
+  // in front of it (key 0x407F: 3.97..4.0), in the same bucket in some trials (where buckets
+  // start moves with the nearest sphere's depth). When the tile comes to A every pixel has a hit
+  // nearer than 4.0011, but B's are nearer still: the tile may stop only at a bound that holds
+  // for B too (the bucket's, not A's own key's; a test of that bound fails here).
+  Camera one = cam;
+  one.width = one.height = 32;
+  for (int trial = 0; trial < 8; ++trial) {
+    const float near_key = 0.05f * std::exp2(static_cast<float>(trial) / 128);  // a key further each trial
+    std::vector<Sphere> s = {{0, 0, -near_key - 0.001f, 0.0005f}, {0, 0, -1e6f, 1e5f}, {0, 0, -1004, 1000}};
+    // Nearer than A, enough of them that the tile has taken stock of its depths before A.
+    for (int k = 0; k < 24; ++k)
+      s.push_back({-0.6f + 0.05f * static_cast<float>(k), 0.6f, k < 8 ? -3.0f : -3.8f, 0.01f});
+    s.push_back({0, 0, -4.3f, 0.25f});  // A: hidden behind the wall
+    for (int k = 0; k < 9; ++k)         // B: caps in front of the wall, apart from each other
+      s.push_back({-0.6f + 0.6f * static_cast<float>(k % 3), -0.6f + 0.6f * static_cast<float>(k / 3), -4.19f, 0.2f});
+    ASSERT_TRUE(matches_reference(one, 32, 32, s)) << "wall, trial " << trial;
+  }
+}
+
 TEST(Raster, TinyMapsAndFewObjects) {
   const Camera cam = camera_at(0, 3, 12, 0, 0, 0, 1280, 720);
   const auto many = test::random_spheres_by_half_extent(400, 17, 6.0f, 0.2f, 1.5f);
