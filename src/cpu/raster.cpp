@@ -70,10 +70,11 @@ struct View {
 /// projection along that screen axis. Bounded exactly when the widened sphere lies wholly in
 /// front of (or behind) the eye's plane; else (or where rounding could make it unreliable: la or
 /// d2 not clearly negative, no real roots, a root not finite) that axis is not bounded.
+/// The pixel rectangle of each lane is the extent's pixels, those whose centre lies within
+/// kPixelMargin of it (the whole map along an axis that is not bounded).
 struct Bounds2 {
-  alignas(16) double rr[2], cz[2];        // R, view depth of the centre
-  alignas(16) double lo[2][2], hi[2][2];  // [axis: 0 rows (ny), 1 columns (nx)][lane]
-  int ok[2];                              // bit lane: that axis is bounded
+  alignas(16) double rr[2], cz[2];                  // R, view depth of the centre
+  alignas(16) std::int32_t first[2][4], end[2][4];  // [axis: 0 rows, 1 columns][lane]: pixels [first, end)
 };
 inline void bounds2(const View& v, const Sphere& s0, const Sphere& s1, Bounds2& out) {
   auto pair = [](double a, double b) { return _mm_set_pd(b, a); };  // lane 0 = a
@@ -113,9 +114,22 @@ inline void bounds2(const View& v, const Sphere& s0, const Sphere& s1, Bounds2& 
     const __m128d lo = _mm_min_pd(r0, r1), hi = _mm_max_pd(r0, r1);
     const __m128d inf = c(std::numeric_limits<double>::infinity());
     ok = _mm_and_pd(ok, _mm_and_pd(_mm_cmplt_pd(abs(lo), inf), _mm_cmplt_pd(abs(hi), inf)));
-    _mm_store_pd(out.lo[axis], lo);
-    _mm_store_pd(out.hi[axis], hi);
-    out.ok[axis] = _mm_movemask_pd(ok);
+    // Pixel coordinates: px = nx sx + cx, py = -ny sy + cy (rows run down).
+    const double scale = axis == 0 ? -v.sy : v.sx, centre = axis == 0 ? v.cy : v.cx;
+    const auto n = static_cast<double>(axis == 0 ? v.h : v.w);
+    const __m128d p0 = add(mul(axis == 0 ? hi : lo, c(scale)), c(centre)),
+                  p1 = add(mul(axis == 0 ? lo : hi, c(scale)), c(centre));
+    // Clamped to [-1, n] (so the conversions below cannot overflow); then ceil and floor from
+    // the truncation (SSE2 has no rounding to an integer), and the first and one-past-last pixel.
+    const __m128d q0 = _mm_min_pd(_mm_max_pd(sub(p0, c(kPixelMargin)), c(-1)), c(n)),
+                  q1 = _mm_min_pd(_mm_max_pd(add(p1, c(kPixelMargin)), c(-1)), c(n));
+    const __m128d t0 = _mm_cvtepi32_pd(_mm_cvttpd_epi32(q0)), t1 = _mm_cvtepi32_pd(_mm_cvttpd_epi32(q1));
+    const __m128d ceil0 = add(t0, _mm_and_pd(_mm_cmplt_pd(t0, q0), c(1))),
+                  floor1 = sub(t1, _mm_and_pd(_mm_cmpgt_pd(t1, q1), c(1)));
+    const __m128d first = _mm_max_pd(ceil0, zero), end = _mm_min_pd(add(floor1, c(1)), c(n));
+    auto select_pd = [](__m128d m, __m128d a, __m128d b) { return _mm_or_pd(_mm_and_pd(m, a), _mm_andnot_pd(m, b)); };
+    _mm_store_si128(reinterpret_cast<__m128i*>(out.first[axis]), _mm_cvttpd_epi32(select_pd(ok, first, zero)));
+    _mm_store_si128(reinterpret_cast<__m128i*>(out.end[axis]), _mm_cvttpd_epi32(select_pd(ok, end, c(n))));
   };
   extent(0, orr, ou, v.rr, v.uu, v.fr, v.fu, v.ur);  // rows: u = nx, v = ny
   extent(1, ou, orr, v.uu, v.rr, v.fu, v.fr, v.ur);  // columns: u = ny, v = nx
@@ -126,15 +140,6 @@ inline float near_depth(double cz, double rr) {
   if (!(d > 0)) return 0.0f;
   const auto f = static_cast<float>(d);  // > 0: d is at least the float's half ulp
   return static_cast<double>(f) > d ? std::bit_cast<float>(std::bit_cast<std::uint32_t>(f) - 1) : f;
-}
-/// First and one-past-last pixel whose centre lies in [lo, hi] (widened by kPixelMargin), within
-/// [0, n).
-inline void pixel_range(double lo, double hi, int n, std::int32_t& a, std::int32_t& b) {
-  lo = std::clamp(lo - kPixelMargin, -1.0, static_cast<double>(n));
-  hi = std::clamp(hi + kPixelMargin, -1.0, static_cast<double>(n));
-  const int l = static_cast<int>(lo), h = static_cast<int>(hi);  // truncation; then ceil and floor:
-  a = std::max(0, l + (static_cast<double>(l) < lo ? 1 : 0));
-  b = std::min(n, h - (static_cast<double>(h) > hi ? 1 : 0) + 1);
 }
 
 inline __m128 select(__m128 mask, __m128 a, __m128 b) { return _mm_or_ps(_mm_and_ps(mask, a), _mm_andnot_ps(mask, b)); }
@@ -299,12 +304,7 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
       bounds2(view, spheres[k0], spheres[std::min(k0 + 1, e - 1)], q);
       for (std::size_t lane = 0; lane < 2 && k0 + lane < e; ++lane) {
         const std::size_t k = k0 + lane;
-        // The rectangle: the projection's extent on the bounded axes, else the whole map.
-        std::int32_t x0 = 0, y0 = 0, x1 = view.w, y1 = view.h;
-        if (q.ok[0] >> lane & 1)  // rows [py(hi), py(lo)]
-          pixel_range(-q.hi[0][lane] * view.sy + view.cy, -q.lo[0][lane] * view.sy + view.cy, view.h, y0, y1);
-        if (q.ok[1] >> lane & 1)
-          pixel_range(q.lo[1][lane] * view.sx + view.cx, q.hi[1][lane] * view.sx + view.cx, view.w, x0, x1);
+        const std::int32_t x0 = q.first[1][lane], y0 = q.first[0][lane], x1 = q.end[1][lane], y1 = q.end[0][lane];
         const bool seen = !(q.cz[lane] + q.rr[lane] < view.near_plane || q.cz[lane] - q.rr[lane] > view.far_plane) &&
                           x0 < x1 && y0 < y1;
         const float depth = near_depth(q.cz[lane], q.rr[lane]);
