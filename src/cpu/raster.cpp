@@ -24,6 +24,8 @@ constexpr double kPixelMargin = 1.0 / 16;
 /// Depth-order key: the top 16 bits of a non-negative float, monotone in its value; kCulled for
 /// spheres no pixel can see.
 constexpr std::uint16_t kCulled = 0xFFFF;
+/// Slots a tile counts on its stack.
+constexpr std::uint32_t kLocalCounts = 1024;
 /// Buckets of the depth sort.
 constexpr std::size_t kBuckets = 1024;
 std::uint16_t depth_key(float near_depth) {
@@ -452,6 +454,7 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
     }
     TileBuffers buf;
     Candidates cand;
+    std::uint32_t local_counts[kLocalCounts];
     {
       alignas(16) float first[kT];  // +inf on the map, -inf beyond its edge (never hit, never the max)
       for (int i = 0; i < kT; ++i) first[i] = i < w ? kInf : -kInf;
@@ -530,7 +533,11 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
 
     // Write out row by row (background depth = far plane), and count the row's runs of equal
     // slots into the tile's counts (slot 0 is the background).
-    std::uint32_t* counts = tile_counts_.data() + tile_offset_[t] + t;
+    // Counted on the stack and copied out at the end: the regions of tiles side by side share
+    // cache lines, and counting there from two threads would move them between the cores at
+    // every run. (Very long lists count in place.)
+    std::uint32_t* const out_counts = tile_counts_.data() + tile_offset_[t] + t;
+    std::uint32_t* counts = m < kLocalCounts ? local_counts : out_counts;
     std::fill_n(counts, m + 1, 0u);
     for (int r = 0; r < h; ++r) {
       const std::size_t row = static_cast<std::size_t>(y0 + r) * W + static_cast<std::size_t>(x0);
@@ -565,6 +572,7 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
       if (normals)
         for (int px = x0; px < x1; ++px) write_normal(cam, spheres, map, px, y0 + r);
     }
+    if (counts != out_counts) std::copy_n(counts, m + 1, out_counts);
     _mm_sfence();  // the streamed rows are visible before the task counts as done
   };
   if (threads_for(tiles * kT * kT, threads) == 1) {
