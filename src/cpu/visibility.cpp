@@ -87,7 +87,17 @@ void count_pixels(const VisibilityMap& map, std::size_t objects, int threads, st
   for_chunks(n, chunks, [&](std::size_t b, std::size_t e, std::size_t t) {
     auto& h = scratch[t];
     std::fill(h.begin(), h.end(), 0u);
-    for (std::size_t i = b; i < e; ++i) ++h[map.ids[i]];
+    // By runs of equal ids (++h[id] per pixel would wait on its own store along a run).
+    std::uint32_t cur = map.ids[b], run = 0;
+    for (std::size_t i = b; i < e; ++i) {
+      const std::uint32_t id = map.ids[i];
+      if (id != cur) {
+        h[cur] += run;
+        cur = id, run = 0;
+      }
+      ++run;
+    }
+    h[cur] += run;
   });
   if (chunks == 1) {
     std::copy(scratch[0].begin() + 1, scratch[0].end(), counts.begin());
