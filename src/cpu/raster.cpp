@@ -18,7 +18,7 @@ namespace {
 
 constexpr int kT = TiledRasterizer::kTile;
 constexpr float kInf = std::numeric_limits<float>::infinity();
-/// Pixels whose centre lies within this much of a (widened) span or extent are included.
+/// Pixels whose centre lies within this much of the extent of a (widened) sphere are included.
 constexpr double kPixelMargin = 1.0 / 16;
 
 /// Depth-order key: the top 16 bits of a non-negative float, monotone in its value; kCulled for

@@ -6,7 +6,8 @@
 // the tile computes hit()'s discriminant and keeps the groups of 4 pixels that are inside the
 // disc and not already nearer; a second finishes hit() for those. The expressions are hit()'s,
 // so the map equals the reference's bit for bit (nearest hit, ties to the smaller id). Each tile
-// counts its pixels per object while writing them out.
+// counts its pixels per object while it streams its rows to the map; background tiles it wrote
+// in the last frame are left as they are while the map still holds them (VisibilityMap::stamp).
 
 #include <cstdint>
 #include <span>
