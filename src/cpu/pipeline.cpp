@@ -11,8 +11,7 @@
 namespace viscd::detail {
 
 std::uint64_t PipelineDetector::memory_bytes() const {
-  std::uint64_t b = bytes_of(map_.ids) + bytes_of(map_.depth) + bytes_of(map_.normal) + bytes_of(map_.counts) +
-                    bytes_of(counts_) + bytes_of(active_);
+  std::uint64_t b = map_.memory_bytes() + bytes_of(counts_) + bytes_of(active_);
   for (const auto& s : count_scratch_) b += bytes_of(s);
   return b + backend_memory_bytes();
 }

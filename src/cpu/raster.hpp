@@ -1,17 +1,18 @@
 #pragma once
 // The cpu backend's visibility map (stage 1) with the pixel counts (stage 2) fused into it.
 // Spheres are sorted front to back by a coarse depth key and binned into 32x32-pixel tiles by a
-// conservative screen rectangle; tiles are rasterised in parallel. Per sphere and row only a
-// conservative span of the projected disc is tested, with the same hit() expressions as the
-// reference, and rows and tiles already covered by nearer hits are skipped. Each pixel keeps the
-// nearest hit, ties to the smaller id, so the map equals the reference's bit for bit; each tile
-// counts its pixels per object while writing them out (docs/architecture.md, "Visibility map").
+// conservative rectangle (the projection of the sphere widened as hit()'s rounding requires);
+// tiles are rasterised in parallel. Per sphere, a branch-free first pass over its rectangle in
+// the tile computes hit()'s discriminant and keeps the groups of 4 pixels that are inside the
+// disc and not already nearer; a second finishes hit() for those. The expressions are hit()'s,
+// so the map equals the reference's bit for bit (nearest hit, ties to the smaller id). Each tile
+// counts its pixels per object while it streams its rows to the map; background tiles it wrote
+// in the last frame are left as they are while the map still holds them (VisibilityMap::stamp).
 
 #include <cstdint>
 #include <span>
 #include <vector>
 
-#include "cpu/radix_sort.hpp"
 #include "cpu/visibility.hpp"
 
 namespace viscd::detail {
@@ -34,20 +35,26 @@ class TiledRasterizer {
     float near_depth, key_floor;
     std::uint32_t id;  // index + 1
     std::int32_t x0, y0, x1, y1;
-    /// Row spans: a pixel (px, py) can be hit only if |px - (m0 + m1 ny)|^2 <= e0 + ny (e1 + ny e2)
-    /// (ny of row py), widened by a pixel; else (spans false) the rectangle's row.
-    bool spans;
-    double m0, m1, e0, e1, e2;
   };
 
  private:
-  std::vector<Prepared> prep_;
+  /// A sphere's rectangle and depth bound, by sphere index.
+  struct Bound {
+    std::uint16_t x0, y0, x1, y1;
+    float near_depth;
+  };
+  std::vector<Bound> bounds_;
+  std::vector<Prepared> prep_;  // the visible spheres in depth order
   std::vector<std::uint16_t> keys_;
   std::vector<std::uint32_t> order_;
-  RadixScratch<std::uint16_t> sort_scratch_;
+  std::vector<std::uint16_t> key_range_;  // per chunk: smallest and largest key seen
+  std::vector<std::uint32_t> bucket_count_;
   std::vector<std::uint32_t> chunk_tile_count_, tile_offset_, tile_items_, tile_counts_;
   std::vector<float> col_x_, col_y_, col_z_, row_x_, row_y_, row_z_;
-  std::vector<double> row_ny_;
+  // Tiles written as background only (ids 0, depth far, normals 0) under stamp_.
+  std::vector<std::uint8_t> background_;
+  std::uint64_t stamp_ = 0;
+  float background_far_ = 0;
 };
 
 }  // namespace viscd::detail

@@ -18,6 +18,7 @@ Vec3 normalize(Vec3 a) {
 }  // namespace
 
 void VisibilityMap::resize(int w, int h, bool with_normals) {
+  if (w != width || h != height || with_normals != !normal.empty()) stamp = 0;
   width = w;
   height = h;
   const auto n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
@@ -49,6 +50,7 @@ void write_normal(const CameraRig& cam, std::span<const Sphere> spheres, Visibil
 }
 
 void rasterize_reference(const CameraRig& cam, std::span<const Sphere> spheres, VisibilityMap& map) {
+  map.stamp = 0;  // (bookkeeping: the content is no longer the cpu rasterizer's)
   for (int py = 0; py < map.height; ++py) {
     for (int px = 0; px < map.width; ++px) {
       const Vec3 d = cam.dir(px, py);
@@ -85,7 +87,17 @@ void count_pixels(const VisibilityMap& map, std::size_t objects, int threads, st
   for_chunks(n, chunks, [&](std::size_t b, std::size_t e, std::size_t t) {
     auto& h = scratch[t];
     std::fill(h.begin(), h.end(), 0u);
-    for (std::size_t i = b; i < e; ++i) ++h[map.ids[i]];
+    // By runs of equal ids (++h[id] per pixel would wait on its own store along a run).
+    std::uint32_t cur = map.ids[b], run = 0;
+    for (std::size_t i = b; i < e; ++i) {
+      const std::uint32_t id = map.ids[i];
+      if (id != cur) {
+        h[cur] += run;
+        cur = id, run = 0;
+      }
+      ++run;
+    }
+    h[cur] += run;
   });
   if (chunks == 1) {
     std::copy(scratch[0].begin() + 1, scratch[0].end(), counts.begin());

@@ -4,7 +4,9 @@
 // backend's fast rasterizer is cpu/raster.hpp; the camera, hit() and the culling rule are
 // core/visibility.hpp.
 
+#include <cstddef>
 #include <cstdint>
+#include <new>
 #include <span>
 #include <vector>
 
@@ -12,18 +14,44 @@
 
 namespace viscd::detail {
 
+/// Storage in whole cache lines (64-byte aligned), so that the rasterizer can stream map rows
+/// to memory line by line.
+template <class T>
+struct CacheAligned {
+  using value_type = T;
+  static constexpr std::align_val_t kAlign{64};
+  CacheAligned() = default;
+  template <class U>
+  CacheAligned(const CacheAligned<U>&) noexcept {}  // NOLINT(google-explicit-constructor)
+  T* allocate(std::size_t n) { return static_cast<T*>(::operator new(n * sizeof(T), kAlign)); }
+  void deallocate(T* p, std::size_t) noexcept { ::operator delete(p, kAlign); }
+  template <class U>
+  bool operator==(const CacheAligned<U>&) const noexcept {
+    return true;
+  }
+};
+
 /// The id map (object index + 1, 0 = background) and view depth of each map pixel; normals
 /// (unit, world space, 3 floats per pixel) only when asked for (shading). A rasterizer that counts
 /// pixels per object while writing the map (the cpu backend's) leaves them in `counts` and sets
 /// `has_counts`; resize() clears it, so counts never outlive the map they were taken from.
+/// `stamp` names the content: the cpu rasterizer sets a new one whenever it writes the map, and
+/// next time leaves alone the background tiles it wrote if the stamp is still its own. Anything
+/// else that writes the map must set it to 0 (resize() does when the size or the normals change).
 struct VisibilityMap {
   int width = 0, height = 0;
-  std::vector<std::uint32_t> ids;
-  std::vector<float> depth;
+  std::vector<std::uint32_t, CacheAligned<std::uint32_t>> ids;
+  std::vector<float, CacheAligned<float>> depth;
   std::vector<float> normal;
   std::vector<std::uint32_t> counts;
   bool has_counts = false;
+  std::uint64_t stamp = 0;
   void resize(int w, int h, bool with_normals);
+  /// Bytes held (capacities).
+  [[nodiscard]] std::uint64_t memory_bytes() const {
+    return (ids.capacity() + counts.capacity()) * sizeof(std::uint32_t) +
+           (depth.capacity() + normal.capacity()) * sizeof(float);
+  }
 };
 
 /// Fills the normal of a map pixel from its id and depth.
