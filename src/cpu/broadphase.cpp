@@ -2,10 +2,8 @@
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <bit>
 #include <limits>
-#include <new>
 
 #include "core/stopwatch.hpp"
 #include "cpu/grow.hpp"
@@ -73,8 +71,7 @@ std::uint64_t LbvhBroadphase::memory_bytes() const {
                     bytes(scratch16_.values) + bytes(scratch32_.keys) + bytes(scratch32_.values) +
                     bytes(scratch64_.keys) + bytes(scratch64_.values) + bytes(sorted_ids_) + bytes(sorted_spheres_) +
                     bytes(leaf_boxes_) + bytes(bvh_.nodes) + bytes(bvh_.parent) + bytes(bvh_.leaf_parent) +
-                    bytes(bvh_.arrivals) + bytes(pair_offsets_);
-  for (const auto& t : chunk_pairs_) b += bytes(t);
+                    bytes(bvh_.arrivals) + pairs_.memory_bytes();
   return b;
 }
 
@@ -163,48 +160,16 @@ Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const
   }
 #endif
 
-  // Stage 8: each leaf p looks for partners q > p only, so each pair is found once. The leaves
-  // are cut into chunks, several per thread because the work per leaf varies; each chunk keeps
-  // its own pair list. The pair cap is enforced while searching: chunks publish their counts
-  // every kPublish pairs, and all stop once the frame is over the cap, before the pairs' memory
-  // is taken. An allocation failure inside a task is carried out of it.
-  constexpr std::size_t kPublish = 4096;
-  const std::size_t allowed = pairs_within_cap(pair_memory_cap);
-  std::atomic<std::size_t> published{0};
-  std::atomic<bool> stop{false}, out_of_memory{false};
+  // Stage 8: each leaf p looks for partners q > p only, so each pair is found once.
   const std::size_t chunks = threads_for(n, threads) == 1 ? 1 : std::min<std::size_t>(n, 8 * threads);
-  if (chunk_pairs_.size() < chunks) chunk_pairs_.resize(chunks);
-  for (std::size_t c = 0; c < chunks; ++c) chunk_pairs_[c].clear();  // also when n = 0 runs no chunk
-  for_chunks(n, chunks, [&](std::size_t begin, std::size_t end, std::size_t c) {
-    auto& local = chunk_pairs_[c];
-    for (std::size_t p = begin; p < end; ++p) {
-      if (stop.load(std::memory_order_relaxed)) return;
-      const Sphere& a = sorted_spheres_[p];
-      const std::uint32_t ia = sorted_ids_[p];
-      try {
-        for_each_overlap_after(bvh_, static_cast<std::uint32_t>(p), leaf_boxes_[p], [&](std::uint32_t q) {
-          if (!overlap_exact(a, sorted_spheres_[q])) return;
-          const std::uint32_t ib = sorted_ids_[q];
-          local.push_back(ia < ib ? (std::uint64_t{ia} << 32 | ib) : (std::uint64_t{ib} << 32 | ia));
-          if (local.size() % kPublish == 0 &&
-              published.fetch_add(kPublish, std::memory_order_relaxed) + kPublish > allowed)
-            stop.store(true, std::memory_order_relaxed);
-        });
-      } catch (const std::bad_alloc&) {
-        out_of_memory.store(true);
-        stop.store(true);
-        return;
-      }
-    }
-  });
-  if (out_of_memory.load()) throw std::bad_alloc();
-  if (stop.load()) return check_pair_cap(published.load(), pair_memory_cap, true);
-  std::size_t total = 0;
-  for (std::size_t c = 0; c < chunks; ++c) total += chunk_pairs_[c].size();
-  if (Status s = check_pair_cap(total, pair_memory_cap); !s) return s;
-  for (std::size_t c = 0; c < chunks; ++c) keep_headroom(chunk_pairs_[c]);
   const std::uint32_t objects = n ? active.back() + 1 : 0;  // active is ascending
-  sort_chunk_pairs(std::span(chunk_pairs_.data(), chunks), objects, pair_offsets_, pairs);
+  const Status found = pairs_.collect(n, chunks, pair_memory_cap, objects, pairs, [&](std::size_t p, auto& emit) {
+    const Sphere& a = sorted_spheres_[p];
+    for_each_overlap_after(bvh_, static_cast<std::uint32_t>(p), leaf_boxes_[p], [&](std::uint32_t q) {
+      if (overlap_exact(a, sorted_spheres_[q])) emit(sorted_ids_[p], sorted_ids_[q]);
+    });
+  });
+  if (!found) return found;
   stats.pairs = pairs.size();
   ms(Stage::query) = sw.lap();
   return {};

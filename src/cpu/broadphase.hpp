@@ -2,13 +2,17 @@
 // Stages 4-8 over an active set: Morton layout, codes, radix sort, Karras build, fit, query.
 // Exact: the result equals brute force over the active set for every m (tests/cpu/).
 
+#include <algorithm>
+#include <atomic>
 #include <cstdint>
+#include <new>
 #include <span>
 #include <vector>
 
 #include "core/frame_rules.hpp"
 #include "core/morton.hpp"
 #include "cpu/lbvh_build.hpp"
+#include "cpu/parallel.hpp"
 #include "cpu/radix_sort.hpp"
 #include "viscd/config.hpp"
 #include "viscd/frame.hpp"
@@ -21,18 +25,72 @@ namespace viscd::detail {
 [[nodiscard]] ActiveExtent active_extent(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
                                          int threads);
 
-/// A chunk's pair list covers the same objects every frame, but its count drifts as they move:
-/// once the list is more than two-thirds full it gets room for twice its count, so frames whose
-/// counts wander by up to half do not allocate.
-inline void keep_headroom(std::vector<std::uint64_t>& list) {
-  if (3 * list.size() > 2 * list.capacity()) list.reserve(2 * list.size());
-}
-
 /// Writes the pairs of per-chunk lists (keys i << 32 | j, i < j < objects) into `out` sorted by
 /// (i, j): a counting sort by i, then each object's few partners by j. O(pairs + objects);
 /// `offsets` is scratch (objects + 1 entries), kept between frames.
 void sort_chunk_pairs(std::span<const std::vector<std::uint64_t>> lists, std::uint32_t objects,
                       std::vector<std::uint32_t>& offsets, std::vector<Pair>& out);
+
+/// Stage 8's pair lists, shared by the broadphases. The items searched (leaves or buckets) are cut
+/// into chunks, several per thread because the work per item varies, and each chunk keeps its own
+/// list. The pair cap is enforced while searching: chunks publish their counts every kPublish
+/// pairs, and all stop once the frame is over the cap, before the pairs' memory is taken. An
+/// allocation failure inside a task is carried out of it. Lists keep their memory between frames.
+class PairCollector {
+ public:
+  /// Runs each(item, emit) for every item in [0, items), over `chunks` contiguous chunks; emit(a, b)
+  /// records the pair of object ids a != b (either order). Then writes the pairs into `out` sorted
+  /// by (i, j); `objects` bounds the ids. Fails only when the pairs exceed pair_memory_cap bytes.
+  template <class Each>
+  Status collect(std::size_t items, std::size_t chunks, std::size_t pair_memory_cap, std::uint32_t objects,
+                 std::vector<Pair>& out, Each&& each) {
+    constexpr std::size_t kPublish = 4096;
+    const std::size_t allowed = pairs_within_cap(pair_memory_cap);
+    std::atomic<std::size_t> published{0};
+    std::atomic<bool> stop{false}, out_of_memory{false};
+    chunks = std::max<std::size_t>(1, chunks);
+    if (lists_.size() < chunks) lists_.resize(chunks);
+    for (std::size_t c = 0; c < chunks; ++c) lists_[c].clear();  // also when no chunk runs
+    for_chunks(items, chunks, [&](std::size_t begin, std::size_t end, std::size_t c) {
+      auto& local = lists_[c];
+      auto emit = [&](std::uint32_t a, std::uint32_t b) {
+        local.push_back(a < b ? (std::uint64_t{a} << 32 | b) : (std::uint64_t{b} << 32 | a));
+        if (local.size() % kPublish == 0 &&
+            published.fetch_add(kPublish, std::memory_order_relaxed) + kPublish > allowed)
+          stop.store(true, std::memory_order_relaxed);
+      };
+      try {
+        for (std::size_t item = begin; item < end && !stop.load(std::memory_order_relaxed); ++item) each(item, emit);
+      } catch (const std::bad_alloc&) {
+        out_of_memory.store(true);
+        stop.store(true);
+      }
+    });
+    if (out_of_memory.load()) throw std::bad_alloc();
+    if (stop.load()) return check_pair_cap(published.load(), pair_memory_cap, true);
+    std::size_t total = 0;
+    for (std::size_t c = 0; c < chunks; ++c) total += lists_[c].size();
+    if (Status s = check_pair_cap(total, pair_memory_cap); !s) return s;
+    // A chunk covers the same objects every frame, but its count drifts as they move: once a list
+    // is more than two-thirds full it gets room for twice its count, so frames whose counts
+    // wander by up to half do not allocate.
+    for (std::size_t c = 0; c < chunks; ++c)
+      if (3 * lists_[c].size() > 2 * lists_[c].capacity()) lists_[c].reserve(2 * lists_[c].size());
+    sort_chunk_pairs(std::span(lists_.data(), chunks), objects, offsets_, out);
+    return {};
+  }
+
+  /// Bytes of the lists and the sort's scratch (capacities).
+  [[nodiscard]] std::uint64_t memory_bytes() const {
+    std::uint64_t b = bytes_of(offsets_);
+    for (const auto& l : lists_) b += bytes_of(l);
+    return b;
+  }
+
+ private:
+  std::vector<std::vector<std::uint64_t>> lists_;
+  std::vector<std::uint32_t> offsets_;
+};
 
 /// The LBVH broadphase. Keeps every buffer between frames: after the first frame of a given size,
 /// run() allocates nothing unless the pair count grows. Not thread-safe.
@@ -74,8 +132,7 @@ class LbvhBroadphase {
   std::vector<Sphere> sorted_spheres_;
   std::vector<Aabb> leaf_boxes_;
   Lbvh bvh_;
-  std::vector<std::vector<std::uint64_t>> chunk_pairs_;
-  std::vector<std::uint32_t> pair_offsets_;
+  PairCollector pairs_;
 };
 
 /// O(n^2) brute force over the active set: the oracle. Pairs come out sorted. Stops and returns

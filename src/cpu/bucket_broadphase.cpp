@@ -1,11 +1,9 @@
 #include "cpu/bucket_broadphase.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <bit>
 #include <cmath>
 #include <limits>
-#include <new>
 
 #include "core/stopwatch.hpp"
 #include "cpu/broadphase.hpp"
@@ -77,10 +75,6 @@ inline std::uint32_t lanes_overlapping(const BucketLanes& b, const Aabb& box) {
 #endif
 }
 
-inline std::uint64_t pair_key(std::uint32_t a, std::uint32_t b) {
-  return a < b ? (std::uint64_t{a} << 32 | b) : (std::uint64_t{b} << 32 | a);
-}
-
 }  // namespace
 
 template <>
@@ -114,8 +108,7 @@ std::uint64_t BucketBroadphase::memory_bytes() const {
       bytes_of(bucket_keys64_) + bytes_of(scratch16_.keys) + bytes_of(scratch16_.values) + bytes_of(scratch32_.keys) +
       bytes_of(scratch32_.values) + bytes_of(scratch64_.keys) + bytes_of(scratch64_.values) + bytes_of(sorted_ids_) +
       bytes_of(previous_ids_) + bytes_of(rank_) + bytes_of(lanes_) + bytes_of(bucket_boxes_) + bytes_of(bvh_.nodes) +
-      bytes_of(bvh_.parent) + bytes_of(bvh_.leaf_parent) + bytes_of(bvh_.arrivals) + bytes_of(pair_offsets_);
-  for (const auto& t : chunk_pairs_) b += bytes_of(t);
+      bytes_of(bvh_.parent) + bytes_of(bvh_.leaf_parent) + bytes_of(bvh_.arrivals) + pairs_.memory_bytes();
   return b;
 }
 
@@ -290,61 +283,33 @@ Status BucketBroadphase::run_keys(std::span<const Sphere> spheres, std::span<con
   }
 #endif
 
-  // Stage 8. Buckets are cut into chunks, several per thread because the work per bucket varies;
-  // each chunk keeps its own pair list. The pair cap is enforced while searching: chunks publish
-  // their counts every kPublish pairs, and all stop once the frame is over the cap, before the
-  // pairs' memory is taken. An allocation failure inside a task is carried out of it.
-  constexpr std::size_t kPublish = 4096;
-  const std::size_t allowed = pairs_within_cap(pair_memory_cap);
-  std::atomic<std::size_t> published{0};
-  std::atomic<bool> stop{false}, out_of_memory{false};
+  // Stage 8: per bucket, the pairs inside it, then those with every later bucket whose box
+  // overlaps its own, so each pair is found once.
   const std::size_t chunks = threads_for(n, threads) == 1 ? 1 : std::min<std::size_t>(buckets, 8 * threads);
-  if (chunk_pairs_.size() < chunks) chunk_pairs_.resize(chunks);
-  for (std::size_t c = 0; c < chunks; ++c) chunk_pairs_[c].clear();  // also when n = 0 runs no chunk
-  const std::uint32_t* ids = sorted_ids_.data();
-  for_chunks(buckets, chunks, [&](std::size_t begin, std::size_t end, std::size_t c) {
-    auto& local = chunk_pairs_[c];
-    auto emit = [&](std::uint32_t a, std::uint32_t b) {
-      local.push_back(pair_key(a, b));
-      if (local.size() % kPublish == 0 && published.fetch_add(kPublish, std::memory_order_relaxed) + kPublish > allowed)
-        stop.store(true, std::memory_order_relaxed);
-    };
-    try {
-      for (std::size_t b = begin; b < end; ++b) {
-        if (stop.load(std::memory_order_relaxed)) return;
-        const BucketLanes& lb = lanes_[b];
-        const std::uint32_t first = static_cast<std::uint32_t>(b * kBucket);
-        const std::uint32_t count = static_cast<std::uint32_t>(std::min<std::size_t>(kBucket, n - first));
-        // Pairs inside the bucket: lane i against the lanes after it.
-        for (std::uint32_t i = 0; i + 1 < count; ++i) {
-          std::uint32_t m = overlap_mask(lb, lb.x[i], lb.y[i], lb.z[i], lb.r[i]) & (~0u << (i + 1));
-          for (; m; m &= m - 1) emit(ids[first + i], ids[first + static_cast<std::uint32_t>(std::countr_zero(m))]);
-        }
-        // Pairs with every later bucket whose box overlaps this one's.
-        for_each_overlap_after(bvh_, static_cast<std::uint32_t>(b), bucket_boxes_[b], [&](std::uint32_t q) {
-          const BucketLanes& lq = lanes_[q];
-          const std::uint32_t qfirst = q * kBucket;
-          // Only this bucket's lanes whose boxes reach into the other bucket's box can pair.
-          for (std::uint32_t near = lanes_overlapping(lb, bucket_boxes_[q]); near; near &= near - 1) {
-            const auto i = static_cast<std::uint32_t>(std::countr_zero(near));
-            for (std::uint32_t m = overlap_mask(lq, lb.x[i], lb.y[i], lb.z[i], lb.r[i]); m; m &= m - 1)
-              emit(ids[first + i], ids[qfirst + static_cast<std::uint32_t>(std::countr_zero(m))]);
-          }
-        });
-      }
-    } catch (const std::bad_alloc&) {
-      out_of_memory.store(true);
-      stop.store(true);
-    }
-  });
-  if (out_of_memory.load()) throw std::bad_alloc();
-  if (stop.load()) return check_pair_cap(published.load(), pair_memory_cap, true);
-  std::size_t total = 0;
-  for (std::size_t c = 0; c < chunks; ++c) total += chunk_pairs_[c].size();
-  if (Status s = check_pair_cap(total, pair_memory_cap); !s) return s;
-  for (std::size_t c = 0; c < chunks; ++c) keep_headroom(chunk_pairs_[c]);
   const std::uint32_t objects = n ? active.back() + 1 : 0;  // active is ascending
-  sort_chunk_pairs(std::span(chunk_pairs_.data(), chunks), objects, pair_offsets_, pairs);
+  const std::uint32_t* ids = sorted_ids_.data();
+  const Status found = pairs_.collect(buckets, chunks, pair_memory_cap, objects, pairs, [&](std::size_t b, auto& emit) {
+    const BucketLanes& lb = lanes_[b];
+    const auto first = static_cast<std::uint32_t>(b * kBucket);
+    const auto count = static_cast<std::uint32_t>(std::min<std::size_t>(kBucket, n - first));
+    // Pairs inside the bucket: lane i against the lanes after it.
+    for (std::uint32_t i = 0; i + 1 < count; ++i) {
+      std::uint32_t m = overlap_mask(lb, lb.x[i], lb.y[i], lb.z[i], lb.r[i]) & (~0u << (i + 1));
+      for (; m; m &= m - 1) emit(ids[first + i], ids[first + static_cast<std::uint32_t>(std::countr_zero(m))]);
+    }
+    // Pairs with every later bucket whose box overlaps this one's.
+    for_each_overlap_after(bvh_, static_cast<std::uint32_t>(b), bucket_boxes_[b], [&](std::uint32_t q) {
+      const BucketLanes& lq = lanes_[q];
+      const std::uint32_t qfirst = q * kBucket;
+      // Only this bucket's lanes whose boxes reach into the other bucket's box can pair.
+      for (std::uint32_t near = lanes_overlapping(lb, bucket_boxes_[q]); near; near &= near - 1) {
+        const auto i = static_cast<std::uint32_t>(std::countr_zero(near));
+        for (std::uint32_t m = overlap_mask(lq, lb.x[i], lb.y[i], lb.z[i], lb.r[i]); m; m &= m - 1)
+          emit(ids[first + i], ids[qfirst + static_cast<std::uint32_t>(std::countr_zero(m))]);
+      }
+    });
+  });
+  if (!found) return found;
   stats.pairs = pairs.size();
   ms(Stage::query) = sw.lap();
   return {};

@@ -28,6 +28,7 @@
 #include "core/frame_rules.hpp"
 #include "core/lbvh.hpp"
 #include "core/morton.hpp"
+#include "cpu/broadphase.hpp"
 #include "cpu/radix_sort.hpp"
 #include "viscd/config.hpp"
 #include "viscd/frame.hpp"
@@ -99,8 +100,7 @@ class BucketBroadphase {
   std::vector<BucketLanes> lanes_;
   std::vector<Aabb> bucket_boxes_;
   Lbvh bvh_;
-  std::vector<std::vector<std::uint64_t>> chunk_pairs_;
-  std::vector<std::uint32_t> pair_offsets_;
+  PairCollector pairs_;
 };
 
 }  // namespace viscd::detail
