@@ -44,13 +44,14 @@ struct ViewArgs {
   std::string window_screenshot;
 };
 
-// Shading colours of stage 9 (src/core/visibility.hpp and shade.comp), for the legend.
-ImVec4 rgb(int r, int g, int b) {
-  return ImVec4(static_cast<float>(r) / 255.0f, static_cast<float>(g) / 255.0f, static_cast<float>(b) / 255.0f, 1.0f);
+// Shading colours of stage 9 (viscd::state_colour), for the legend.
+ImVec4 rgb(viscd::Rgb8 c) {
+  return ImVec4(static_cast<float>(c.r) / 255.0f, static_cast<float>(c.g) / 255.0f, static_cast<float>(c.b) / 255.0f,
+                1.0f);
 }
-const ImVec4 kColliding = rgb(220, 40, 40);
-const ImVec4 kFree = rgb(50, 90, 230);
-const ImVec4 kCulled = rgb(235, 200, 40);
+const ImVec4 kColliding = rgb(viscd::state_colour(viscd::ObjectState::colliding));
+const ImVec4 kFree = rgb(viscd::state_colour(viscd::ObjectState::free));
+const ImVec4 kCulled = rgb(viscd::state_colour(viscd::ObjectState::culled));
 
 // Timing series: simulate (stage 0, timed here) followed by the detector's stages 1-9.
 constexpr std::size_t kSeries = kStageCount + 1;

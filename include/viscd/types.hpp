@@ -39,6 +39,26 @@ enum class ObjectState : std::uint8_t {
   colliding = 2,  ///< active and overlapping at least one other active object
 };
 
+/// An sRGB colour, 0 to 255 per channel.
+struct Rgb8 {
+  std::uint8_t r = 0, g = 0, b = 0;
+};
+/// The colour the shaded image (FrameResult::image) gives an object: red colliding, blue free,
+/// yellow culled (the paper's), so that an application's own debug view can match it.
+[[nodiscard]] constexpr Rgb8 state_colour(ObjectState s) {
+  switch (s) {
+    case ObjectState::colliding:
+      return {220, 40, 40};
+    case ObjectState::free:
+      return {50, 90, 230};
+    case ObjectState::culled:
+      break;
+  }
+  return {235, 200, 40};
+}
+/// The shaded image's background (pixels no object covers).
+inline constexpr Rgb8 kBackgroundColour{18, 18, 24};
+
 /// A pinhole camera: right-handed look-at, OpenGL clip space (the view looks down -z).
 /// `width` x `height` is the screen in pixels; pixel counts are always given in screen pixels.
 struct Camera {

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <limits>
 
+#include "core/visibility.hpp"
 #include "viscd/detector.hpp"
 
 namespace viscd::detail {
@@ -16,9 +17,8 @@ Status validate_frame(std::span<const Sphere> spheres, const Camera* camera, con
     if (Status s = validate_camera(*camera); !s) return s;
     if (config.map_width < 0 || config.map_height < 0 || (config.map_width == 0) != (config.map_height == 0))
       return Status::failure("visibility map size must be W x H with both positive, or 0 x 0 for the screen size");
-    const int w = config.map_width ? config.map_width : camera->width;
-    const int h = config.map_height ? config.map_height : camera->height;
-    if (Status s = validate_map_size(w, h); !s) return s;
+    const MapSize map = map_size(config, *camera);
+    if (Status s = validate_map_size(map.width, map.height); !s) return s;
   }
   return {};
 }
@@ -26,9 +26,8 @@ Status validate_frame(std::span<const Sphere> spheres, const Camera* camera, con
 std::string out_of_memory_message(std::size_t objects, const Camera* camera, const Config& config) {
   std::string m = "out of memory in a frame of " + std::to_string(objects) + " objects";
   if (camera) {
-    const int w = config.map_width ? config.map_width : camera->width;
-    const int h = config.map_height ? config.map_height : camera->height;
-    m += " with a " + std::to_string(w) + "x" + std::to_string(h) + " visibility map";
+    const MapSize map = map_size(config, *camera);
+    m += " with a " + std::to_string(map.width) + "x" + std::to_string(map.height) + " visibility map";
   }
   m += config.pair_memory_cap
            ? " (pair memory cap " + std::to_string(config.pair_memory_cap) +

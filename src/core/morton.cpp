@@ -101,17 +101,34 @@ int bits_for_mean_pixels(double mu, float a, float b) {
   return 64;
 }
 
-MortonEncoder::MortonEncoder(const MortonLayout& layout, const Aabb& bounds) {
+MortonGrid morton_grid(const MortonLayout& layout, const Aabb& bounds) {
   const std::array<float, 3> lo = {bounds.lo.x, bounds.lo.y, bounds.lo.z};
   const std::array<float, 3> hi = {bounds.hi.x, bounds.hi.y, bounds.hi.z};
+  MortonGrid g;
   for (int axis = 0; axis < 3; ++axis) {
     const int nb = layout.axis_bits[axis];
     VISCD_ASSERT(nb >= 0 && nb <= 32, "an axis has more than 32 bits");
     const double cells = std::ldexp(1.0, nb);
     const double extent = static_cast<double>(hi[axis]) - static_cast<double>(lo[axis]);
-    lo_[axis] = lo[axis];
-    scale_[axis] = (extent > 0.0 && std::isfinite(extent)) ? cells / extent : 0.0;
-    max_cell_[axis] = cells - 1.0;
+    g.lo[axis] = lo[axis];
+    g.scale[axis] = (extent > 0.0 && std::isfinite(extent)) ? cells / extent : 0.0;
+    g.max_cell[axis] = cells - 1.0;
+  }
+  return g;
+}
+
+int choose_bits(const Config& config, bool has_camera, double mu) {
+  if (config.bits != Bits::adaptive) return static_cast<int>(config.bits);
+  return has_camera ? bits_for_mean_pixels(mu, config.a, config.b) : 32;
+}
+
+MortonEncoder::MortonEncoder(const MortonLayout& layout, const Aabb& bounds) {
+  const MortonGrid g = morton_grid(layout, bounds);
+  lo_ = g.lo;
+  scale_ = g.scale;
+  max_cell_ = g.max_cell;
+  for (int axis = 0; axis < 3; ++axis) {
+    const int nb = layout.axis_bits[axis];
     for (int byte = 0; byte < 4; ++byte) {
       for (int v = 0; v < 256; ++v) {
         std::uint64_t code = 0;

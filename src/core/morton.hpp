@@ -52,6 +52,19 @@ struct MortonLayout {
 /// Eq. (1): m from mu and the thresholds.
 [[nodiscard]] int bits_for_mean_pixels(double mu, float a, float b);
 
+/// The frame's m, the one rule every backend applies: Config::bits when fixed; else Eq. (1)
+/// from mu; a frame without a camera has no mu, and adaptive falls back to the paper's 32 bits.
+[[nodiscard]] int choose_bits(const Config& config, bool has_camera, double mu);
+
+/// The quantisation grid of a layout over given bounds, per axis: a centre coordinate v goes to
+/// cell q = (v - lo) * scale (in double), clamped to [0, max_cell] (NaN and q <= 0 to 0). Every
+/// backend encodes with these numbers (the gl backend hands them to its shader), so codes are
+/// equal bit for bit.
+struct MortonGrid {
+  std::array<double, 3> lo{}, scale{}, max_cell{};
+};
+[[nodiscard]] MortonGrid morton_grid(const MortonLayout& layout, const Aabb& bounds);
+
 /// Encodes centres into codes of a layout, over given bounds.
 class MortonEncoder {
  public:
@@ -72,7 +85,7 @@ class MortonEncoder {
     return t[0][q & 0xFF] | t[1][(q >> 8) & 0xFF] | t[2][(q >> 16) & 0xFF] | t[3][q >> 24];
   }
 
-  std::array<double, 3> lo_{}, scale_{}, max_cell_{};
+  std::array<double, 3> lo_{}, scale_{}, max_cell_{};  // morton_grid()
   std::array<std::array<std::array<std::uint64_t, 256>, 4>, 3> table_{};
 };
 

@@ -77,6 +77,11 @@ PixelRect sphere_rect(const CameraRig& cam, const Sphere& s) {
   return rect;
 }
 
+const ShadingModel& shading_model() {
+  static const ShadingModel model{normalize({0.4f, 0.8f, 0.45f})};
+  return model;
+}
+
 int cull_and_choose_bits(std::span<const std::uint32_t> counts, double pixel_scale, const Config& config,
                          std::vector<float>& pixels, std::vector<std::uint32_t>& active, FrameStats& stats) {
   const std::size_t n = counts.size();
@@ -92,8 +97,7 @@ int cull_and_choose_bits(std::span<const std::uint32_t> counts, double pixel_sca
   }
   stats.mean_pixels = n ? total / static_cast<double>(n) : 0.0;
   stats.active = static_cast<std::uint32_t>(active.size());
-  return config.bits == Bits::adaptive ? bits_for_mean_pixels(stats.mean_pixels, config.a, config.b)
-                                       : static_cast<int>(config.bits);
+  return choose_bits(config, true, stats.mean_pixels);
 }
 
 }  // namespace viscd::detail

@@ -2,7 +2,7 @@
 // The visibility rules every backend shares: the camera and its map (stage 1's rays), the ray-sphere
 // hit every CPU rasterizer evaluates per pixel (both resolve depth ties by the smaller object id,
 // so their id maps are equal bit for bit), the conservative screen rectangle of a sphere, culling
-// and m (stage 3), and the state colours (stage 9).
+// and m (stage 3), the map size and the shading model (stage 9).
 
 #include <cstdint>
 #include <span>
@@ -67,10 +67,21 @@ struct PixelRect {
 int cull_and_choose_bits(std::span<const std::uint32_t> counts, double pixel_scale, const Config& config,
                          std::vector<float>& pixels, std::vector<std::uint32_t>& active, FrameStats& stats);
 
-/// The paper's colours, RGB.
-inline constexpr std::uint8_t kColourColliding[3] = {220, 40, 40};
-inline constexpr std::uint8_t kColourFree[3] = {50, 90, 230};
-inline constexpr std::uint8_t kColourCulled[3] = {235, 200, 40};
-inline constexpr std::uint8_t kColourBackground[3] = {18, 18, 24};
+/// Stage 1's map size: Config::map_width x map_height, or the camera's screen when they are 0.
+struct MapSize {
+  int width = 0, height = 0;
+};
+[[nodiscard]] inline MapSize map_size(const Config& config, const Camera& camera) {
+  return config.map_width ? MapSize{config.map_width, config.map_height} : MapSize{camera.width, camera.height};
+}
+
+/// Stage 9's light: brightness = ambient + diffuse * max(0, n.light) + rim * max(0, n.view),
+/// times the state colour (viscd::state_colour), rounded and clamped to 255. Every backend
+/// shades with these numbers.
+struct ShadingModel {
+  Vec3 light;  ///< unit vector towards the light, world space
+  float ambient = 0.25f, diffuse = 0.6f, rim = 0.15f;
+};
+[[nodiscard]] const ShadingModel& shading_model();
 
 }  // namespace viscd::detail

@@ -39,13 +39,12 @@ Status PipelineDetector::detect_frame(std::span<const Sphere> spheres, const Cam
   auto ms = [&](Stage s) -> double& { return stats.stage_ms[static_cast<std::size_t>(s)]; };
   Stopwatch sw;
 
-  int bits = 32;  // without a camera mu is undefined; adaptive falls back to the paper's 32 bits
+  int bits = 0;
   std::optional<CameraRig> rig;
   if (camera) {
-    const int mw = config_.map_width ? config_.map_width : camera->width;
-    const int mh = config_.map_height ? config_.map_height : camera->height;
-    rig.emplace(*camera, mw, mh);
-    map_.resize(mw, mh, config_.shade);
+    const MapSize map = map_size(config_, *camera);
+    rig.emplace(*camera, map.width, map.height);
+    map_.resize(map.width, map.height, config_.shade);
     rasterize(*rig, spheres, threads);
     ms(Stage::visibility) = sw.lap();
     count_pixels(map_, n, threads, counts_, count_scratch_);
@@ -58,7 +57,7 @@ Status PipelineDetector::detect_frame(std::span<const Sphere> spheres, const Cam
     active_.resize(n);
     for (std::size_t k = 0; k < n; ++k) active_[k] = static_cast<std::uint32_t>(k);
     stats.active = static_cast<std::uint32_t>(n);
-    if (config_.bits != Bits::adaptive) bits = static_cast<int>(config_.bits);
+    bits = choose_bits(config_, false, 0.0);
   }
 
   if (Status s = broadphase(spheres, active_, bits, threads, out.pairs, stats); !s) return s;

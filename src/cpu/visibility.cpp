@@ -10,10 +10,6 @@ namespace viscd::detail {
 namespace {
 
 float dot(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-Vec3 normalize(Vec3 a) {
-  const float l = std::sqrt(dot(a, a));
-  return {a.x / l, a.y / l, a.z / l};
-}
 
 }  // namespace
 
@@ -115,26 +111,24 @@ void shade(const CameraRig& cam, const VisibilityMap& map, std::span<const Objec
   const std::size_t n = map.ids.size();
   VISCD_ASSERT(map.normal.size() == 3 * n, "shading needs the normal map");
   rgba.resize(4 * n);
-  const Vec3 light = normalize({0.4f, 0.8f, 0.45f});
+  const ShadingModel& model = shading_model();
   const Vec3 view = {-cam.forward.x, -cam.forward.y, -cam.forward.z};
   parallel_for(n, threads, [&](std::size_t i) {
     std::uint8_t* out = &rgba[4 * i];
     out[3] = 255;
     const std::uint32_t id = map.ids[i];
     if (id == 0) {
-      out[0] = kColourBackground[0], out[1] = kColourBackground[1], out[2] = kColourBackground[2];
+      out[0] = kBackgroundColour.r, out[1] = kBackgroundColour.g, out[2] = kBackgroundColour.b;
       return;
     }
-    const std::uint8_t* base = state[id - 1] == ObjectState::colliding ? kColourColliding
-                               : state[id - 1] == ObjectState::free    ? kColourFree
-                                                                       : kColourCulled;
+    const Rgb8 base = state_colour(state[id - 1]);
     const Vec3 nrm = {map.normal[3 * i], map.normal[3 * i + 1], map.normal[3 * i + 2]};
     // Lambert plus a little ambient and a rim from the view direction, so spheres read as round.
-    const float diffuse = std::max(0.0f, dot(nrm, light));
+    const float diffuse = std::max(0.0f, dot(nrm, model.light));
     const float facing = std::max(0.0f, dot(nrm, view));
-    const float k = 0.25f + 0.6f * diffuse + 0.15f * facing;
-    for (int ch = 0; ch < 3; ++ch)
-      out[ch] = static_cast<std::uint8_t>(std::min(255.0f, static_cast<float>(base[ch]) * k + 0.5f));
+    const float k = model.ambient + model.diffuse * diffuse + model.rim * facing;
+    const float rgb[3] = {static_cast<float>(base.r), static_cast<float>(base.g), static_cast<float>(base.b)};
+    for (int ch = 0; ch < 3; ++ch) out[ch] = static_cast<std::uint8_t>(std::min(255.0f, rgb[ch] * k + 0.5f));
   });
 }
 

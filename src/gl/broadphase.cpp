@@ -39,46 +39,83 @@ void GlDetector::scan(GLuint in, GLuint out, std::uint32_t n) {
   }
 }
 
-// LSD radix sort of uvec2 keys (and uint values) in keys[0]/values[0], 8-bit digits, stable:
-// ceil(key_bits / 8) passes (the pass count follows m), each histogram -> scan -> scatter.
+void GlDetector::write_dispatch_args() {
+  info_.bind_storage(VISCD_BIND_INFO);
+  dispatch_.bind_storage(VISCD_BIND_DISPATCH);
+  glUseProgram(dispatch_args_.get());
+  glDispatchCompute(1, 1, 1);
+  barrier();  // GL_COMMAND_BARRIER_BIT among them: the indirect dispatches see the counts
+}
+
+void GlDetector::dispatch_indirect(const Program& p, GLintptr offset) const {
+  glUseProgram(p.get());
+  glBindBuffer(GL_DISPATCH_INDIRECT_BUFFER, dispatch_.get());
+  glDispatchComputeIndirect(offset);
+}
+
+// Sort of uvec2 keys (and uint values) in keys[0]/values[0] by (key, value): up to
+// VISCD_LOCAL_SORT keys in one work group (sort_local.comp), more by an LSD radix sort with 8-bit
+// digits, ceil(key_bits / 8) passes (the pass count follows m), each three dispatches: tile
+// histograms, one work group turning them into offsets, the scatter. The radix sort is stable
+// and values start ascending, so both give the same order. The result lies where the passes
+// leave it, keys[passes % 2], either way.
 int GlDetector::radix_sort(Buffer* keys, Buffer* values, std::uint32_t n, int key_bits, bool n_from_info) {
   if (n < 2) return 0;  // also with n_from_info: the GPU count is <= n, nothing to sort
-  // With n_from_info the tiles cover n (>= the GPU count): tiles past the count histogram zero
-  // keys, so the offsets, and the result, are the same as over the exact count.
-  const std::uint32_t tiles = (n + VISCD_SORT_TILE - 1) / VISCD_SORT_TILE;
-  const auto hist_bytes = static_cast<GLsizeiptr>(4) * 256 * tiles;
-  hist_.reserve(hist_bytes);
-  hist_scan_.reserve(hist_bytes);
-  int src = 0;
   const int passes = (key_bits + 7) / 8;
-  glProgramUniform1ui(radix_hist_.get(), radix_hist_.uniform("u_n"), n);
-  glProgramUniform1ui(radix_scatter_.get(), radix_scatter_.uniform("u_n"), n);
-  glProgramUniform1ui(radix_hist_.get(), radix_hist_.uniform("u_n_from_info"), n_from_info ? 1u : 0u);
-  glProgramUniform1ui(radix_scatter_.get(), radix_scatter_.uniform("u_n_from_info"), n_from_info ? 1u : 0u);
+  const int dst = passes % 2;
+  for (const Program* p : {&sort_local_, &radix_hist_, &radix_scan_, &radix_scatter_}) {
+    glProgramUniform1ui(p->get(), p->uniform("u_n"), n);
+    glProgramUniform1ui(p->get(), p->uniform("u_n_from_info"), n_from_info ? 1u : 0u);
+  }
+  for (const Program* p : {&sort_local_, &radix_scatter_})
+    glProgramUniform1ui(p->get(), p->uniform("u_has_values"), values ? 1u : 0u);
   info_.bind_storage(VISCD_BIND_INFO);
-  glProgramUniform1ui(radix_scatter_.get(), radix_scatter_.uniform("u_has_values"), values ? 1u : 0u);
+  // Few keys (the count on the GPU is at most n): the local sort alone. Otherwise, with the
+  // count on the GPU, the local sort runs for a small count and the radix passes (0 tiles from
+  // DispatchArgs) for a large one; with the count on the host, only the radix passes.
+  if (n <= VISCD_LOCAL_SORT || n_from_info) {
+    keys[0].bind_storage(VISCD_BIND_KEYS_IN);
+    keys[dst].bind_storage(VISCD_BIND_KEYS_OUT);
+    if (values) {
+      values[0].bind_storage(VISCD_BIND_VALUES_IN);
+      values[dst].bind_storage(VISCD_BIND_VALUES_OUT);
+    }
+    glUseProgram(sort_local_.get());
+    glDispatchCompute(1, 1, 1);
+    barrier();
+    if (n <= VISCD_LOCAL_SORT) return dst;
+  }
+  const std::uint32_t tiles = (n + VISCD_SORT_TILE - 1) / VISCD_SORT_TILE;
+  hist_.reserve(static_cast<GLsizeiptr>(4) * 256 * tiles);
+  int src = 0;
+  hist_.bind_storage(VISCD_BIND_SCAN_IN);
+  const auto over_tiles = [&](const Program& p) {
+    if (n_from_info) {
+      dispatch_indirect(p, offsetof(shader::DispatchArgs, sort_tiles));
+    } else {
+      glUseProgram(p.get());
+      glDispatchCompute(tiles, 1, 1);
+    }
+    barrier();
+  };
   for (int pass = 0; pass < passes; ++pass) {
     const auto shift = static_cast<GLuint>(8 * pass);
-    keys[src].bind_storage(VISCD_BIND_KEYS_IN);
-    hist_.bind_storage(VISCD_BIND_SCAN_IN);
-    glProgramUniform1ui(radix_hist_.get(), radix_hist_.uniform("u_shift"), shift);
-    glUseProgram(radix_hist_.get());
-    glDispatchCompute(tiles, 1, 1);
-    barrier();
-    scan(hist_.get(), hist_scan_.get(), 256 * tiles);
     keys[src].bind_storage(VISCD_BIND_KEYS_IN);
     keys[1 - src].bind_storage(VISCD_BIND_KEYS_OUT);
     if (values) {
       values[src].bind_storage(VISCD_BIND_VALUES_IN);
       values[1 - src].bind_storage(VISCD_BIND_VALUES_OUT);
     }
-    hist_scan_.bind_storage(VISCD_BIND_SCAN_OUT);
+    glProgramUniform1ui(radix_hist_.get(), radix_hist_.uniform("u_shift"), shift);
     glProgramUniform1ui(radix_scatter_.get(), radix_scatter_.uniform("u_shift"), shift);
-    glUseProgram(radix_scatter_.get());
-    glDispatchCompute(tiles, 1, 1);
+    over_tiles(radix_hist_);
+    glUseProgram(radix_scan_.get());
+    glDispatchCompute(1, 1, 1);
     barrier();
+    over_tiles(radix_scatter_);
     src = 1 - src;
   }
+  VISCD_ASSERT(src == dst, "the passes end where the local sort writes");
   return src;
 }
 
@@ -95,34 +132,29 @@ void GlDetector::reserve_broadphase(std::uint32_t n) {
   leaf_boxes_.reserve(bytes(24));
 }
 
-// n = FrameInfo.active_count is read on the GPU by every pass (codes, sort, build, fit, query);
-// the host only knows the bound n_bound >= n, which sizes the dispatches and the buffers. In the
-// default mode n_bound is N; in sync mode, and in run_broadphase, it is n itself.
+// n = FrameInfo.active_count is read on the GPU by every pass (codes, sort, build, fit, query),
+// and each pass is dispatched indirectly from DispatchArgs (written from n on the GPU); the host
+// only knows the bound n_bound >= n, which sizes the buffers. In the default mode n_bound is N;
+// in sync mode, and in run_broadphase, it is n itself.
 Status GlDetector::broadphase(std::uint32_t n_bound, std::uint32_t objects, const detail::MortonLayout& layout,
                               const detail::Aabb& bounds, std::vector<Pair>& pairs, FrameStats& stats) {
-  const std::uint32_t n = n_bound;  // dispatch sizes below: shaders early-out at info.active_count
+  const std::uint32_t n = n_bound;
   reserve_broadphase(n);
+  constexpr GLintptr per_object = offsetof(shader::DispatchArgs, per_object);
   info_.bind_storage(VISCD_BIND_INFO);
 
-  // Stage 5: codes. The encoder parameters are MortonEncoder's, computed the same way in double.
+  // Stage 5: codes, on the shared quantisation grid (core/morton.hpp), so they equal the cpu
+  // backend's bit for bit.
   stage_begin(Stage::codes);
   {
-    const float lo[3] = {bounds.lo.x, bounds.lo.y, bounds.lo.z};
-    const float hi[3] = {bounds.hi.x, bounds.hi.y, bounds.hi.z};
-    double lo_d[3], scale[3], max_cell[3];
+    const detail::MortonGrid grid = detail::morton_grid(layout, bounds);
     GLint position[96] = {};
-    for (int a = 0; a < 3; ++a) {
-      const double cells = std::ldexp(1.0, layout.axis_bits[a]);
-      const double extent = static_cast<double>(hi[a]) - static_cast<double>(lo[a]);
-      lo_d[a] = lo[a];
-      scale[a] = (extent > 0.0 && std::isfinite(extent)) ? cells / extent : 0.0;
-      max_cell[a] = cells - 1.0;
+    for (int a = 0; a < 3; ++a)
       for (int b = 0; b < layout.axis_bits[a]; ++b) position[32 * a + b] = layout.position[a][b];
-    }
     const GLuint p = morton_.get();
-    glProgramUniform3dv(p, morton_.uniform("u_lo"), 1, lo_d);
-    glProgramUniform3dv(p, morton_.uniform("u_scale"), 1, scale);
-    glProgramUniform3dv(p, morton_.uniform("u_max_cell"), 1, max_cell);
+    glProgramUniform3dv(p, morton_.uniform("u_lo"), 1, grid.lo.data());
+    glProgramUniform3dv(p, morton_.uniform("u_scale"), 1, grid.scale.data());
+    glProgramUniform3dv(p, morton_.uniform("u_max_cell"), 1, grid.max_cell.data());
     glProgramUniform3i(p, morton_.uniform("u_axis_bits"), layout.axis_bits[0], layout.axis_bits[1],
                        layout.axis_bits[2]);
     glProgramUniform1iv(p, morton_.uniform("u_position"), 96, position);
@@ -130,7 +162,7 @@ Status GlDetector::broadphase(std::uint32_t n_bound, std::uint32_t objects, cons
     active_.bind_storage(VISCD_BIND_ACTIVE);
     keys_[0].bind_storage(VISCD_BIND_KEYS_OUT);
     values_[0].bind_storage(VISCD_BIND_VALUES_OUT);
-    morton_.dispatch(n);
+    dispatch_indirect(morton_, per_object);
     barrier();
   }
   stage_end(Stage::codes);
@@ -145,29 +177,25 @@ Status GlDetector::broadphase(std::uint32_t n_bound, std::uint32_t objects, cons
   keys_[sorted_in_].bind_storage(VISCD_BIND_KEYS_IN);
   nodes_.bind_storage(VISCD_BIND_NODES);
   parent_.bind_storage(VISCD_BIND_PARENT);
+  arrivals_.bind_storage(VISCD_BIND_ARRIVALS);  // zeroed by the build, one per internal node
   glProgramUniform1i(build_.get(), build_.uniform("u_bits"), layout.bits);
-  if (n >= 2) build_.dispatch(n - 1);
+  dispatch_indirect(build_, offsetof(shader::DispatchArgs, per_node));
   barrier();
   stage_end(Stage::build);
   stage_begin(Stage::fit);
-  if (n >= 2) {
-    const GLuint zero = 0;
-    glClearNamedBufferSubData(arrivals_.get(), GL_R32UI, 0, 4 * static_cast<GLsizeiptr>(n - 1), GL_RED_INTEGER,
-                              GL_UNSIGNED_INT, &zero);
-    barrier();
-  }
   spheres_.bind_storage(VISCD_BIND_SPHERES);
   values_[sorted_in_].bind_storage(VISCD_BIND_VALUES_IN);
   sorted_.bind_storage(VISCD_BIND_SORTED);
   leaf_boxes_.bind_storage(VISCD_BIND_LEAF_BOXES);
   arrivals_.bind_storage(VISCD_BIND_ARRIVALS);
   info_.bind_storage(VISCD_BIND_INFO);
-  fit_.dispatch(n);
+  dispatch_indirect(fit_, per_object);
   barrier();
   stage_end(Stage::fit);
 
-  // Stage 8: query; on overflow grow the buffer to the exact count and run it again.
-  stage_begin(Stage::query);
+  // Stage 8: query; on overflow grow the buffer to the exact count and run it again. Its GPU
+  // time is three intervals (stage_begin parts): the traversal (the last attempt), the pair
+  // sort, and the states (mark_colliding); the host waits between them are not GPU work.
   // The previous frame's pair sort may have left its smaller buffer (sized for that frame's
   // count) as pairs_: make sure pairs_ holds the pair_capacity_ pairs the query may write.
   pairs_.reserve(static_cast<GLsizeiptr>(pair_capacity_) * 8);
@@ -178,8 +206,10 @@ Status GlDetector::broadphase(std::uint32_t n_bound, std::uint32_t objects, cons
     glNamedBufferSubData(info_.get(), offsetof(shader::FrameInfo, pair_count), 4, &zero);
     pairs_.bind_storage(VISCD_BIND_PAIRS);
     glProgramUniform1ui(query_.get(), query_.uniform("u_capacity"), pair_capacity_);
-    query_.dispatch(n);
+    stage_begin(Stage::query, 0);
+    dispatch_indirect(query_, per_object);
     barrier();
+    stage_end(Stage::query, 0);
     // The frame's one wait (both modes): the whole FrameInfo, i.e. the pair count and this
     // frame's n, bounds, diameter sum and pixel total (the next frame's layout inputs).
     glGetNamedBufferSubData(info_.get(), 0, sizeof frame_info_, &frame_info_);
@@ -201,7 +231,9 @@ Status GlDetector::broadphase(std::uint32_t n_bound, std::uint32_t objects, cons
   tmp[1] = std::move(pairs_tmp_);
   pair_bufs = tmp;
   const int key_bits = 32 + std::bit_width(objects ? objects - 1 : 0u);
+  stage_begin(Stage::query, 1);
   const int in = radix_sort(pair_bufs, nullptr, count, key_bits, false);
+  stage_end(Stage::query, 1);
   // Keep the sorted pairs in pairs_ (the state pass reads them).
   pairs_ = std::move(tmp[in]);
   pairs_tmp_ = std::move(tmp[1 - in]);
@@ -211,7 +243,6 @@ Status GlDetector::broadphase(std::uint32_t n_bound, std::uint32_t objects, cons
     for (Pair& p : pairs) std::swap(p.i, p.j);  // stored (x = j, y = i)
   }
   stats.pairs = count;
-  stage_end(Stage::query);
   return {};
 }
 
@@ -228,6 +259,7 @@ Status GlDetector::run_broadphase(std::span<const Sphere> spheres, std::span<con
   shader::FrameInfo zero_info{};
   zero_info.active_count = n;  // the shaders read n from FrameInfo
   glNamedBufferSubData(info_.get(), 0, sizeof zero_info, &zero_info);
+  write_dispatch_args();
   const detail::ActiveExtent e = detail::extent_of(spheres, active, 0, active.size());
   const detail::MortonLayout layout = detail::make_layout(config_.layout, bits, e.bounds, e.mean_diameter());
   stats.bits = bits;

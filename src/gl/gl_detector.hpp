@@ -6,17 +6,21 @@
 //      readback. m and the Morton layout are chosen on the host (core/morton.hpp, as the cpu
 //      backend) from the PREVIOUS frame's FrameInfo (active count, active-centre bounds,
 //      diameter sum, pixel total), which the host read with that frame's pair count. Every
-//      dispatch after culling is sized by N and reads this frame's active count n from
-//      FrameInfo on the GPU (early-out `k >= info.active_count`). The first frame, and a frame
-//      whose N or camera presence differs from the previous frame's, run as sync_layout.
+//      pass after culling is sized by this frame's active count n through indirect dispatch
+//      (DispatchArgs, written on the GPU from FrameInfo), and reads n from FrameInfo. The
+//      first frame, and a frame whose N or camera presence differs from the previous frame's,
+//      run as sync_layout.
 //   sync_layout = true: one wait after stage 3 for this frame's FrameInfo; m and the layout are
-//      then exactly the cpu backend's (bit-identical codes) and dispatches are sized by n.
+//      then exactly the cpu backend's (bit-identical codes).
 // In both modes the frame ends with one wait, for FrameInfo (the pair count: grow the pair
 // buffer and re-run on overflow; n and the values the next frame uses), then the results the
 // caller asked for (pairs, states, pixels, image) are read back.
+// The decisions that do not depend on where a stage runs (map size, m, the Morton layout and
+// grid, culling, shading) are core's (src/core), shared with the cpu backend.
 
 #include <array>
 #include <memory>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -74,40 +78,78 @@ class GlDetector final : public Detector {
   [[nodiscard]] Status gl_errors(const char* where);
   void upload_spheres(std::span<const Sphere> spheres);
 
+  // The frame's stages, in order (gl_detector.cpp unless named).
+  /// Uploads the spheres, sizes the per-object buffers, zeroes FrameInfo, sets up the camera.
+  void begin_frame(std::span<const Sphere> spheres, const Camera* camera);
+  /// Stages 1-2 (visibility.cpp): the G-buffer and the pixel count per object.
+  [[nodiscard]] Status render_visibility(std::uint32_t objects);
+  /// Stage 3: pixels, active flags and first states; the compaction into the active list; the
+  /// active count in FrameInfo and the indirect dispatch sizes from it.
+  void cull(std::uint32_t objects, bool has_counts);
+  /// Stage 4's inputs on the GPU: the active centres' bounds and diameter sum into FrameInfo.
+  void measure_extent();
+  /// Stage 4 on the host: m and the Morton layout from this frame's FrameInfo (a mid-frame
+  /// wait) or from the previous frame's (default mode, no wait).
+  struct LayoutChoice {
+    detail::MortonLayout layout;
+    detail::Aabb bounds;
+    std::uint32_t n_bound = 0;  // sizes the buffers of stages 5-8: n when known, else N
+  };
+  [[nodiscard]] LayoutChoice choose_layout(std::uint32_t objects, bool has_camera, FrameStats& stats);
+  /// After the broadphase: this frame's n and mu into stats, and kept for the next frame.
+  void remember_frame(std::uint32_t objects, bool has_camera, FrameStats& stats);
+  /// Both objects of every pair become colliding (the cull pass wrote free / culled).
+  void mark_colliding(std::uint32_t pairs);
+  /// States and pixels back to the host.
+  void read_states_and_pixels(std::uint32_t objects, bool has_camera, FrameResult& out);
+  /// Stage 9 (visibility.cpp) and the image back to the host.
+  void shade(FrameResult& out);
+
   // visibility.cpp
   void ensure_map(int w, int h);
-  void draw_gbuffer(const detail::CameraRig& rig, std::uint32_t n);
+  void draw_gbuffer(std::uint32_t n);
   [[nodiscard]] Status count_pixels(std::uint32_t n);
-  void shade(const detail::CameraRig& rig);
   void make_mesh();
+  void set_camera_uniforms(const Program& p) const;
 
   // broadphase.cpp
+  /// Exclusive scan of n uints (three dispatches, reduce-then-scan); leaves the total in
+  /// block_sums_[ceil(n / VISCD_SCAN_BLOCK)]. Used over all N objects by the compaction.
   void scan(GLuint in, GLuint out, std::uint32_t n);
+  /// Writes DispatchArgs from FrameInfo.active_count (one invocation on the GPU).
+  void write_dispatch_args();
   /// Sorts keys[0] (+ values[0]) by their low key_bits; returns which of the two buffers
-  /// holds the result. n_from_info: the key count is FrameInfo.active_count on the GPU and n
-  /// only bounds it (dispatch size); otherwise it is n.
+  /// holds the result. n_from_info: the key count is FrameInfo.active_count on the GPU, the
+  /// passes are dispatched indirectly from it and n only bounds it (buffer sizes); otherwise
+  /// the count is n and the host sizes the passes.
   int radix_sort(Buffer* keys, Buffer* values, std::uint32_t n, int key_bits, bool n_from_info);
-  /// Stages 5-8 over FrameInfo.active_count active objects (on the GPU); `n_bound` >= that
-  /// count sizes the dispatches and buffers (n itself in sync mode, N in the default mode).
+  /// Stages 5-8 over FrameInfo.active_count active objects (on the GPU), dispatched from
+  /// DispatchArgs; `n_bound` >= that count sizes the buffers.
   /// Ends with the frame's one wait: frame_info_ holds this frame's FrameInfo afterwards.
   [[nodiscard]] Status broadphase(std::uint32_t n_bound, std::uint32_t objects, const detail::MortonLayout& layout,
                                   const detail::Aabb& bounds, std::vector<Pair>& pairs, FrameStats& stats);
   void reserve_broadphase(std::uint32_t n);
+  /// Dispatches `p` with the work-group count at `offset` in DispatchArgs.
+  void dispatch_indirect(const Program& p, GLintptr offset) const;
 
   // timers (gl_detector.cpp)
-  void stage_begin(Stage s);
-  void stage_end(Stage s);
+  // A stage's GPU time is the sum of up to kTimerParts intervals, so that a stage split by a host
+  // wait (stage 8: traversal | wait for the pair count | pair sort | states) counts GPU work only.
+  static constexpr std::size_t kTimerParts = 3;
+  void stage_begin(Stage s, std::size_t part = 0);
+  void stage_end(Stage s, std::size_t part = 0);
   void read_timers(FrameStats& stats);
   Status detect_frame(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out);
 
   GlOptions options_;
   std::unique_ptr<Context> ctx_;
   // Programs.
-  Program scan_local_, scan_blocks_, scan_add_, count_, cull_, bounds_, morton_, radix_hist_, radix_scatter_, build_,
-      fit_, query_, state_, shade_, impostor_, mesh_, count_atomic_;
+  Program scan_local_, scan_blocks_, scan_add_, count_, cull_, compact_, dispatch_args_, bounds_, bounds_fold_, morton_,
+      sort_local_, radix_hist_, radix_scan_, radix_scatter_, build_, fit_, query_, state_, shade_, impostor_, mesh_,
+      count_atomic_;
   std::uint32_t count_atomic_n_ = 0;  // N the atomic_uint program was built for
   // Buffers (see shaders/shared/layout.h for their contents).
-  Buffer spheres_, counts_, pixels_, flags_, scan_out_, block_sums_, active_, info_, partials_, hist_, hist_scan_,
+  Buffer spheres_, counts_, pixels_, flags_, scan_out_, block_sums_, active_, info_, partials_, hist_, dispatch_,
       nodes_, parent_, arrivals_, sorted_, leaf_boxes_, pairs_, pairs_tmp_, states_, image_;
   Buffer keys_[2], values_[2];
   Buffer mesh_vbo_, mesh_ibo_;
@@ -115,6 +157,12 @@ class GlDetector final : public Detector {
   int sorted_in_ = 0;         // which keys_/values_ holds the last sorted codes
   std::uint32_t last_n_ = 0;  // active count of the last broadphase
   std::uint32_t pair_capacity_ = 0;
+  // Driver limits, read once: work groups per dispatch (x), and the atomic_uint counters.
+  std::uint32_t max_groups_ = 65535;
+  GLint max_fragment_counters_ = 0, max_counter_buffer_bytes_ = 0;
+  // This frame's camera over its map (nullopt without a camera), and the states' readback.
+  std::optional<detail::CameraRig> rig_;
+  std::vector<std::uint32_t> state_words_;
   // This frame's FrameInfo, read back once at the end of the broadphase (with the pair count).
   shader::FrameInfo frame_info_{};
   // The previous frame's values, the default mode's source of m, the layout and the bounds.
@@ -129,9 +177,9 @@ class GlDetector final : public Detector {
   Framebuffer gbuffer_, empty_fbo_;
   VertexArray empty_vao_, mesh_vao_;
   int map_w_ = 0, map_h_ = 0;
-  // Timers: GL_TIMESTAMP pairs per stage, two frames in flight; read one frame late.
-  std::array<std::array<Query, 2 * kStageCount>, 2> timers_;
-  std::array<std::array<bool, kStageCount>, 2> timer_used_{};
+  // Timers: GL_TIMESTAMP pairs per stage and part, two frames in flight; read one frame late.
+  std::array<std::array<Query, 2 * kStageCount * kTimerParts>, 2> timers_;
+  std::array<std::array<bool, kStageCount * kTimerParts>, 2> timer_used_{};
   int timer_frame_ = 0;
   bool timers_ok_ = false;
 };

@@ -2,6 +2,8 @@
 
 #include <vector>
 
+#include "viscd/assert.hpp"
+
 #include "gl/shader_sources.hpp"
 
 namespace viscd::gl {
@@ -76,6 +78,7 @@ Result<Program> Program::compute(std::string_view name, std::string_view defines
   GLint size[3] = {1, 1, 1};
   glGetProgramiv(prog.get(), GL_COMPUTE_WORK_GROUP_SIZE, size);
   prog.local_size_ = static_cast<GLuint>(size[0]);
+  prog.read_uniforms();
   return prog;
 }
 
@@ -88,7 +91,33 @@ Result<Program> Program::graphics(std::string_view vert, std::string_view frag, 
   if (!p) return Result<Program>::failure(p.error());
   Program prog;
   prog.handle_ = std::move(p.value());
+  prog.read_uniforms();
   return prog;
+}
+
+void Program::read_uniforms() {
+  GLint count = 0, longest = 0;
+  glGetProgramiv(handle_.get(), GL_ACTIVE_UNIFORMS, &count);
+  glGetProgramiv(handle_.get(), GL_ACTIVE_UNIFORM_MAX_LENGTH, &longest);
+  std::string name(static_cast<std::size_t>(std::max(longest, 1)), '\0');
+  uniforms_.clear();
+  for (GLint k = 0; k < count; ++k) {
+    GLsizei length = 0;
+    GLint size = 0;
+    GLenum type = 0;
+    glGetActiveUniform(handle_.get(), static_cast<GLuint>(k), longest, &length, &size, &type, name.data());
+    std::string n(name.data(), static_cast<std::size_t>(length));
+    if (n.ends_with("[0]")) n.resize(n.size() - 3);
+    const GLint location = glGetUniformLocation(handle_.get(), n.c_str());
+    if (location >= 0) uniforms_.emplace_back(std::move(n), location);  // uniform blocks' members have none
+  }
+}
+
+GLint Program::uniform(std::string_view name) const {
+  for (const auto& [n, location] : uniforms_)
+    if (n == name) return location;
+  VISCD_ASSERT(false, "the program has no active uniform of this name");
+  return -1;
 }
 
 void Program::dispatch(std::uint64_t n) const {

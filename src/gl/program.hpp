@@ -4,6 +4,8 @@
 #include <array>
 #include <string>
 #include <string_view>
+#include <utility>
+#include <vector>
 
 #include "gl/objects.hpp"
 #include "viscd/result.hpp"
@@ -29,14 +31,19 @@ class Program {
   [[nodiscard]] GLuint groups_for(std::uint64_t n) const {
     return static_cast<GLuint>((n + local_size_ - 1) / local_size_);
   }
-  /// Uniform location by name (-1 if the linker removed it).
-  [[nodiscard]] GLint uniform(const char* name) const { return glGetUniformLocation(handle_.get(), name); }
+  /// Location of an active uniform, from the table read once at link time (no GL call). An
+  /// array is named without "[0]". Asserts that the program has it: a misspelt name, or a
+  /// uniform the shader does not use, is a bug.
+  [[nodiscard]] GLint uniform(std::string_view name) const;
   /// Binds the program and dispatches ceil(n / local size) groups (nothing when n == 0).
   void dispatch(std::uint64_t n) const;
 
  private:
+  void read_uniforms();
+
   ProgramHandle handle_;
   GLuint local_size_ = 1;
+  std::vector<std::pair<std::string, GLint>> uniforms_;  // active uniforms: name, location
 };
 
 }  // namespace viscd::gl

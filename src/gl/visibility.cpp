@@ -18,18 +18,49 @@ Texture make_texture(GLenum format, int w, int h) {
   return Texture(t);
 }
 
-void set_camera_uniforms(GLuint p, const detail::CameraRig& rig) {
-  auto loc = [p](const char* name) { return glGetUniformLocation(p, name); };
-  glProgramUniform3f(p, loc("u_eye"), rig.eye.x, rig.eye.y, rig.eye.z);
-  glProgramUniform3f(p, loc("u_forward"), rig.forward.x, rig.forward.y, rig.forward.z);
-  glProgramUniform3f(p, loc("u_right"), rig.right.x, rig.right.y, rig.right.z);
-  glProgramUniform3f(p, loc("u_up"), rig.up.x, rig.up.y, rig.up.z);
-  glProgramUniform2f(p, loc("u_tan_half"), rig.tan_half_x, rig.tan_half_y);
-  glProgramUniform2f(p, loc("u_near_far"), rig.near_plane, rig.far_plane);
-  glProgramUniform2i(p, loc("u_map"), rig.map_w, rig.map_h);
+// Work groups of a 2D pass over the map (VISCD_TILE_SIDE pixels a side).
+void dispatch_over_map(GLuint program, int w, int h) {
+  const auto groups = [](int pixels) { return static_cast<GLuint>((pixels + VISCD_TILE_SIDE - 1) / VISCD_TILE_SIDE); };
+  if (w <= 0 || h <= 0) return;
+  glUseProgram(program);
+  glDispatchCompute(groups(w), groups(h), 1);
 }
 
 }  // namespace
+
+void GlDetector::set_camera_uniforms(const Program& prog) const {
+  const detail::CameraRig& rig = *rig_;
+  const GLuint p = prog.get();
+  glProgramUniform3f(p, prog.uniform("u_eye"), rig.eye.x, rig.eye.y, rig.eye.z);
+  glProgramUniform3f(p, prog.uniform("u_forward"), rig.forward.x, rig.forward.y, rig.forward.z);
+  glProgramUniform3f(p, prog.uniform("u_right"), rig.right.x, rig.right.y, rig.right.z);
+  glProgramUniform3f(p, prog.uniform("u_up"), rig.up.x, rig.up.y, rig.up.z);
+  glProgramUniform2f(p, prog.uniform("u_tan_half"), rig.tan_half_x, rig.tan_half_y);
+  glProgramUniform2f(p, prog.uniform("u_near_far"), rig.near_plane, rig.far_plane);
+  glProgramUniform2i(p, prog.uniform("u_map"), rig.map_w, rig.map_h);
+}
+
+Status GlDetector::render_visibility(std::uint32_t objects) {
+  if (options_.counter == GlCounter::atomic_uint) {
+    // Checked before any work so that the error is clean.
+    const std::uint32_t limit = std::min<std::uint32_t>(static_cast<std::uint32_t>(max_fragment_counters_),
+                                                        static_cast<std::uint32_t>(max_counter_buffer_bytes_) / 4);
+    if (objects > limit)
+      return Status::failure(
+          "atomic_uint counting supports at most " + std::to_string(limit) +
+          " objects on this driver (GL_MAX_FRAGMENT_ATOMIC_COUNTERS = " + std::to_string(max_fragment_counters_) +
+          ", GL_MAX_ATOMIC_COUNTER_BUFFER_SIZE = " + std::to_string(max_counter_buffer_bytes_) +
+          " bytes); the frame has " + std::to_string(objects) + ": use the ssbo counter mode");
+  }
+  stage_begin(Stage::visibility);
+  ensure_map(rig_->map_w, rig_->map_h);
+  draw_gbuffer(objects);
+  stage_end(Stage::visibility);
+  stage_begin(Stage::count);
+  if (Status s = count_pixels(objects); !s) return s;
+  stage_end(Stage::count);
+  return {};
+}
 
 // The G-buffer: ids (R32UI), view depth (R32F), normal (RGBA32F) and a D32F depth buffer.
 void GlDetector::ensure_map(int w, int h) {
@@ -92,7 +123,8 @@ void GlDetector::make_mesh() {
 
 // Stage 1: instanced draw of every sphere, ids ascending; depth test LESS keeps the nearest hit
 // and, on equal depth, the first drawn (smaller id), GL's primitive order guarantee.
-void GlDetector::draw_gbuffer(const detail::CameraRig& rig, std::uint32_t n) {
+void GlDetector::draw_gbuffer(std::uint32_t n) {
+  const detail::CameraRig& rig = *rig_;
   const GLuint zero_id[4] = {0, 0, 0, 0};
   const float far_depth[4] = {rig.far_plane, 0, 0, 0};
   const float zero[4] = {0, 0, 0, 0};
@@ -110,12 +142,12 @@ void GlDetector::draw_gbuffer(const detail::CameraRig& rig, std::uint32_t n) {
   spheres_.bind_storage(VISCD_BIND_SPHERES);
   if (options_.geometry == GlGeometry::mesh) {
     if (!mesh_vao_) make_mesh();
-    set_camera_uniforms(mesh_.get(), rig);
+    set_camera_uniforms(mesh_);
     glUseProgram(mesh_.get());
     glBindVertexArray(mesh_vao_.get());
     glDrawElementsInstanced(GL_TRIANGLES, mesh_indices_, GL_UNSIGNED_INT, nullptr, static_cast<GLsizei>(n));
   } else {
-    set_camera_uniforms(impostor_.get(), rig);
+    set_camera_uniforms(impostor_);
     glUseProgram(impostor_.get());
     glBindVertexArray(empty_vao_.get());
     glDrawArraysInstanced(GL_TRIANGLE_STRIP, 0, 4, static_cast<GLsizei>(n));
@@ -153,34 +185,49 @@ Status GlDetector::count_pixels(std::uint32_t n) {
   } else {
     counts_.bind_storage(VISCD_BIND_COUNTS);
     glProgramUniform2i(count_.get(), count_.uniform("u_map"), map_w_, map_h_);
-    count_.dispatch(static_cast<std::uint64_t>(map_w_) * static_cast<std::uint64_t>(map_h_));
+    dispatch_over_map(count_.get(), map_w_, map_h_);
   }
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
   return {};
 }
 
-// Stage 9: the paper's colours from core/visibility.hpp, the same light and rim as shade().
-void GlDetector::shade(const detail::CameraRig& rig) {
+// Stage 9: the shared shading model and state colours (core/visibility.hpp, viscd/types.hpp),
+// as the cpu backend's shade().
+void GlDetector::shade(FrameResult& out) {
+  if (!rig_ || !config_.shade) {
+    out.image.clear();
+    out.image_width = out.image_height = 0;
+    return;
+  }
+  stage_begin(Stage::shade);
   const std::size_t pixels = static_cast<std::size_t>(map_w_) * static_cast<std::size_t>(map_h_);
   image_.reserve(4 * static_cast<GLsizeiptr>(pixels));
-  const float l[3] = {0.4f, 0.8f, 0.45f};
-  const float ll = std::sqrt(l[0] * l[0] + l[1] * l[1] + l[2] * l[2]);
+  const detail::ShadingModel& model = detail::shading_model();
   const GLuint p = shade_.get();
   glProgramUniform2i(p, shade_.uniform("u_map"), map_w_, map_h_);
-  glProgramUniform3f(p, shade_.uniform("u_light"), l[0] / ll, l[1] / ll, l[2] / ll);
-  glProgramUniform3f(p, shade_.uniform("u_view"), -rig.forward.x, -rig.forward.y, -rig.forward.z);
+  glProgramUniform3f(p, shade_.uniform("u_light"), model.light.x, model.light.y, model.light.z);
+  glProgramUniform3f(p, shade_.uniform("u_terms"), model.ambient, model.diffuse, model.rim);
+  glProgramUniform3f(p, shade_.uniform("u_view"), -rig_->forward.x, -rig_->forward.y, -rig_->forward.z);
   float colours[12];
-  const std::uint8_t* c[4] = {detail::kColourColliding, detail::kColourFree, detail::kColourCulled,
-                              detail::kColourBackground};
-  for (int k = 0; k < 4; ++k)
-    for (int ch = 0; ch < 3; ++ch) colours[3 * k + ch] = static_cast<float>(c[k][ch]);
+  const Rgb8 c[4] = {state_colour(ObjectState::colliding), state_colour(ObjectState::free),
+                     state_colour(ObjectState::culled), kBackgroundColour};
+  for (int k = 0; k < 4; ++k) {
+    colours[3 * k] = c[k].r;
+    colours[3 * k + 1] = c[k].g;
+    colours[3 * k + 2] = c[k].b;
+  }
   glProgramUniform3fv(p, shade_.uniform("u_colour"), 4, colours);
   glBindTextureUnit(VISCD_UNIT_IDS, ids_tex_.get());
   glBindTextureUnit(VISCD_UNIT_NORMAL, normal_tex_.get());
   states_.bind_storage(VISCD_BIND_STATE);
   image_.bind_storage(VISCD_BIND_IMAGE);
-  shade_.dispatch(pixels);
+  dispatch_over_map(p, map_w_, map_h_);
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
+  stage_end(Stage::shade);
+  out.image.resize(4 * pixels);
+  glGetNamedBufferSubData(image_.get(), 0, static_cast<GLsizeiptr>(out.image.size()), out.image.data());
+  out.image_width = map_w_;
+  out.image_height = map_h_;
 }
 
 std::vector<std::uint32_t> GlDetector::read_id_map() {

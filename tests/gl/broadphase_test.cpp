@@ -1,7 +1,9 @@
 // Stages 5-8 of the gl backend against the cpu backend's LbvhBroadphase and brute force, on
 // identical inputs (same spheres, same active set, same m): codes and sorted order exactly,
 // the copied-back tree valid, pairs exactly equal.
+#include <algorithm>
 #include <numeric>
+#include <random>
 
 #include "cpu/broadphase.hpp"
 #include "gl_test_util.hpp"
@@ -76,9 +78,25 @@ void check(gl::GlDetector& gl, const Case& c, int bits, Layout layout = Layout::
 
 TEST(GlBroadphase, SizesAroundWorkGroups) {
   VISCD_GL_OR_SKIP(gl);
-  for (std::size_t n : {0u, 1u, 2u, 255u, 256u, 257u, 1023u, 1025u}) {
+  // Work groups of 256; the one-group local sort up to 1024 keys; radix tiles of 1024 keys.
+  for (std::size_t n : {0u, 1u, 2u, 3u, 255u, 256u, 257u, 1023u, 1024u, 1025u, 2047u, 2048u, 2049u, 4097u}) {
     const Case c = all_active(random_spheres_by_edge(n, 20.0f, 0.2f, 1.0f, static_cast<unsigned>(n) + 7));
     for (int bits : {16, 32, 64}) check(*gl, c, bits);
+  }
+}
+
+TEST(GlBroadphase, PairCountsAroundTheLocalSortLimit) {
+  VISCD_GL_OR_SKIP(gl);
+  // A chain of touching spheres along x gives exactly length - 1 pairs; the pairs are sorted by
+  // the one-group sort up to 1024 of them and by the radix passes above. The chain is shuffled
+  // so that the traversal finds the pairs out of order.
+  for (std::size_t length : {2u, 1024u, 1025u, 1026u, 2050u}) {
+    std::vector<Sphere> s(length);
+    for (std::size_t k = 0; k < length; ++k) s[k] = {static_cast<float>(k), 0.25f, -0.5f, 0.5f};
+    std::mt19937 rng(static_cast<unsigned>(length));
+    std::shuffle(s.begin(), s.end(), rng);
+    SCOPED_TRACE("chain of " + std::to_string(length));
+    check(*gl, all_active(s), 32);
   }
 }
 

@@ -170,6 +170,46 @@ TEST(GlDefaultMode, ZeroAndOneActiveOfManyObjects) {
   check_frame(*gl, s, &cam, out, "all in front again");
 }
 
+TEST(GlDefaultMode, ActiveCountJumpsBetweenNoneAndAll) {
+  // Every pass after culling is sized on the GPU from the active count: frames whose count
+  // jumps from 0 to N (across the local-sort limit and several radix tiles) and back, with
+  // counts just around work-group multiples between.
+  VISCD_GL_OR_SKIP(gl, map_config());
+  Camera cam;  // looks down -z from z = 10
+  cam.width = 256;
+  cam.height = 144;
+  const std::vector<Sphere> front = random_spheres_by_edge(4100, 10.0f, 0.05f, 0.3f, 41);
+  std::vector<Sphere> behind = front;
+  for (Sphere& x : behind) x.z += 200.0f;  // no pixels: all culled
+  FrameResult out;
+  const auto with_active = [&](std::size_t count) {
+    std::vector<Sphere> s = behind;
+    std::copy_n(front.begin(), count, s.begin());
+    return s;
+  };
+  // lambda 0.5: an object is active when it covers a map pixel; those behind the camera never do.
+  gl->set_config(map_config(true, 0.5f));
+  check_frame(*gl, behind, &cam, out, "none (first frame)");
+  EXPECT_EQ(out.stats.active, 0u);
+  check_frame(*gl, front, &cam, out, "all in front");
+  EXPECT_GT(out.stats.active, 1025u);  // beyond the local sort: radix tiles (some are hidden)
+  check_frame(*gl, behind, &cam, out, "none again");
+  EXPECT_EQ(out.stats.active, 0u);
+  for (std::size_t count : {1u, 257u, 1025u, 2049u, 4100u, 0u}) {
+    check_frame(*gl, with_active(count), &cam, out, "the first " + std::to_string(count) + " in front");
+    EXPECT_LE(out.stats.active, count);
+  }
+  // Culling off: the active count is N whatever the camera sees; N chosen around the limits
+  // (the default mode needs the same N in consecutive frames, so each runs twice).
+  gl->set_config(map_config(false));
+  for (std::size_t n : {255u, 256u, 257u, 1024u, 1025u, 2049u}) {
+    const std::vector<Sphere> s(front.begin(), front.begin() + static_cast<std::ptrdiff_t>(n));
+    check_frame(*gl, s, &cam, out, "no culling, n = " + std::to_string(n));
+    check_frame(*gl, s, &cam, out, "no culling again, n = " + std::to_string(n));
+    EXPECT_EQ(out.stats.active, n);
+  }
+}
+
 TEST(GlDefaultMode, CullingTogglesEveryFrame) {
   VISCD_GL_OR_SKIP(gl, map_config());
   SceneParams p;

@@ -2,6 +2,8 @@
 // counts (both counter modes), culling, mu, pairs, states, shading, timers, errors.
 #include <algorithm>
 #include <cmath>
+#include <utility>
+#include <vector>
 
 #include "cpu/broadphase.hpp"
 #include "cpu/cpu_detector.hpp"
@@ -100,13 +102,14 @@ TEST(GlFrame, AtomicCounterModeRefusesTooManyObjects) {
 // Impostor id maps against the cpu rasterizer: the same ray model, so per object the counts
 // differ by at most a few silhouette pixels (GPU division / sqrt rounding, depth quantised as
 // t / far).
-void compare_counts(GlGeometry geometry, const char* preset, std::uint32_t n, double rel_tol, std::uint32_t abs_tol) {
-  SCOPED_TRACE(preset);
+void compare_counts(GlGeometry geometry, const char* preset, std::uint32_t n, double rel_tol, std::uint32_t abs_tol,
+                    int map_w = 256, int map_h = 144) {
+  SCOPED_TRACE(std::string(preset) + " on a " + std::to_string(map_w) + "x" + std::to_string(map_h) + " map");
   GlOptions o;
   o.geometry = geometry;
   Config cfg;
-  cfg.map_width = 256;
-  cfg.map_height = 144;
+  cfg.map_width = map_w;
+  cfg.map_height = map_h;
   VISCD_GL_OR_SKIP(gl, cfg, o);
   Scene scene = ring_scene(n);
   scene.step(0.25f);
@@ -128,8 +131,8 @@ void compare_counts(GlGeometry geometry, const char* preset, std::uint32_t n, do
     EXPECT_LE(d, allowed) << "object " << k << ": gl " << hg[k] << " vs cpu " << hc[k];
     worst = std::max(worst, d);
     // Pixels reported are the counts scaled to the screen.
-    ASSERT_FLOAT_EQ(a.pixels[k],
-                    static_cast<float>(hg[k] * (static_cast<double>(cam.width) * cam.height) / (256.0 * 144.0)));
+    ASSERT_FLOAT_EQ(a.pixels[k], static_cast<float>(hg[k] * (static_cast<double>(cam.width) * cam.height) /
+                                                    (static_cast<double>(map_w) * map_h)));
   }
   std::printf("[gl] %s %s: %zu of %zu map pixels differ, worst object differs by %u pixels\n",
               geometry == GlGeometry::mesh ? "mesh" : "impostor", preset, differ, gl_ids.size(), worst);
@@ -153,6 +156,15 @@ TEST(GlFrame, ImpostorCountsMatchCpuRasterizer) {
   compare_counts(GlGeometry::impostor, "zoom-out", 2000, 0.0, 4);
   compare_counts(GlGeometry::impostor, "zoom-in", 2000, 0.0, 4);
   compare_counts(GlGeometry::impostor, "orbit", 2000, 0.0, 4);
+}
+
+TEST(GlFrame, FixedMapSizesCountAsTheCpuBackend) {
+  // The map's size is the caller's (Config::map_width/height), independent of the 256 x 144
+  // screen: smaller, larger, another aspect ratio, odd sizes; and one over 65535 * 256 pixels,
+  // more than a one-dimensional dispatch of 256-pixel groups reaches on this driver.
+  for (const auto& [w, h] : std::vector<std::pair<int, int>>{{64, 36}, {333, 177}, {200, 200}, {640, 360}, {1, 1}})
+    compare_counts(GlGeometry::impostor, "zoom-out", 1500, 0.0, 4, w, h);
+  compare_counts(GlGeometry::impostor, "zoom-in", 300, 0.0, 4, 4200, 4100);
 }
 
 TEST(GlFrame, MeshCountsCloseToCpuRasterizer) {
@@ -192,14 +204,14 @@ TEST(GlFrame, ScreenshotHasThePapersColours) {
   ASSERT_EQ(out.image_width, 256);
   ASSERT_EQ(out.image_height, 144);
   ASSERT_EQ(out.image.size(), 4u * 256 * 144);
-  // Classify pixels by hue against the three colours.
-  const std::uint8_t* colours[3] = {detail::kColourColliding, detail::kColourFree, detail::kColourCulled};
+  // Classify pixels by hue against the paper's three colours: red, blue, yellow.
+  const std::uint8_t colours[3][3] = {{220, 40, 40}, {50, 90, 230}, {235, 200, 40}};
   int found[3] = {0, 0, 0};
   const auto ids = gl->read_id_map();
   for (std::size_t i = 0; i < ids.size(); ++i) {
     const std::uint8_t* px = &out.image[4 * i];
     if (ids[i] == 0) {
-      ASSERT_EQ(px[0], detail::kColourBackground[0]);
+      ASSERT_EQ(px[0], 18);  // the dark background
       continue;
     }
     const ObjectState st = out.state[ids[i] - 1];
@@ -230,6 +242,25 @@ TEST(GlFrame, TimersArriveOneFrameLate) {
   EXPECT_GT(out.stats.stage_ms[static_cast<std::size_t>(Stage::visibility)], 0.0);
   EXPECT_GT(out.stats.stage_ms[static_cast<std::size_t>(Stage::sort)], 0.0);
   EXPECT_GT(out.stats.total_ms(), 0.0);
+}
+
+TEST(GlFrame, SingleFrameWaitsForEveryStageTime) {
+  Config cfg;
+  cfg.map_width = 256;
+  cfg.map_height = 144;
+  cfg.shade = true;
+  VISCD_GL_OR_SKIP(gl, cfg);
+  Scene scene = ring_scene(1200, 3);
+  const Camera cam = small_camera(scene, "zoom-in");
+  FrameResult out;
+  // A frame's times arrive with the next frame, or when asked for: every GPU stage, shading
+  // and stage 8's three parts included, is then known (non-zero on any real clock).
+  ASSERT_TRUE(gl->detect(scene.spheres(), &cam, out).ok());
+  gl->wait_for_stage_times(out.stats);
+  ASSERT_GT(out.stats.active, 0u);
+  for (Stage st : {Stage::visibility, Stage::count, Stage::cull, Stage::codes, Stage::sort, Stage::build, Stage::fit,
+                   Stage::query, Stage::shade})
+    EXPECT_GT(out.stats.stage_ms[static_cast<std::size_t>(st)], 0.0) << stage_name(st);
 }
 
 TEST(GlFrame, DetectOverflowingPairBufferReturnsEveryPair) {

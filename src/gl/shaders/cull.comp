@@ -1,32 +1,24 @@
 #version 450 core
-// Stage 3: cull and compact (paper Fig. 3).
-// Phase 0: screen-scaled pixels (double, as core/visibility.cpp), active flag
-// (pixels >= lambda, or every object without culling / camera) and the integer pixel total.
-// Phase 1 (after an exclusive scan of the flags): active_ids[scan[k]] = k. The scan keeps the active
-// list ascending, as the cpu backend's, so that the stable sort breaks Morton ties by object
-// index in both backends (an atomic-counter append would give a scheduling-dependent order).
+// Stage 3, step 1 (paper Fig. 3): screen-scaled pixels (double, as core/visibility.cpp), the
+// active flag (pixels >= lambda, or every object without culling or camera), the object's first
+// state (free when active, culled otherwise; the pair pass later marks colliding ones) and the
+// integer pixel total.
 #include "shared/layout.h"
 layout(local_size_x = VISCD_WG_SIZE) in;
 layout(std430, binding = VISCD_BIND_COUNTS) readonly buffer Counts { uint counts[]; };
 layout(std430, binding = VISCD_BIND_PIXELS) writeonly buffer Pixels { float pixels[]; };
-layout(std430, binding = VISCD_BIND_FLAGS) buffer Flags { uint flags[]; };
-layout(std430, binding = VISCD_BIND_SCAN_OUT) readonly buffer Scan { uint scan[]; };
-layout(std430, binding = VISCD_BIND_ACTIVE) writeonly buffer Active { uint active_ids[]; };
+layout(std430, binding = VISCD_BIND_FLAGS) writeonly buffer Flags { uint flags[]; };
+layout(std430, binding = VISCD_BIND_STATE) writeonly buffer State { uint state[]; };
 layout(std430, binding = VISCD_BIND_INFO) buffer Info { FrameInfo info; };
 uniform uint u_n;
-uniform uint u_phase;
 uniform uint u_has_counts;  // 0: no camera, every object active
 uniform uint u_culling;
-uniform double u_scale;     // screen pixels per map pixel
+uniform double u_scale;  // screen pixels per map pixel
 uniform double u_lambda;
 shared uint s_total;
 
 void main() {
   const uint k = gl_GlobalInvocationID.x;
-  if (u_phase == 1u) {
-    if (k < u_n && flags[k] != 0u) active_ids[scan[k]] = k;
-    return;
-  }
   if (gl_LocalInvocationID.x == 0u) s_total = 0u;
   barrier();
   if (k < u_n) {
@@ -39,6 +31,7 @@ void main() {
       atomicAdd(s_total, c);
     }
     flags[k] = flag;
+    state[k] = flag != 0u ? VISCD_STATE_FREE : VISCD_STATE_CULLED;
   }
   barrier();
   if (gl_LocalInvocationID.x == 0u && s_total != 0u) atomicAdd(info.total_pixels, s_total);

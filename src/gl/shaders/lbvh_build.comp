@@ -3,14 +3,16 @@
 // Trees"), one invocation per internal node, as core/lbvh.cpp: equal keys are split by
 // position, delta = m + clz32(i ^ j), with clz over the key width m (u_bits).
 // parent[] holds the internal nodes' parents at [0, n-1) and the leaves' at [n-1, 2n-1).
-// Positions are int: n < 2^29 keeps i + 2n in range.
+// Positions are int: n < 2^29 keeps i + 2n in range. Each node's fit arrival counter is zeroed
+// here (the fit runs after a barrier), so no clear sized by anything but n is needed.
 #include "shared/layout.h"
 layout(local_size_x = VISCD_WG_SIZE) in;
 layout(std430, binding = VISCD_BIND_KEYS_IN) readonly buffer Keys { uvec2 keys[]; };
 layout(std430, binding = VISCD_BIND_NODES) writeonly buffer Nodes { LbvhNode nodes[]; };
 layout(std430, binding = VISCD_BIND_PARENT) writeonly buffer Parent { uint parent[]; };
+layout(std430, binding = VISCD_BIND_ARRIVALS) writeonly buffer Arrivals { uint arrivals[]; };
 layout(std430, binding = VISCD_BIND_INFO) readonly buffer Info { FrameInfo info; };
-int g_n;  // n = FrameInfo.active_count (the host may dispatch N - 1 invocations)
+int g_n;  // n = FrameInfo.active_count (the dispatch is sized from it on the GPU, or by the host's bound)
 uniform int u_bits;
 
 int delta(int i, int j) {
@@ -28,6 +30,7 @@ void main() {
   g_n = int(info.active_count);
   const int i = int(gl_GlobalInvocationID.x);
   if (i >= g_n - 1) return;
+  arrivals[i] = 0u;
   const int d = delta(i, i + 1) - delta(i, i - 1) > 0 ? 1 : -1;
   const int delta_min = delta(i, i - d);
   int lmax = 2;

@@ -17,7 +17,7 @@ layout(std430, binding = VISCD_BIND_ARRIVALS) coherent buffer Arrivals { uint ar
 layout(std430, binding = VISCD_BIND_INFO) buffer Info { FrameInfo info; };
 
 void main() {
-  const uint n = info.active_count;  // from the GPU: the host may dispatch over N
+  const uint n = info.active_count;  // from the GPU: the dispatch is sized from it (indirect)
   const uint p = gl_GlobalInvocationID.x;
   if (p >= n) return;
   const vec4 s = spheres[sorted_ids[p]];

@@ -31,7 +31,7 @@ bool box_overlap(uint node, uint side, vec3 lo, vec3 hi) {
 }
 
 void main() {
-  const uint n = info.active_count;  // from the GPU: the host may dispatch over N
+  const uint n = info.active_count;  // from the GPU: the dispatch is sized from it (indirect)
   const uint p = gl_GlobalInvocationID.x;
   if (p >= n || n < 2u) return;
   const vec4 a = sorted_spheres[p];

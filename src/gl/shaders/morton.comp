@@ -4,8 +4,8 @@
 // max_cell (the host computes them exactly as MortonEncoder does), and each axis bit b goes to
 // code bit u_position[axis * 32 + b]. Keys are uvec2 (x = low 32 bits, y = high 32 bits) for
 // every width m, so 16/32/64-bit codes share one sort.
-// n is read from FrameInfo.active_count (written on the GPU by the compaction): the host may
-// dispatch over N without knowing n. With a previous frame's lo/scale (GlOptions::sync_layout
+// n is read from FrameInfo.active_count (written on the GPU by the compaction), and the pass is
+// dispatched indirectly from it: the host never waits for n. With a previous frame's lo/scale (GlOptions::sync_layout
 // false) a centre may lie outside the bounds: quantize() clamps it to the border cell
 // (q <= 0 or NaN -> 0, q >= max_cell -> max_cell), as MortonEncoder does.
 #include "shared/layout.h"

@@ -28,9 +28,18 @@ struct dvec2 {
 // ---- work-group sizes (local_size_x of each kind of compute shader) ----
 // Element-wise kernels (codes, cull, build, fit, query, states, shading, counting).
 #define VISCD_WG_SIZE 256
-// Radix sort: one work group sorts a tile of this many keys per pass; must equal the digit count
-// (256, 8-bit digits) because one invocation owns one digit in the stable local ranking.
-#define VISCD_SORT_TILE 256
+// Passes over the map's pixels (counting, shading) run 2D work groups of this many pixels a
+// side, so that any map within kMaxMapSide fits the minimum work-group count limit (65535).
+#define VISCD_TILE_SIDE 16
+// Radix sort: a work group of VISCD_SORT_GROUP invocations (one per 8-bit digit: the stable
+// local ranking gives each invocation one digit) handles a tile of VISCD_SORT_TILE keys per pass,
+// VISCD_SORT_GROUP at a time. Larger tiles mean fewer tiles for the one-group offset scan.
+#define VISCD_SORT_GROUP 256
+#define VISCD_SORT_ROUNDS 4
+#define VISCD_SORT_TILE (VISCD_SORT_GROUP * VISCD_SORT_ROUNDS)
+// Counts up to this many keys are sorted by one work group in shared memory (sort_local.comp;
+// 12 bytes a key, and VISCD_LOCAL_SORT / 2 invocations, within GL's guaranteed minimums).
+#define VISCD_LOCAL_SORT 1024
 // Scan: each invocation scans this many consecutive elements, so a block is 256 * 4 elements.
 #define VISCD_SCAN_PER_THREAD 4
 #define VISCD_SCAN_BLOCK (VISCD_WG_SIZE * VISCD_SCAN_PER_THREAD)
@@ -58,6 +67,7 @@ struct dvec2 {
 #define VISCD_BIND_PAIRS 19       // uvec2 pairs[capacity]: (x = j, y = i), i < j
 #define VISCD_BIND_STATE 20       // uint state[N]: ObjectState
 #define VISCD_BIND_IMAGE 21       // uint rgba8[W * H], rows top to bottom
+#define VISCD_BIND_DISPATCH 22    // DispatchArgs: indirect dispatch sizes from the active count
 // Atomic counter buffer binding of the paper's atomic_uint counting mode.
 #define VISCD_BIND_ATOMIC_COUNTERS 0
 // Texture units.
@@ -87,6 +97,15 @@ struct FrameInfo {
   dvec2 diameter_sum;  // x = sum of 2r over the active objects (double, as core/broadphase.cpp)
 };
 
+// Work-group counts of the passes after culling, written on the GPU from FrameInfo.active_count
+// (dispatch_args.comp) and read by glDispatchComputeIndirect: the host never waits for n.
+// Each member is one DispatchIndirectCommand (x, y, z groups) padded to 16 bytes.
+struct DispatchArgs {
+  uvec4 per_object;  // ceil(n / VISCD_WG_SIZE): codes, bounds, fit, query
+  uvec4 per_node;    // ceil((n - 1) / VISCD_WG_SIZE): build (n - 1 internal nodes)
+  uvec4 sort_tiles;  // ceil(n / VISCD_SORT_TILE) radix tiles, 0 when n <= VISCD_LOCAL_SORT
+};
+
 // Per-work-group partial of the active-centre bounds and the diameter sum.
 struct BoundsPartial {
   vec4 lo;
@@ -113,7 +132,9 @@ static_assert(sizeof(FrameInfo) == 96 && offsetof(FrameInfo, lo) == 16 && offset
 static_assert(sizeof(BoundsPartial) == 48 && offsetof(BoundsPartial, diameter_sum) == 32);
 static_assert(sizeof(LbvhNode) == 64 && offsetof(LbvhNode, child) == 48 && offsetof(LbvhNode, last) == 56);
 static_assert(sizeof(LeafBox) == 24);
-static_assert(VISCD_SORT_TILE == 256, "one invocation per 8-bit digit");
+static_assert(sizeof(DispatchArgs) == 48 && offsetof(DispatchArgs, per_node) == 16 &&
+              offsetof(DispatchArgs, sort_tiles) == 32);
+static_assert(VISCD_SORT_GROUP == 256, "one invocation per 8-bit digit");
 }  // namespace viscd::gl::shader
 #endif
 
