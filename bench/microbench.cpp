@@ -16,6 +16,7 @@
 
 #include "cpu/parallel.hpp"
 #include "cpu/radix_sort.hpp"
+#include "viscd/scene.hpp"
 #include "viscd/viscd.hpp"
 
 namespace {

@@ -33,6 +33,7 @@
 #include "cpu/parallel.hpp"
 #include "cpu/radix_sort.hpp"
 #include "peers.hpp"
+#include "viscd/scene.hpp"
 #include "viscd/viscd.hpp"
 
 namespace viscd::bench {

@@ -1,13 +1,23 @@
-# Install rules so that another project can `find_package(viscd)` and link `viscd::viscd`.
+# Install rules so that another project can `find_package(viscd)` and link `viscd::viscd`, and
+# `find_package(viscd COMPONENTS tools)` for `viscd::tools` as well. Each library has an export
+# set (and targets file) of its own; viscdConfig.cmake loads the tools file only when asked.
 include(CMakePackageConfigHelpers)
 
-install(TARGETS viscd viscd_options EXPORT viscdTargets
+install(TARGETS viscd EXPORT viscdTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
         LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
         RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR}
         INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+install(TARGETS viscd_tools EXPORT viscdToolsTargets
+        ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+        LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
+        RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR}
+        INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+# One include folder for both: io.hpp and scene.hpp are installed with the rest and usable once
+# viscd::tools is linked.
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/viscd DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 install(EXPORT viscdTargets NAMESPACE viscd:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/viscd)
+install(EXPORT viscdToolsTargets NAMESPACE viscd:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/viscd)
 
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/viscdConfig.cmake.in
                               ${PROJECT_BINARY_DIR}/viscdConfig.cmake

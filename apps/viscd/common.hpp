@@ -8,6 +8,8 @@
 #include <string_view>
 #include <vector>
 
+#include "viscd/io.hpp"
+#include "viscd/scene.hpp"
 #include "viscd/viscd.hpp"
 
 namespace viscd::app {

@@ -9,6 +9,7 @@
 
 #include "test_util.hpp"
 #include "viscd/executor.hpp"
+#include "viscd/scene.hpp"
 
 // This file replaces the global operator new/delete with malloc/free, consistently; GCC 12 still
 // flags the pairing (it treats new as builtin), so its check is off here only.

@@ -8,6 +8,7 @@
 
 #include "cpu/parallel.hpp"
 #include "test_util.hpp"
+#include "viscd/scene.hpp"
 #include "viscd/viscd.hpp"
 
 namespace viscd {

@@ -8,6 +8,7 @@
 
 #include "cpu/pipeline.hpp"
 #include "test_util.hpp"
+#include "viscd/io.hpp"
 
 namespace viscd {
 namespace {

@@ -8,6 +8,7 @@
 #include "cpu/broadphase.hpp"
 #include "cpu/cpu_detector.hpp"
 #include "gl_test_util.hpp"
+#include "viscd/io.hpp"
 
 namespace viscd::test {
 namespace {

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "gl/gl_detector.hpp"
+#include "viscd/scene.hpp"
 #include "viscd/viscd.hpp"
 
 namespace viscd::test {

@@ -1,20 +1,72 @@
 #!/usr/bin/env bash
-# Installs the built viscd into a scratch prefix, builds examples/game_loop.cpp against it with
-# find_package(viscd) from a separate project, and runs it.
+# Installs the built viscd into a scratch prefix and uses it from separate projects:
+#  - examples/game_loop.cpp with find_package(viscd) and viscd::viscd alone, which must link
+#    nothing but Threads (and libepoxy, link-only, for the gl backend);
+#  - tests/install/tools/ with find_package(viscd COMPONENTS tools) and viscd::tools;
+#  - tests/install/missing_component/: a component viscd does not have is not found.
+# Neither consumer may need nlohmann_json: it is disabled for them.
 # Usage: install_test.sh BUILD_DIR WORK_DIR
 set -euo pipefail
 build="$1" work="$2"
 here="$(cd "$(dirname "$0")" && pwd)"
 rm -rf "$work" && mkdir -p "$work"
-cmake --install "$build" --prefix "$work/prefix" >/dev/null
-cmake -S "$here" -B "$work/consumer" -DCMAKE_PREFIX_PATH="$work/prefix" -DCMAKE_BUILD_TYPE=Release >/dev/null
+prefix="$work/prefix"
+cmake --install "$build" --prefix "$prefix" >/dev/null
+consumer_flags=(-DCMAKE_PREFIX_PATH="$prefix" -DCMAKE_BUILD_TYPE=Release -DCMAKE_DISABLE_FIND_PACKAGE_nlohmann_json=ON
+                --no-warn-unused-cli)
+
+# viscd::viscd's link interface, from the installed targets file: each entry must be Threads
+# (or pthread) or, only as $<LINK_ONLY:...> (a static library's own link needs), epoxy.
+# $<LINK_ONLY:> is what a dependency of the build tree only ($<BUILD_INTERFACE:...>) leaves.
+targets="$(ls "$prefix"/lib*/cmake/viscd/viscdTargets.cmake)"
+links="$(sed -n '/^set_target_properties(viscd::viscd PROPERTIES/,/^)/p' "$targets" |
+         sed -n 's/^ *INTERFACE_LINK_LIBRARIES "\(.*\)"$/\1/p')"
+echo "install test: viscd::viscd INTERFACE_LINK_LIBRARIES = ${links:-(none)}"
+IFS=';' read -ra entries <<<"$links"
+for entry in "${entries[@]}"; do
+  case "$entry" in
+    Threads::Threads | pthread | -pthread | '\$<LINK_ONLY:epoxy>' | '\$<LINK_ONLY:>') ;;
+    *) echo "FAIL: viscd::viscd links '$entry' (only Threads, and epoxy link-only, allowed)" >&2; exit 1 ;;
+  esac
+done
+[[ " ${entries[*]} " == *" Threads::Threads "* ]] || { echo "FAIL: viscd::viscd does not link Threads" >&2; exit 1; }
+if grep -rqi "nlohmann\|viscd_options" "$prefix"/lib*/cmake/viscd/; then
+  echo "FAIL: the installed package names nlohmann_json or viscd_options:" >&2
+  grep -rni "nlohmann\|viscd_options" "$prefix"/lib*/cmake/viscd/ >&2
+  exit 1
+fi
+
+cmake -S "$here" -B "$work/consumer" "${consumer_flags[@]}" >/dev/null
 cmake --build "$work/consumer" >/dev/null
 "$work/consumer/game_loop" | tee "$work/out.txt"
 grep -q "tick  *80:" "$work/out.txt"
 echo "install test: find_package(viscd) + game_loop OK"
 
+cmake -S "$here/tools" -B "$work/tools_consumer" "${consumer_flags[@]}" >/dev/null
+cmake --build "$work/tools_consumer" >/dev/null
+"$work/tools_consumer/tools_consumer" "$work/tools_spheres.csv" | tee "$work/tools_out.txt"
+grep -q "^tools: 500 spheres written and read back" "$work/tools_out.txt"
+head -n 1 "$work/tools_spheres.csv" | grep -q "^x,y,z,r$" || { echo "FAIL: tools_consumer wrote no CSV header" >&2; exit 1; }
+echo "install test: find_package(viscd COMPONENTS tools) + viscd::tools OK"
+
+if cmake -S "$here/missing_component" -B "$work/missing_required" -DVISCD_REQUIRED=ON "${consumer_flags[@]}" \
+     >"$work/missing_required.txt" 2>&1; then
+  echo "FAIL: find_package(viscd REQUIRED COMPONENTS nonexistent) configured" >&2
+  cat "$work/missing_required.txt" >&2
+  exit 1
+fi
+grep -q "viscd has no component 'nonexistent'" "$work/missing_required.txt" || {
+  echo "FAIL: a missing required component gave no message naming it:" >&2
+  cat "$work/missing_required.txt" >&2
+  exit 1
+}
+cmake -S "$here/missing_component" -B "$work/missing_quiet" "${consumer_flags[@]}" >"$work/missing_quiet.txt" 2>&1 || {
+  cat "$work/missing_quiet.txt" >&2
+  exit 1
+}
+echo "install test: a component viscd does not have is not found"
+
 # The installed tool finds what `viscd bench` needs in the prefix, not in the build tree.
-prefix="$work/prefix"
 if [[ -x "$prefix/bin/viscd" ]]; then
   [[ -f "$prefix/share/viscd/plot_paper.py" ]] || { echo "FAIL: share/viscd/plot_paper.py not installed" >&2; exit 1; }
   if [[ -f "$build/viscd_peers" ]]; then
