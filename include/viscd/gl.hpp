@@ -39,8 +39,8 @@ struct GlOptions {
   /// Where m and the Morton layout (axis order, bits per axis, quantisation bounds) come from.
   /// false (default): from the PREVIOUS frame's active count, centre bounds, mean diameter and
   /// mu, read back with that frame's results, so the frame has no host wait before its final
-  /// readback (every dispatch after culling is sized by N and reads the active count n on the
-  /// GPU). Centres outside the previous bounds clamp to the border cells: pairs stay exact
+  /// readback (every pass after culling is sized on the GPU from this frame's active count,
+  /// through indirect dispatch). Centres outside the previous bounds clamp to the border cells: pairs stay exact
   /// (the tree is exact for any key order), only the codes and the tree's quality may differ
   /// from the cpu backend's. The first frame, and a frame whose N or camera presence differs
   /// from the previous frame's, use this frame's values as with true.
