@@ -15,6 +15,7 @@
 #include "cpu/parallel.hpp"
 #include "cpu/radix_sort.hpp"
 #include "viscd/config.hpp"
+#include "viscd/detector.hpp"
 #include "viscd/frame.hpp"
 #include "viscd/result.hpp"
 #include "viscd/types.hpp"
@@ -136,8 +137,9 @@ class LbvhBroadphase {
 };
 
 /// O(n^2) brute force over the active set: the oracle. Pairs come out sorted. Stops and returns
-/// false when there are more than `max_pairs`.
+/// false when there are more than `max_pairs`. `filters`: empty, or one per sphere, and then only
+/// pairs with pair_passes_filter() count.
 bool brute_force_pairs(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, std::vector<Pair>& pairs,
-                       std::size_t max_pairs = SIZE_MAX);
+                       std::size_t max_pairs = SIZE_MAX, std::span<const Filter> filters = {});
 
 }  // namespace viscd::detail
