@@ -50,12 +50,20 @@ bool ray_hits_sphere(const Ray& ray, const Sphere& sphere, float& t) {
 
 namespace {
 
+template <class T>
+void reserve_with_headroom(std::vector<T>& v, std::size_t n) {
+  if (v.capacity() < n) v.reserve(n + n / 2);
+}
+
 // began = now \ before, ended = before \ now, both sorted: one merge of the two sorted lists.
 // The outputs only grow to the largest count seen, so a steady state allocates nothing.
 void pair_differences(const std::vector<Pair>& before, const std::vector<Pair>& now, std::vector<Pair>& began,
                       std::vector<Pair>& ended) {
   began.clear();
   ended.clear();
+  // Room for the most each can hold, with headroom as the pair count drifts.
+  reserve_with_headroom(began, now.size());
+  reserve_with_headroom(ended, before.size());
   auto b = before.begin(), n = now.begin();
   while (b != before.end() && n != now.end()) {
     if (*b < *n) {
@@ -107,6 +115,7 @@ Status Detector::detect_checked(const FrameInput& input, FrameResult& out) {
   if (Status s = run_frame(input, out); !s) return s;
   if (config_.contact_events) {
     pair_differences(previous_pairs_, out.pairs, out.began, out.ended);
+    reserve_with_headroom(previous_pairs_, out.pairs.size());
     previous_pairs_.assign(out.pairs.begin(), out.pairs.end());
   } else {
     // Not kept while events are off: the first frame with them on starts afresh.
@@ -123,6 +132,8 @@ void Detector::reset_events() { previous_pairs_.clear(); }
 void Detector::keep_active_spheres(std::span<const Sphere> spheres, const FrameResult& out) {
   query_spheres_.clear();
   query_ids_.clear();
+  query_spheres_.reserve(spheres.size());  // at most every object: no allocation as the active set changes
+  query_ids_.reserve(spheres.size());
   for (std::size_t k = 0; k < spheres.size(); ++k) {
     if (out.state[k] == ObjectState::culled) continue;
     query_spheres_.push_back(spheres[k]);

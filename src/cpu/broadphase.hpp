@@ -74,9 +74,12 @@ class PairCollector {
     if (Status s = check_pair_cap(total, pair_memory_cap); !s) return s;
     // A chunk covers the same objects every frame, but its count drifts as they move: once a list
     // is more than two-thirds full it gets room for twice its count, so frames whose counts
-    // wander by up to half do not allocate.
+    // wander by up to half do not allocate. At least kMinRoom each: a chunk with almost no pairs
+    // (sparse scenes, filters) would otherwise allocate whenever its few pairs become more.
+    constexpr std::size_t kMinRoom = 256;
     for (std::size_t c = 0; c < chunks; ++c)
-      if (3 * lists_[c].size() > 2 * lists_[c].capacity()) lists_[c].reserve(2 * lists_[c].size());
+      if (3 * lists_[c].size() > 2 * lists_[c].capacity() || lists_[c].capacity() < kMinRoom)
+        lists_[c].reserve(std::max(2 * lists_[c].size(), kMinRoom));
     sort_chunk_pairs(std::span(lists_.data(), chunks), objects, offsets_, out);
     return {};
   }

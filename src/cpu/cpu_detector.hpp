@@ -2,6 +2,7 @@
 #include <algorithm>
 
 #include "cpu/bucket_broadphase.hpp"
+#include "cpu/grow.hpp"
 #include "cpu/pipeline.hpp"
 #include "cpu/raster.hpp"
 
@@ -51,8 +52,9 @@ class CpuDetector final : public PipelineDetector {
                     std::vector<Pair>& pairs, FrameStats& stats) override {
     // The objects left out of the tree, kept for queries (no copy without filters).
     unpaired_built_ = false;
-    unpaired_ids_.assign(unpaired.begin(), unpaired.end());
-    unpaired_spheres_.resize(unpaired.size());
+    resize_with_headroom(unpaired_ids_, unpaired.size());
+    std::copy(unpaired.begin(), unpaired.end(), unpaired_ids_.begin());
+    resize_with_headroom(unpaired_spheres_, unpaired.size());
     for (std::size_t k = 0; k < unpaired.size(); ++k) unpaired_spheres_[k] = spheres[unpaired[k]];
     return broadphase_.run(spheres, pairable, filters, bits, config_.layout, threads, config_.pair_memory_cap, pairs,
                            stats);

@@ -21,8 +21,8 @@ void split_by_filters(std::span<const std::uint32_t> active, std::span<const Fil
   for (const std::uint32_t k : active) groups |= filters[k].group, masks |= filters[k].mask;
   pairable.clear();
   unpaired.clear();
-  pairable.reserve(active.size());  // no allocation as the split changes from frame to frame
-  unpaired.reserve(active.size());
+  pairable.reserve(filters.size());  // at most every object: no allocation as the split changes
+  unpaired.reserve(filters.size());
   for (const std::uint32_t k : active) {
     const Filter f = filters[k];
     ((f.mask & groups) != 0 && (f.group & masks) != 0 ? pairable : unpaired).push_back(k);
