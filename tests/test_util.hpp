@@ -6,12 +6,20 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <iterator>
+#include <ostream>
 #include <random>
 #include <span>
 #include <string>
 #include <vector>
 
 #include "viscd/viscd.hpp"
+
+namespace viscd {
+// GoogleTest prints these by value.
+inline void PrintTo(const RayHit& h, std::ostream* os) { *os << "{index " << h.index << ", t " << h.t << "}"; }
+inline void PrintTo(const Pair& p, std::ostream* os) { *os << "(" << p.i << "," << p.j << ")"; }
+}  // namespace viscd
 
 namespace viscd::test {
 
@@ -60,6 +68,62 @@ inline std::vector<Pair> oracle_pairs(std::span<const Sphere> s, const std::vect
       if (spheres_overlap(p, q)) out.push_back({(*active)[a], (*active)[b]});
     }
   return out;
+}
+
+/// Brute-force pairs among spheres[active] (or all) whose filters accept each other, with the
+/// filter rule written out here: (group_i & mask_j) != 0 and (group_j & mask_i) != 0.
+inline std::vector<Pair> oracle_filtered_pairs(std::span<const Sphere> s, std::span<const Filter> f,
+                                               const std::vector<std::uint32_t>* active = nullptr) {
+  std::vector<Pair> out;
+  for (const Pair& p : oracle_pairs(s, active))
+    if ((f[p.i].group & f[p.j].mask) != 0 && (f[p.j].group & f[p.i].mask) != 0) out.push_back(p);
+  return out;
+}
+
+/// n filters drawn from a few groups and masks (including group 0, mask 0 and one-sided masks),
+/// deterministic in `seed`.
+inline std::vector<Filter> random_filters(std::size_t n, std::uint64_t seed) {
+  static constexpr std::uint32_t kGroups[] = {1, 1, 2, 4, 1 | 2, 0, 0x80000000u};
+  static constexpr std::uint32_t kMasks[] = {0xFFFFFFFFu, 1, 2, 1 | 4, 0, 0x80000000u | 2, 0xFFFFFFFEu};
+  std::mt19937_64 rng(seed);
+  std::vector<Filter> f(n);
+  for (Filter& x : f) x = {kGroups[rng() % std::size(kGroups)], kMasks[rng() % std::size(kMasks)]};
+  return f;
+}
+
+/// Every hit of `ray` on spheres[active] (or all) by the library's ray_hits_sphere(), sorted by
+/// (t, index): the queries' oracle.
+inline std::vector<RayHit> oracle_hits(std::span<const Sphere> s, const Ray& ray,
+                                       const std::vector<std::uint32_t>* active = nullptr) {
+  std::vector<RayHit> out;
+  for (std::uint32_t k = 0; k < s.size(); ++k) {
+    if (active && !std::binary_search(active->begin(), active->end(), k)) continue;
+    float t = 0;
+    if (ray_hits_sphere(ray, s[k], t)) out.push_back({k, t});
+  }
+  std::sort(out.begin(), out.end(),
+            [](const RayHit& a, const RayHit& b) { return a.t < b.t || (a.t == b.t && a.index < b.index); });
+  return out;
+}
+
+/// The objects of spheres[active] (or all) that overlap `q` by spheres_overlap(), ascending.
+inline std::vector<std::uint32_t> oracle_overlap(std::span<const Sphere> s, const Sphere& q,
+                                                 const std::vector<std::uint32_t>* active = nullptr) {
+  std::vector<std::uint32_t> out;
+  for (std::uint32_t k = 0; k < s.size(); ++k) {
+    if (active && !std::binary_search(active->begin(), active->end(), k)) continue;
+    if (spheres_overlap(q, s[k])) out.push_back(k);
+  }
+  return out;
+}
+
+/// began = now \ before and ended = before \ now, by std::set_difference.
+inline void oracle_events(const std::vector<Pair>& before, const std::vector<Pair>& now, std::vector<Pair>& began,
+                          std::vector<Pair>& ended) {
+  began.clear();
+  ended.clear();
+  std::set_difference(now.begin(), now.end(), before.begin(), before.end(), std::back_inserter(began));
+  std::set_difference(before.begin(), before.end(), now.begin(), now.end(), std::back_inserter(ended));
 }
 
 /// Runs a detector on one frame and returns the result; fails the test on error.

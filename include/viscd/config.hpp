@@ -38,6 +38,11 @@ struct Config {
   int map_height = 0;
   /// Produce the shaded image (stage 9) in FrameResult::image. Default off.
   bool shade = false;
+  /// Report contact events: FrameResult::began and ::ended, the pairs that began and ended since
+  /// the previous detect() of this detector (Detector::reset_events() forgets that frame). Objects
+  /// are compared by index: a pair whose object left the active set (culled, filtered, or an index
+  /// beyond this frame's N) ends. Default off.
+  bool contact_events = false;
   /// Hard cap on the memory pairs may take, in bytes (8 per pair); 0 (default) = no cap.
   /// A frame with more pairs fails with an error; it never truncates. The cap is enforced while
   /// pairs are found, before their memory is taken, so the error names the count found when the

@@ -6,6 +6,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "viscd/config.hpp"
 #include "viscd/frame.hpp"
@@ -14,24 +15,50 @@
 
 namespace viscd {
 
-/// Finds every overlapping pair of spheres, frame after frame.
+/// Finds every overlapping pair of spheres, frame after frame, and answers ray and overlap
+/// queries on the last frame.
 ///
 /// Threading: a Detector is not thread-safe; use one per thread. It may use worker threads
-/// internally (Config::threads). Lifetime: `spheres` need only live for the call.
+/// internally (Config::threads). Lifetime: the input's spans need only live for the call.
+///
+/// Backends implement run_frame() (the frame itself); detect() around it checks the input rules
+/// every backend shares and computes the contact events, so every backend treats them alike.
 class Detector {
  public:
   virtual ~Detector() = default;
   Detector(const Detector&) = delete;
   Detector& operator=(const Detector&) = delete;
 
-  /// Runs one frame. With `camera` == nullptr no visibility stages run and every object is
-  /// active; with a camera and Config::culling, objects below lambda screen pixels are culled.
-  /// Fails (and leaves `out` unspecified) on invalid spheres (non-finite, negative radius,
+  /// Runs one frame. Without a camera (and without an id map) no visibility stages run and every
+  /// object is active; with a camera and Config::culling, objects below lambda screen pixels are
+  /// culled. Fails (and leaves `out` unspecified) on invalid spheres (non-finite, negative radius,
   /// beyond kMaxCoordinate), an invalid camera, a visibility map beyond kMaxMapSide or
-  /// kMaxMapPixels, negative Config::threads, more than 2^31 - 1 objects, pairs beyond
-  /// Config::pair_memory_cap, or when memory runs out (the message names the frame's size).
+  /// kMaxMapPixels, filters that are neither empty nor one per sphere, an id map whose size is not
+  /// id_map_width x id_map_height or whose ids exceed the number of spheres, an id map and a gl
+  /// texture together, input the backend does not take (the message says which), negative
+  /// Config::threads, more than 2^31 - 1 objects, pairs beyond Config::pair_memory_cap, or when
+  /// memory runs out (the message names the frame's size). A failed frame leaves the contact
+  /// events' previous frame as it was, and queries see no objects until the next frame succeeds.
   /// No exception leaves detect().
-  [[nodiscard]] virtual Status detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) = 0;
+  [[nodiscard]] Status detect(const FrameInput& input, FrameResult& out);
+  /// detect() with spheres and a camera only (no filters, no id map).
+  [[nodiscard]] Status detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out);
+
+  /// Forgets the previous frame of the contact events: the next frame's `began` holds all its
+  /// pairs and its `ended` is empty.
+  void reset_events();
+
+  /// Queries on the last successful frame: they see its active objects (culled ones are
+  /// invisible; filters do not apply) at the positions that frame was given. A ray hits a sphere
+  /// by ray_hits_sphere(); a ray with a zero or non-finite direction, a non-finite origin, or a
+  /// max_t that is negative or NaN hits nothing.
+  /// ray_cast: the first hit (smallest t, ties to the smaller index); false when there is none.
+  [[nodiscard]] bool ray_cast(const Ray& ray, RayHit& hit);
+  /// Every hit, sorted by (t, index); `hits` is cleared first (its capacity is reused).
+  void ray_cast_all(const Ray& ray, std::vector<RayHit>& hits);
+  /// The active objects that overlap `sphere` by spheres_overlap(), sorted by index; cleared
+  /// first. A sphere that validate_spheres() refuses overlaps nothing.
+  void overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices);
 
   /// Backend name: "reference", "cpu", "gl".
   [[nodiscard]] virtual std::string_view name() const = 0;
@@ -53,7 +80,34 @@ class Detector {
 
  protected:
   explicit Detector(const Config& config) : config_(config) {}
+
+  /// One frame, after detect() checked the shared input rules (spheres, camera, map sizes,
+  /// filter count, id map size, Config::threads): writes pairs, states, pixels, image and stats.
+  /// Applies `input.filters` to the pairs. Returns a failed Status for input this backend does
+  /// not take. detect() turns std::bad_alloc into a failed Status.
+  [[nodiscard]] virtual Status run_frame(const FrameInput& input, FrameResult& out) = 0;
+
+  /// Queries on the last successful frame (called only after one; the ray is valid: finite, a
+  /// non-zero direction, max_t >= 0; the sphere passes validate_spheres). A backend that answers
+  /// them from structures of its own overrides all three and answers_queries(). The defaults
+  /// search, by brute force, a copy of the active spheres that detect() keeps after each frame
+  /// for backends whose answers_queries() is false.
+  [[nodiscard]] virtual bool answers_queries() const { return false; }
+  [[nodiscard]] virtual bool query_ray(const Ray& ray, RayHit& hit);
+  virtual void query_ray_all(const Ray& ray, std::vector<RayHit>& hits);
+  virtual void query_overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices);
+
   Config config_;
+
+ private:
+  [[nodiscard]] Status detect_checked(const FrameInput& input, FrameResult& out);
+  void keep_active_spheres(std::span<const Sphere> spheres, const FrameResult& out);
+
+  std::vector<Pair> previous_pairs_;  // the contact events' previous frame (empty: none)
+  bool queries_ready_ = false;        // the last detect() succeeded
+  // The active objects of the last frame, for the default queries.
+  std::vector<Sphere> query_spheres_;
+  std::vector<std::uint32_t> query_ids_;
 };
 
 /// Brute force O(N^2) pairs and a per-pixel ray cast visibility map: the test oracle.
@@ -69,6 +123,19 @@ class Detector {
 /// The overlap test every backend uses, evaluated in float without FMA: |c_i - c_j| <= r_i + r_j
 /// (touching counts; docs/architecture.md).
 [[nodiscard]] bool spheres_overlap(const Sphere& a, const Sphere& b);
+
+/// Whether objects with these filters may be reported as a pair:
+/// `(a.group & b.mask) != 0 && (b.group & a.mask) != 0`.
+[[nodiscard]] constexpr bool pair_passes_filter(const Filter& a, const Filter& b) {
+  return (a.group & b.mask) != 0 && (b.group & a.mask) != 0;
+}
+
+/// The ray-sphere test every backend and query uses: true when a point origin + t * dir with
+/// 0 <= t <= ray.max_t lies inside or on the sphere, with `t` the smallest such t rounded to float
+/// (0 when the origin is inside or on it). Evaluated in double from the float inputs, the same
+/// operations everywhere (docs/architecture.md, "Queries"), so that every backend's answer is the
+/// same bit for bit. A zero direction hits nothing.
+[[nodiscard]] bool ray_hits_sphere(const Ray& ray, const Sphere& sphere, float& t);
 
 /// Checks spheres for the input rules (finite, 0 <= r, magnitudes <= kMaxCoordinate) and the
 /// object limit; the error names the first bad sphere by index.

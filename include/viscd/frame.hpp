@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -32,12 +33,37 @@ inline constexpr std::size_t kStageCount = static_cast<std::size_t>(Stage::count
 /// Short lowercase name of a stage ("visibility", "sort", ...).
 [[nodiscard]] std::string_view stage_name(Stage s);
 
+/// Everything one frame takes (Detector::detect). Spans need only live for the call.
+struct FrameInput {
+  /// The objects' bounding spheres; an object's index is its position here, and keeps its meaning
+  /// from frame to frame (contact events compare pairs by index).
+  std::span<const Sphere> spheres;
+  /// The camera for visibility culling; nullptr: no culling (unless `id_map` is given).
+  const Camera* camera = nullptr;
+  /// Empty: no filtering. Else one Filter per sphere: a pair is reported only when both objects'
+  /// filters accept each other (Filter).
+  std::span<const Filter> filters;
+  /// The caller's own visibility map, id_map_width x id_map_height object ids, row-major from the
+  /// top-left pixel: 0 = background, object index + 1 elsewhere. When given, the detector renders
+  /// nothing: it counts pixels per object from this map, then culls and picks the Morton width from
+  /// the counts as from a map of its own. With `camera` counts are scaled by screen area / map
+  /// area; without one they are map pixels. The map's size replaces Config::map_width x
+  /// map_height and follows validate_map_size(); an id above the number of spheres is an error.
+  /// Backends: reference and cpu (the gl backend takes `gl_id_texture` instead, once it can).
+  std::span<const std::uint32_t> id_map;
+  int id_map_width = 0, id_map_height = 0;
+  /// gl backend only: the caller's R32UI texture holding such a map (its size in id_map_width x
+  /// id_map_height); 0 = none. The other backends refuse a frame that sets it.
+  unsigned gl_id_texture = 0;
+};
+
 /// Numbers describing one frame.
 struct FrameStats {
   std::uint32_t objects = 0;                   ///< N, all input spheres
-  std::uint32_t active = 0;                    ///< objects given to the broadphase (N when culling is off)
-  bool has_camera = false;                     ///< false: no visibility stages ran and mu is undefined
-  double mean_pixels = 0;                      ///< mu: total covered screen pixels / N (0 without camera)
+  std::uint32_t active = 0;                    ///< objects not culled (N when culling is off)
+  bool has_camera = false;                     ///< a camera was given
+  bool has_pixels = false;                     ///< pixels were counted (a camera or the caller's id map): mu is defined
+  double mean_pixels = 0;                      ///< mu: total covered screen pixels / N (0 without pixels)
   int bits = 0;                                ///< Morton width m used this frame: 16, 32 or 64
   std::string layout;                          ///< e.g. "x(7)→z(6)→y(3)"
   std::uint64_t pairs = 0;                     ///< number of colliding pairs
@@ -52,8 +78,14 @@ struct FrameResult {
   std::vector<Pair> pairs;
   /// State of each of the N objects.
   std::vector<ObjectState> state;
-  /// Screen pixels covered by each object (after map-to-screen scaling); empty without camera.
+  /// Screen pixels covered by each object (after map-to-screen scaling); empty when no pixels
+  /// were counted (no camera and no id map).
   std::vector<float> pixels;
+  /// With Config::contact_events: the pairs of `pairs` that the previous frame of this detector
+  /// did not report (began), and the previous frame's pairs that this one does not report
+  /// (ended); both sorted by (i, j). Without contact events both are empty.
+  std::vector<Pair> began;
+  std::vector<Pair> ended;
   /// Shaded RGBA8 image (stage 9), image_width x image_height, rows top to bottom; filled only
   /// when Config::shade is set and a camera is given.
   std::vector<std::uint8_t> image;

@@ -4,6 +4,7 @@
 
 #include <compare>
 #include <cstdint>
+#include <limits>
 
 namespace viscd {
 
@@ -30,6 +31,31 @@ inline constexpr std::uint64_t kMaxMapPixels = std::uint64_t{1} << 26;
 struct Pair {
   std::uint32_t i = 0, j = 0;
   friend constexpr auto operator<=>(const Pair&, const Pair&) = default;
+};
+
+/// An object's collision filter. Objects i and j are reported as a pair only when
+/// `(group_i & mask_j) != 0 && (group_j & mask_i) != 0` (pair_passes_filter() in detector.hpp).
+/// The default (group 1, every mask bit) pairs with every other default object. Filters decide
+/// which pairs are reported, never which objects are active or seen by queries.
+struct Filter {
+  std::uint32_t group = 1;           ///< the groups the object belongs to (bits)
+  std::uint32_t mask = 0xFFFFFFFFu;  ///< the groups it may collide with (bits)
+};
+
+/// A ray for Detector::ray_cast: the points origin + t * dir for 0 <= t <= max_t. `dir` need not be
+/// unit length (t is then in units of |dir|); a zero `dir` hits nothing.
+struct Ray {
+  float origin[3] = {0, 0, 0};
+  float dir[3] = {0, 0, 1};
+  float max_t = std::numeric_limits<float>::infinity();
+};
+
+/// A sphere a ray hits: its object index and the smallest t >= 0 of the ray inside or on it
+/// (0 when the ray starts inside or on the sphere).
+struct RayHit {
+  std::uint32_t index = 0;
+  float t = 0;
+  friend constexpr bool operator==(const RayHit&, const RayHit&) = default;
 };
 
 /// What one frame decided about an object.

@@ -1,9 +1,12 @@
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <limits>
+#include <new>
 #include <string>
 
+#include "core/frame_rules.hpp"
 #include "core/geometry.hpp"
 #include "viscd/assert.hpp"
 #include "viscd/detector.hpp"
@@ -38,6 +41,145 @@ Result<std::unique_ptr<Detector>> make_detector(std::string_view backend, const 
 }
 
 bool spheres_overlap(const Sphere& a, const Sphere& b) { return detail::overlap_exact(a, b); }
+
+bool ray_hits_sphere(const Ray& ray, const Sphere& sphere, float& t) {
+  return detail::ray_sphere(ray.origin, ray.dir, ray.max_t, sphere, t);
+}
+
+// ---- Detector: the frame around run_frame(), contact events, queries ----
+
+namespace {
+
+template <class T>
+void reserve_with_headroom(std::vector<T>& v, std::size_t n) {
+  if (v.capacity() < n) v.reserve(n + n / 2);
+}
+
+// began = now \ before, ended = before \ now, both sorted: one merge of the two sorted lists.
+// The outputs only grow to the largest count seen, so a steady state allocates nothing.
+void pair_differences(const std::vector<Pair>& before, const std::vector<Pair>& now, std::vector<Pair>& began,
+                      std::vector<Pair>& ended) {
+  began.clear();
+  ended.clear();
+  // Room for the most each can hold, with headroom as the pair count drifts.
+  reserve_with_headroom(began, now.size());
+  reserve_with_headroom(ended, before.size());
+  auto b = before.begin(), n = now.begin();
+  while (b != before.end() && n != now.end()) {
+    if (*b < *n) {
+      ended.push_back(*b++);
+    } else if (*n < *b) {
+      began.push_back(*n++);
+    } else {
+      ++b, ++n;
+    }
+  }
+  ended.insert(ended.end(), b, before.end());
+  began.insert(began.end(), n, now.end());
+}
+
+// The checks every query makes on its ray.
+bool valid_ray(const Ray& r) {
+  for (int k = 0; k < 3; ++k)
+    if (!std::isfinite(r.origin[k]) || !std::isfinite(r.dir[k])) return false;
+  return r.dir[0] != 0 || r.dir[1] != 0 || r.dir[2] != 0 ? r.max_t >= 0 : false;  // max_t NaN: false
+}
+
+bool valid_sphere(const Sphere& s) { return validate_spheres(std::span<const Sphere>(&s, 1)).ok(); }
+
+// Hits sort by (t, index).
+bool hit_before(const RayHit& a, const RayHit& b) { return a.t < b.t || (a.t == b.t && a.index < b.index); }
+
+}  // namespace
+
+Status Detector::detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) {
+  FrameInput input;
+  input.spheres = spheres;
+  input.camera = camera;
+  return detect(input, out);
+}
+
+Status Detector::detect(const FrameInput& input, FrameResult& out) {
+  queries_ready_ = false;
+  try {
+    const Status s = detect_checked(input, out);
+    queries_ready_ = s.ok();
+    return s;
+  } catch (const std::bad_alloc&) {
+    return Status::failure(detail::out_of_memory_message(input.spheres.size(), input.camera, config_));
+  }
+}
+
+Status Detector::detect_checked(const FrameInput& input, FrameResult& out) {
+  if (Status s = detail::validate_frame_input(input, config_); !s) return s;
+  if (Status s = run_frame(input, out); !s) return s;
+  if (config_.contact_events) {
+    pair_differences(previous_pairs_, out.pairs, out.began, out.ended);
+    reserve_with_headroom(previous_pairs_, out.pairs.size());
+    previous_pairs_.assign(out.pairs.begin(), out.pairs.end());
+  } else {
+    // Not kept while events are off: the first frame with them on starts afresh.
+    out.began.clear();
+    out.ended.clear();
+    previous_pairs_.clear();
+  }
+  if (!answers_queries()) keep_active_spheres(input.spheres, out);
+  return {};
+}
+
+void Detector::reset_events() { previous_pairs_.clear(); }
+
+void Detector::keep_active_spheres(std::span<const Sphere> spheres, const FrameResult& out) {
+  query_spheres_.clear();
+  query_ids_.clear();
+  query_spheres_.reserve(spheres.size());  // at most every object: no allocation as the active set changes
+  query_ids_.reserve(spheres.size());
+  for (std::size_t k = 0; k < spheres.size(); ++k) {
+    if (out.state[k] == ObjectState::culled) continue;
+    query_spheres_.push_back(spheres[k]);
+    query_ids_.push_back(static_cast<std::uint32_t>(k));
+  }
+}
+
+bool Detector::ray_cast(const Ray& ray, RayHit& hit) {
+  if (!queries_ready_ || !valid_ray(ray)) return false;
+  return query_ray(ray, hit);
+}
+
+void Detector::ray_cast_all(const Ray& ray, std::vector<RayHit>& hits) {
+  hits.clear();
+  if (queries_ready_ && valid_ray(ray)) query_ray_all(ray, hits);
+}
+
+void Detector::overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices) {
+  indices.clear();
+  if (queries_ready_ && valid_sphere(sphere)) query_overlap(sphere, indices);
+}
+
+bool Detector::query_ray(const Ray& ray, RayHit& hit) {
+  bool found = false;
+  for (std::size_t k = 0; k < query_spheres_.size(); ++k) {
+    float t = 0;
+    if (!ray_hits_sphere(ray, query_spheres_[k], t)) continue;
+    const RayHit h{query_ids_[k], t};
+    if (!found || hit_before(h, hit)) hit = h;
+    found = true;
+  }
+  return found;
+}
+
+void Detector::query_ray_all(const Ray& ray, std::vector<RayHit>& hits) {
+  for (std::size_t k = 0; k < query_spheres_.size(); ++k) {
+    float t = 0;
+    if (ray_hits_sphere(ray, query_spheres_[k], t)) hits.push_back({query_ids_[k], t});
+  }
+  std::sort(hits.begin(), hits.end(), hit_before);
+}
+
+void Detector::query_overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices) {
+  for (std::size_t k = 0; k < query_spheres_.size(); ++k)
+    if (spheres_overlap(sphere, query_spheres_[k])) indices.push_back(query_ids_[k]);  // ascending already
+}
 
 Status validate_spheres(std::span<const Sphere> spheres) {
   if (spheres.size() > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))

@@ -23,6 +23,48 @@ Status validate_frame(std::span<const Sphere> spheres, const Camera* camera, con
   return {};
 }
 
+Status validate_frame_input(const FrameInput& in, const Config& config) {
+  if (!in.id_map.empty() && in.gl_id_texture != 0)
+    return Status::failure("FrameInput: id_map and gl_id_texture are both set; give the visibility map one way");
+  if (in.id_map.empty() && in.gl_id_texture == 0)
+    if (Status s = validate_frame(in.spheres, in.camera, config); !s) return s;
+  if (!in.id_map.empty() || in.gl_id_texture != 0) {
+    // The caller's map: its own size replaces Config's, so only the rest of validate_frame().
+    Config own = config;
+    own.map_width = own.map_height = 0;
+    if (Status s = validate_frame(in.spheres, in.camera, own); !s) return s;
+    const int w = in.id_map_width, h = in.id_map_height;
+    if (w < 1 || h < 1)
+      return Status::failure("FrameInput: the id map is " + std::to_string(w) + "x" + std::to_string(h) +
+                             " pixels; id_map_width and id_map_height must be at least 1");
+    if (Status s = validate_map_size(w, h); !s) return Status::failure("FrameInput: " + s.error());
+    const std::uint64_t want = static_cast<std::uint64_t>(w) * static_cast<std::uint64_t>(h);
+    if (!in.id_map.empty() && in.id_map.size() != want)
+      return Status::failure("FrameInput: the id map holds " + std::to_string(in.id_map.size()) + " ids, but " +
+                             std::to_string(w) + "x" + std::to_string(h) + " needs " + std::to_string(want));
+  }
+  if (!in.filters.empty() && in.filters.size() != in.spheres.size())
+    return Status::failure("FrameInput: " + std::to_string(in.filters.size()) + " filters for " +
+                           std::to_string(in.spheres.size()) + " spheres; give none or one per sphere");
+  return {};
+}
+
+Status id_map_error(std::span<const std::uint32_t> ids, int width, std::size_t objects) {
+  for (std::size_t k = 0; k < ids.size(); ++k) {
+    if (ids[k] <= objects) continue;
+    const std::size_t w = static_cast<std::size_t>(width);
+    return Status::failure("id map pixel (" + std::to_string(k % w) + ", " + std::to_string(k / w) + ") holds id " +
+                           std::to_string(ids[k]) + ", but the frame has " + std::to_string(objects) +
+                           " objects (an id is an object index + 1, 0 is background)");
+  }
+  return {};
+}
+
+double map_pixel_scale(const Camera* camera, int map_width, int map_height) {
+  if (!camera) return 1.0;
+  return (static_cast<double>(camera->width) * camera->height) / (static_cast<double>(map_width) * map_height);
+}
+
 std::string out_of_memory_message(std::size_t objects, const Camera* camera, const Config& config) {
   std::string m = "out of memory in a frame of " + std::to_string(objects) + " objects";
   if (camera) {

@@ -10,6 +10,7 @@
 
 #include "core/geometry.hpp"
 #include "viscd/config.hpp"
+#include "viscd/frame.hpp"
 #include "viscd/result.hpp"
 #include "viscd/types.hpp"
 
@@ -23,6 +24,16 @@ std::uint64_t bytes_of(const std::vector<T>& v) {
 
 /// The checks every backend makes on a frame's input: spheres, camera, the map size, threads.
 [[nodiscard]] Status validate_frame(std::span<const Sphere> spheres, const Camera* camera, const Config& config);
+/// validate_frame() for a whole FrameInput (Detector::detect() runs it before run_frame()): also
+/// the filter count, and the id map's size (which then replaces Config's map size); an id map
+/// and a gl texture together are an error. The ids themselves are checked where they are
+/// counted (id_map_error()).
+[[nodiscard]] Status validate_frame_input(const FrameInput& input, const Config& config);
+/// The error of an id map holding an id above `objects`: names the first such pixel (x, y).
+[[nodiscard]] Status id_map_error(std::span<const std::uint32_t> ids, int width, std::size_t objects);
+/// The culling rules' view of the screen: screen pixels per map pixel, (screen area) / (map area),
+/// as CameraRig computes it; 1 without a camera (counts are then map pixels).
+[[nodiscard]] double map_pixel_scale(const Camera* camera, int map_width, int map_height);
 /// The error of a frame that ran out of memory: its size, and what to change.
 [[nodiscard]] std::string out_of_memory_message(std::size_t objects, const Camera* camera, const Config& config);
 

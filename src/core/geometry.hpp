@@ -1,5 +1,6 @@
 #pragma once
-// Small vector and box types for the core, and the exact sphere test in its one hot-path form.
+// Small vector and box types for the core, the exact sphere test in its one hot-path form, and
+// the ray-sphere test of the queries.
 
 #include <algorithm>
 #include <cmath>
@@ -63,6 +64,47 @@ inline float conservative_half_extent(const Sphere& s) {
 inline Aabb conservative_box(const Sphere& s) {
   const float r = conservative_half_extent(s);
   return Aabb{{s.x - r, s.y - r, s.z - r}, {s.x + r, s.y + r, s.z + r}};
+}
+
+/// The ray-sphere test of the queries (ray_hits_sphere(); docs/architecture.md, "Queries"): the
+/// smallest t in [0, max_t] with origin + t * dir inside or on the sphere, rounded to float. In
+/// double from the float inputs (exact conversions; no product or sum of floats overflows there):
+///   f = origin - centre, a = dir.dir, c = f.f - r^2;  c <= 0: the origin is inside, t = 0;
+///   else b = f.dir must be < 0 (the sphere lies ahead), the closest approach l = f - (b/a) dir,
+///   disc = r^2 - l.l >= 0 (the line reaches the sphere; no cancellation of b^2 - a c), and
+///   t = c / (sqrt(a disc) - b), the smaller root in the form without cancellation.
+/// Its hit point origin + t * dir lies within r + 2^-40 (|origin| + |centre| + r) of the centre;
+/// the tree queries widen their boxes by that much (ray_box_margin()), so no hit is missed.
+/// Preconditions: finite inputs (Detector checks them); a zero direction hits nothing.
+inline bool ray_sphere(const float origin[3], const float dir[3], float max_t, const Sphere& s, float& t_out) {
+  const double fx = double{origin[0]} - s.x, fy = double{origin[1]} - s.y, fz = double{origin[2]} - s.z;
+  const double dx = dir[0], dy = dir[1], dz = dir[2];
+  const double a = dx * dx + dy * dy + dz * dz;
+  if (a == 0) return false;
+  const double r = s.r;
+  const double c = fx * fx + fy * fy + fz * fz - r * r;
+  double t = 0;
+  if (c > 0) {
+    const double b = fx * dx + fy * dy + fz * dz;
+    if (!(b < 0)) return false;
+    const double k = b / a;
+    const double lx = fx - k * dx, ly = fy - k * dy, lz = fz - k * dz;
+    const double disc = r * r - (lx * lx + ly * ly + lz * lz);
+    if (!(disc >= 0)) return false;
+    t = c / (std::sqrt(a * disc) - b);
+  }
+  const auto tf = static_cast<float>(t);
+  if (!(tf <= max_t)) return false;
+  t_out = tf;
+  return true;
+}
+
+/// How far beyond a sphere's conservative box ray_sphere()'s hit point can lie for a ray from
+/// `origin`: its rounding in double is below 2^-46 of |origin| + |centre| + r; the box already
+/// covers 2^-19 of |centre| + r, and this covers the origin's part with room to spare (2^-32), and
+/// the rounding of the slab test that uses it.
+inline double ray_box_margin(const float origin[3]) {
+  return 0x1p-32 * (std::fabs(double{origin[0]}) + std::fabs(double{origin[1]}) + std::fabs(double{origin[2]})) + 1e-30;
 }
 
 }  // namespace viscd::detail

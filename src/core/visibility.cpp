@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "core/frame_rules.hpp"
 #include "core/morton.hpp"
 
 namespace viscd::detail {
@@ -31,7 +32,7 @@ CameraRig::CameraRig(const Camera& c, int map_width, int map_height) {
   tan_half_x = tan_half_y * static_cast<float>(c.width) / static_cast<float>(c.height);
   near_plane = c.near_plane;
   far_plane = c.far_plane;
-  pixel_scale = (static_cast<double>(c.width) * c.height) / (static_cast<double>(map_w) * map_h);
+  pixel_scale = map_pixel_scale(&c, map_w, map_h);
 }
 
 PixelRect sphere_rect(const CameraRig& cam, const Sphere& s) {

@@ -15,6 +15,7 @@
 #include "cpu/parallel.hpp"
 #include "cpu/radix_sort.hpp"
 #include "viscd/config.hpp"
+#include "viscd/detector.hpp"
 #include "viscd/frame.hpp"
 #include "viscd/result.hpp"
 #include "viscd/types.hpp"
@@ -73,9 +74,12 @@ class PairCollector {
     if (Status s = check_pair_cap(total, pair_memory_cap); !s) return s;
     // A chunk covers the same objects every frame, but its count drifts as they move: once a list
     // is more than two-thirds full it gets room for twice its count, so frames whose counts
-    // wander by up to half do not allocate.
+    // wander by up to half do not allocate. At least kMinRoom each: a chunk with almost no pairs
+    // (sparse scenes, filters) would otherwise allocate whenever its few pairs become more.
+    constexpr std::size_t kMinRoom = 256;
     for (std::size_t c = 0; c < chunks; ++c)
-      if (3 * lists_[c].size() > 2 * lists_[c].capacity()) lists_[c].reserve(2 * lists_[c].size());
+      if (3 * lists_[c].size() > 2 * lists_[c].capacity() || lists_[c].capacity() < kMinRoom)
+        lists_[c].reserve(std::max(2 * lists_[c].size(), kMinRoom));
     sort_chunk_pairs(std::span(lists_.data(), chunks), objects, offsets_, out);
     return {};
   }
@@ -136,8 +140,9 @@ class LbvhBroadphase {
 };
 
 /// O(n^2) brute force over the active set: the oracle. Pairs come out sorted. Stops and returns
-/// false when there are more than `max_pairs`.
+/// false when there are more than `max_pairs`. `filters`: empty, or one per sphere, and then only
+/// pairs with pair_passes_filter() count.
 bool brute_force_pairs(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, std::vector<Pair>& pairs,
-                       std::size_t max_pairs = SIZE_MAX);
+                       std::size_t max_pairs = SIZE_MAX, std::span<const Filter> filters = {});
 
 }  // namespace viscd::detail

@@ -124,9 +124,21 @@ std::vector<std::uint64_t> BucketBroadphase::sorted_codes() const {
   }
 }
 
-Status BucketBroadphase::run(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
-                             Layout layout, int threads, std::size_t pair_memory_cap, std::vector<Pair>& pairs,
-                             FrameStats& stats) {
+Status BucketBroadphase::run(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                             std::span<const Filter> filters, int bits, Layout layout, int threads,
+                             std::size_t pair_memory_cap, std::vector<Pair>& pairs, FrameStats& stats) {
+  build_tree(spheres, active, filters, bits, layout, threads, stats);
+  return find_pairs(active, !filters.empty(), threads, pair_memory_cap, pairs, stats);
+}
+
+void BucketBroadphase::build(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
+                             Layout layout, int threads, FrameStats& stats) {
+  build_tree(spheres, active, {}, bits, layout, threads, stats);
+}
+
+void BucketBroadphase::build_tree(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                                  std::span<const Filter> filters, int bits, Layout layout, int threads,
+                                  FrameStats& stats) {
   VISCD_ASSERT(bits == 16 || bits == 32 || bits == 64, "Morton width must be 16, 32 or 64");
   Stopwatch sw;
   const ActiveExtent extent = active_extent(spheres, active, threads);
@@ -138,11 +150,11 @@ Status BucketBroadphase::run(std::span<const Sphere> spheres, std::span<const st
   stats.stage_ms[static_cast<std::size_t>(Stage::layout)] = sw.lap();
   switch (bits) {
     case 16:
-      return run_keys<std::uint16_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);
+      return build_keys<std::uint16_t>(spheres, active, filters, extent.bounds, threads, stats);
     case 32:
-      return run_keys<std::uint32_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);
+      return build_keys<std::uint32_t>(spheres, active, filters, extent.bounds, threads, stats);
     default:
-      return run_keys<std::uint64_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);
+      return build_keys<std::uint64_t>(spheres, active, filters, extent.bounds, threads, stats);
   }
 }
 
@@ -213,9 +225,8 @@ void BucketBroadphase::sort_codes(std::span<const Sphere> spheres, std::span<con
 }
 
 template <class K>
-Status BucketBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
-                                  const Aabb& bounds, int threads, std::size_t pair_memory_cap,
-                                  std::vector<Pair>& pairs, FrameStats& stats) {
+void BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                                  std::span<const Filter> filters, const Aabb& bounds, int threads, FrameStats& stats) {
   auto ms = [&](Stage s) -> double& { return stats.stage_ms[static_cast<std::size_t>(s)]; };
   Stopwatch sw;
   const std::size_t n = active.size();
@@ -255,6 +266,7 @@ Status BucketBroadphase::run_keys(std::span<const Sphere> spheres, std::span<con
     resize_with_headroom(lanes_, buckets);
     resize_with_headroom(bucket_boxes_, buckets);
   }
+  resize_with_headroom(sorted_filters_, filters.empty() ? 0 : n);
   constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
   parallel_for(buckets, threads, [&](std::size_t b) {
     BucketLanes& ln = lanes_[b];
@@ -266,6 +278,7 @@ Status BucketBroadphase::run_keys(std::span<const Sphere> spheres, std::span<con
         const float e = conservative_half_extent(s);  // conservative_box() is s -/+ e
         box.grow(Aabb{{s.x - e, s.y - e, s.z - e}, {s.x + e, s.y + e, s.z + e}});
         ln.x[l] = s.x, ln.y[l] = s.y, ln.z[l] = s.z, ln.r[l] = s.r, ln.h[l] = e;
+        if (!filters.empty()) sorted_filters_[first + l] = filters[sorted_ids_[first + l]];
       } else {
         ln.x[l] = ln.y[l] = ln.z[l] = kNan;
         ln.r[l] = 0;
@@ -282,12 +295,21 @@ Status BucketBroadphase::run_keys(std::span<const Sphere> spheres, std::span<con
     VISCD_ASSERT(problem.empty(), problem.c_str());
   }
 #endif
+}
 
+Status BucketBroadphase::find_pairs(std::span<const std::uint32_t> active, bool filtered, int threads,
+                                    std::size_t pair_memory_cap, std::vector<Pair>& pairs, FrameStats& stats) {
+  Stopwatch sw;
   // Stage 8: per bucket, the pairs inside it, then those with every later bucket whose box
   // overlaps its own, so each pair is found once.
+  const std::size_t n = sorted_ids_.size();
+  const std::size_t buckets = (n + kBucket - 1) / kBucket;
   const std::size_t chunks = threads_for(n, threads) == 1 ? 1 : std::min<std::size_t>(buckets, 8 * threads);
   const std::uint32_t objects = n ? active.back() + 1 : 0;  // active is ascending
   const std::uint32_t* ids = sorted_ids_.data();
+  const Filter* filter = sorted_filters_.data();
+  // The filters come after the exact test: few candidates pass it, and the lanes stay as they are.
+  auto pass = [&](std::uint32_t p, std::uint32_t q) { return !filtered || pair_passes_filter(filter[p], filter[q]); };
   const Status found = pairs_.collect(buckets, chunks, pair_memory_cap, objects, pairs, [&](std::size_t b, auto& emit) {
     const BucketLanes& lb = lanes_[b];
     const auto first = static_cast<std::uint32_t>(b * kBucket);
@@ -295,24 +317,166 @@ Status BucketBroadphase::run_keys(std::span<const Sphere> spheres, std::span<con
     // Pairs inside the bucket: lane i against the lanes after it.
     for (std::uint32_t i = 0; i + 1 < count; ++i) {
       std::uint32_t m = overlap_mask(lb, lb.x[i], lb.y[i], lb.z[i], lb.r[i]) & (~0u << (i + 1));
-      for (; m; m &= m - 1) emit(ids[first + i], ids[first + static_cast<std::uint32_t>(std::countr_zero(m))]);
+      for (; m; m &= m - 1) {
+        const std::uint32_t q = first + static_cast<std::uint32_t>(std::countr_zero(m));
+        if (pass(first + i, q)) emit(ids[first + i], ids[q]);
+      }
     }
     // Pairs with every later bucket whose box overlaps this one's.
-    for_each_overlap_after(bvh_, static_cast<std::uint32_t>(b), bucket_boxes_[b], [&](std::uint32_t q) {
-      const BucketLanes& lq = lanes_[q];
-      const std::uint32_t qfirst = q * kBucket;
+    for_each_overlap_after(bvh_, static_cast<std::uint32_t>(b), bucket_boxes_[b], [&](std::uint32_t qb) {
+      const BucketLanes& lq = lanes_[qb];
+      const std::uint32_t qfirst = qb * kBucket;
       // Only this bucket's lanes whose boxes reach into the other bucket's box can pair.
-      for (std::uint32_t near = lanes_overlapping(lb, bucket_boxes_[q]); near; near &= near - 1) {
+      for (std::uint32_t near = lanes_overlapping(lb, bucket_boxes_[qb]); near; near &= near - 1) {
         const auto i = static_cast<std::uint32_t>(std::countr_zero(near));
-        for (std::uint32_t m = overlap_mask(lq, lb.x[i], lb.y[i], lb.z[i], lb.r[i]); m; m &= m - 1)
-          emit(ids[first + i], ids[qfirst + static_cast<std::uint32_t>(std::countr_zero(m))]);
+        for (std::uint32_t m = overlap_mask(lq, lb.x[i], lb.y[i], lb.z[i], lb.r[i]); m; m &= m - 1) {
+          const std::uint32_t q = qfirst + static_cast<std::uint32_t>(std::countr_zero(m));
+          if (pass(first + i, q)) emit(ids[first + i], ids[q]);
+        }
       }
     });
   });
   if (!found) return found;
   stats.pairs = pairs.size();
-  ms(Stage::query) = sw.lap();
+  stats.stage_ms[static_cast<std::size_t>(Stage::query)] = sw.lap();
   return {};
+}
+
+// ---- queries ----
+
+namespace {
+
+// A ray prepared for slab tests against boxes widened by ray_box_margin() (in double: see there).
+struct RaySetup {
+  double o[3], inv[3], margin;
+  bool flat[3];
+  explicit RaySetup(const Ray& r) : margin(ray_box_margin(r.origin)) {
+    for (int k = 0; k < 3; ++k) {
+      o[k] = r.origin[k];
+      flat[k] = r.dir[k] == 0;
+      inv[k] = flat[k] ? 0.0 : 1.0 / double{r.dir[k]};
+    }
+  }
+};
+
+// Where the segment t in [0, t_hi] enters the widened box; false when it misses it.
+inline bool ray_box(const RaySetup& q, const Aabb& b, double t_hi, double& t_enter) {
+  const float lo[3] = {b.lo.x, b.lo.y, b.lo.z}, hi[3] = {b.hi.x, b.hi.y, b.hi.z};
+  double t0 = 0, t1 = t_hi;
+  for (int k = 0; k < 3; ++k) {
+    const double l = double{lo[k]} - q.margin, h = double{hi[k]} + q.margin;
+    if (q.flat[k]) {
+      if (q.o[k] < l || q.o[k] > h) return false;
+      continue;
+    }
+    double a = (l - q.o[k]) * q.inv[k], c = (h - q.o[k]) * q.inv[k];
+    if (a > c) std::swap(a, c);
+    t0 = std::max(t0, a);
+    t1 = std::min(t1, c);
+  }
+  t_enter = t0;
+  return t0 <= t1;
+}
+
+// Every t whose float rounding is at most `limit` is at most this.
+inline double upper_t(float limit) {
+  return static_cast<double>(std::nextafter(limit, std::numeric_limits<float>::infinity()));
+}
+
+}  // namespace
+
+template <class Visit>
+void BucketBroadphase::ray_walk(const Ray& ray, double& t_hi, Visit&& visit) const {
+  const std::size_t n = sorted_ids_.size();
+  if (n == 0) return;
+  const RaySetup q(ray);
+  double te = 0;
+  if (bvh_.leaves < 2) {
+    if (ray_box(q, bucket_boxes_[0], t_hi, te)) visit(0u);
+    return;
+  }
+  if (!ray_box(q, bvh_.root_box, t_hi, te)) return;
+  // Depth first, the nearer child first; an entry whose box starts beyond t_hi (which the visits
+  // may lower) is skipped. A tree of build_lbvh() is at most 96 deep: at most 97 entries wait.
+  struct Entry {
+    std::uint32_t node;
+    double t;
+  };
+  Entry stack[2 * kStackDepth];
+  int sp = 0;
+  stack[sp++] = {0, te};
+  while (sp > 0) {
+    const Entry e = stack[--sp];
+    if (e.t > t_hi) continue;
+    if (e.node & kLeafBit) {
+      visit(e.node & ~kLeafBit);
+      continue;
+    }
+    const BvhNode& nd = bvh_.nodes[e.node];
+    double t[2];
+    const bool hit0 = ray_box(q, nd.box[0], t_hi, t[0]), hit1 = ray_box(q, nd.box[1], t_hi, t[1]);
+    const int nearer = hit0 && hit1 ? (t[1] < t[0] ? 1 : 0) : (hit0 ? 0 : 1);
+    if (hit0 && hit1) stack[sp++] = {nd.child[1 - nearer], t[1 - nearer]};
+    if (hit0 || hit1) stack[sp++] = {nd.child[nearer], t[nearer]};
+    VISCD_ASSERT(sp + 2 <= 2 * kStackDepth, "a tree of build_lbvh() is at most 96 deep");
+  }
+}
+
+bool BucketBroadphase::ray_first(const Ray& ray, std::span<const std::uint32_t> ids, RayHit& best, bool found) const {
+  double t_hi = upper_t(found ? std::min(best.t, ray.max_t) : ray.max_t);
+  const std::size_t n = sorted_ids_.size();
+  ray_walk(ray, t_hi, [&](std::uint32_t b) {
+    const BucketLanes& ln = lanes_[b];
+    const std::size_t first = std::size_t{b} * kBucket;
+    const auto count = static_cast<std::uint32_t>(std::min<std::size_t>(kBucket, n - first));
+    for (std::uint32_t l = 0; l < count; ++l) {
+      float t = 0;
+      if (!ray_sphere(ray.origin, ray.dir, ray.max_t, Sphere{ln.x[l], ln.y[l], ln.z[l], ln.r[l]}, t)) continue;
+      const std::uint32_t id = sorted_ids_[first + l];
+      const std::uint32_t index = ids.empty() ? id : ids[id];
+      if (found && (t > best.t || (t == best.t && index > best.index))) continue;
+      best = {index, t};
+      found = true;
+      t_hi = upper_t(t);
+    }
+  });
+  return found;
+}
+
+void BucketBroadphase::ray_all(const Ray& ray, std::span<const std::uint32_t> ids, std::vector<RayHit>& hits) const {
+  double t_hi = upper_t(ray.max_t);
+  const std::size_t n = sorted_ids_.size();
+  ray_walk(ray, t_hi, [&](std::uint32_t b) {
+    const BucketLanes& ln = lanes_[b];
+    const std::size_t first = std::size_t{b} * kBucket;
+    const auto count = static_cast<std::uint32_t>(std::min<std::size_t>(kBucket, n - first));
+    for (std::uint32_t l = 0; l < count; ++l) {
+      float t = 0;
+      if (!ray_sphere(ray.origin, ray.dir, ray.max_t, Sphere{ln.x[l], ln.y[l], ln.z[l], ln.r[l]}, t)) continue;
+      const std::uint32_t id = sorted_ids_[first + l];
+      hits.push_back({ids.empty() ? id : ids[id], t});
+    }
+  });
+}
+
+void BucketBroadphase::overlap(const Sphere& sphere, std::span<const std::uint32_t> ids,
+                               std::vector<std::uint32_t>& out) const {
+  const std::size_t n = sorted_ids_.size();
+  if (n == 0) return;
+  // Both boxes conservative: every sphere the exact test accepts is found (as for pairs).
+  const Aabb box = conservative_box(sphere);
+  auto visit = [&](std::uint32_t b) {
+    // Padding lanes hold NaN centres: overlap_mask() never sets their bits.
+    for (std::uint32_t m = overlap_mask(lanes_[b], sphere.x, sphere.y, sphere.z, sphere.r); m; m &= m - 1) {
+      const std::uint32_t id = sorted_ids_[std::size_t{b} * kBucket + static_cast<std::uint32_t>(std::countr_zero(m))];
+      out.push_back(ids.empty() ? id : ids[id]);
+    }
+  };
+  if (bvh_.leaves < 2) {
+    if (overlaps(bucket_boxes_[0], box)) visit(0);
+  } else if (overlaps(bvh_.root_box, box)) {
+    for_each_overlap_in_subtree(bvh_, 0, box, [&](std::uint32_t b) { visit(b); });
+  }
 }
 
 }  // namespace viscd::detail

@@ -19,7 +19,11 @@
 //                     bottom-up fit
 //   stage 8  query:   per bucket, pairs inside it, then every later bucket whose box overlaps (the
 //                     walk up from the leaf); per object of the bucket a box test, then the exact
-//                     test against the other bucket's lanes; pairs sorted at the end.
+//                     test against the other bucket's lanes, then the pair's filters (when there
+//                     are any: few candidates pass the exact test); pairs sorted at the end.
+//
+// The tree, the lanes and the sorted ids stay until the next frame: the ray and overlap queries
+// (Detector::ray_cast, overlap) search them.
 
 #include <cstdint>
 #include <span>
@@ -57,9 +61,30 @@ class BucketBroadphase {
   /// Finds all overlapping pairs among spheres[active[k]] (active ascending) with m-bit codes.
   /// Writes sorted pairs, stats.bits, stats.layout and the stage times of stages 4-8.
   /// Fails only when the pairs would exceed pair_memory_cap bytes (0 = no cap).
+  /// `filters` is empty or one per sphere: a pair is reported only when pair_passes_filter().
+  [[nodiscard]] Status run(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                           std::span<const Filter> filters, int bits, Layout layout, int threads,
+                           std::size_t pair_memory_cap, std::vector<Pair>& pairs, FrameStats& stats);
+  /// run() without filters.
   [[nodiscard]] Status run(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
                            Layout layout, int threads, std::size_t pair_memory_cap, std::vector<Pair>& pairs,
-                           FrameStats& stats);
+                           FrameStats& stats) {
+    return run(spheres, active, {}, bits, layout, threads, pair_memory_cap, pairs, stats);
+  }
+  /// Stages 4-7 only: the tree over spheres[active[k]], for queries. Writes stats.bits, layout and
+  /// the stage times.
+  void build(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits, Layout layout,
+             int threads, FrameStats& stats);
+
+  /// Queries on the last tree (docs/architecture.md, "Queries"). A tree object's id is its index
+  /// in the spheres it was built from, reported as ids[id] when `ids` is not empty.
+  /// ray_first: the first hit (smallest t, ties to the smaller reported index) if it comes before
+  /// `best` (when `found`); returns whether there is a hit now.
+  [[nodiscard]] bool ray_first(const Ray& ray, std::span<const std::uint32_t> ids, RayHit& best, bool found) const;
+  /// Appends every hit, unsorted.
+  void ray_all(const Ray& ray, std::span<const std::uint32_t> ids, std::vector<RayHit>& hits) const;
+  /// Appends the objects that overlap `sphere` by overlap_exact(), unsorted.
+  void overlap(const Sphere& sphere, std::span<const std::uint32_t> ids, std::vector<std::uint32_t>& out) const;
 
   /// Inspection for tests: the last frame's tree over buckets, the bucket boxes, the objects in
   /// sorted order, the sorted codes (widened to 64 bits) and how the sort went.
@@ -75,8 +100,14 @@ class BucketBroadphase {
 
  private:
   template <class K>
-  Status run_keys(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, const Aabb& bounds,
-                  int threads, std::size_t pair_memory_cap, std::vector<Pair>& pairs, FrameStats& stats);
+  void build_keys(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                  std::span<const Filter> filters, const Aabb& bounds, int threads, FrameStats& stats);
+  void build_tree(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                  std::span<const Filter> filters, int bits, Layout layout, int threads, FrameStats& stats);
+  Status find_pairs(std::span<const std::uint32_t> active, bool filtered, int threads, std::size_t pair_memory_cap,
+                    std::vector<Pair>& pairs, FrameStats& stats);
+  template <class Visit>
+  void ray_walk(const Ray& ray, double& t_hi, Visit&& visit) const;
   template <class K>
   void sort_codes(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, std::vector<K>& key,
                   int threads);
@@ -98,6 +129,7 @@ class BucketBroadphase {
   std::vector<std::uint32_t> sorted_ids_, previous_ids_, rank_;
   SortReport sort_report_;
   std::vector<BucketLanes> lanes_;
+  std::vector<Filter> sorted_filters_;  // the filters in sorted order (frames with filters)
   std::vector<Aabb> bucket_boxes_;
   Lbvh bvh_;
   PairCollector pairs_;

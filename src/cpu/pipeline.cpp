@@ -11,21 +11,35 @@
 namespace viscd::detail {
 
 std::uint64_t PipelineDetector::memory_bytes() const {
-  std::uint64_t b = map_.memory_bytes() + bytes_of(counts_) + bytes_of(active_);
-  for (const auto& s : count_scratch_) b += bytes_of(s);
-  return b + backend_memory_bytes();
+  return map_.memory_bytes() + bytes_of(counts_) + bytes_of(hist_) + bytes_of(active_) + bytes_of(pairable_) +
+         bytes_of(unpaired_) + backend_memory_bytes();
 }
 
-Status PipelineDetector::detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) {
-  try {
-    return detect_frame(spheres, camera, out);
-  } catch (const std::bad_alloc&) {
-    return Status::failure(out_of_memory_message(spheres.size(), camera, config_));
+void split_by_filters(std::span<const std::uint32_t> active, std::span<const Filter> filters,
+                      std::vector<std::uint32_t>& pairable, std::vector<std::uint32_t>& unpaired) {
+  std::uint32_t groups = 0, masks = 0;
+  for (const std::uint32_t k : active) groups |= filters[k].group, masks |= filters[k].mask;
+  pairable.clear();
+  unpaired.clear();
+  pairable.reserve(filters.size());  // at most every object: no allocation as the split changes
+  unpaired.reserve(filters.size());
+  for (const std::uint32_t k : active) {
+    const Filter f = filters[k];
+    ((f.mask & groups) != 0 && (f.group & masks) != 0 ? pairable : unpaired).push_back(k);
   }
 }
 
-Status PipelineDetector::detect_frame(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) {
-  if (Status s = validate_frame(spheres, camera, config_); !s) return s;
+Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
+  const std::span<const Sphere> spheres = in.spheres;
+  const Camera* camera = in.camera;
+  const bool own_map = !in.id_map.empty();
+  if (in.gl_id_texture != 0)
+    return Status::failure("FrameInput::gl_id_texture is for the gl backend; the " + std::string(name()) +
+                           " backend reads the caller's visibility map from FrameInput::id_map");
+  if (own_map && config_.shade)
+    return Status::failure(
+        "Config::shade needs the detector's own visibility map (depth and normals); with "
+        "FrameInput::id_map no image can be shaded");
   // Every parallel stage of this frame runs on the caller's executor, or on viscd's pool.
   const ExecutorScope scope(config_.executor);
   const int threads = resolve_threads(config_.threads, config_.executor ? config_.executor->concurrency() : 0);
@@ -36,18 +50,29 @@ Status PipelineDetector::detect_frame(std::span<const Sphere> spheres, const Cam
   stats.layout = std::move(layout);
   stats.objects = static_cast<std::uint32_t>(n);
   stats.has_camera = camera != nullptr;
+  stats.has_pixels = camera != nullptr || own_map;
   auto ms = [&](Stage s) -> double& { return stats.stage_ms[static_cast<std::size_t>(s)]; };
   Stopwatch sw;
 
   int bits = 0;
   std::optional<CameraRig> rig;
-  if (camera) {
+  if (own_map) {
+    // The caller's map: no stage 1; counted, then culled exactly as a map of our own.
+    map_ = VisibilityMap{};
+    ms(Stage::visibility) = sw.lap();
+    if (!count_ids(in.id_map, n, threads, hist_)) return id_map_error(in.id_map, in.id_map_width, n);
+    ms(Stage::count) = sw.lap();
+    const double scale = map_pixel_scale(camera, in.id_map_width, in.id_map_height);
+    bits = cull_and_choose_bits(std::span<const std::uint32_t>(hist_).subspan(1, n), scale, config_, out.pixels,
+                                active_, stats);
+    ms(Stage::cull) = sw.lap();
+  } else if (camera) {
     const MapSize map = map_size(config_, *camera);
     rig.emplace(*camera, map.width, map.height);
     map_.resize(map.width, map.height, config_.shade);
     rasterize(*rig, spheres, threads);
     ms(Stage::visibility) = sw.lap();
-    count_pixels(map_, n, threads, counts_, count_scratch_);
+    count_pixels(map_, n, threads, counts_, hist_);
     ms(Stage::count) = sw.lap();
     bits = cull_and_choose_bits(counts_, rig->pixel_scale, config_, out.pixels, active_, stats);
     ms(Stage::cull) = sw.lap();
@@ -60,7 +85,16 @@ Status PipelineDetector::detect_frame(std::span<const Sphere> spheres, const Cam
     bits = choose_bits(config_, false, 0.0);
   }
 
-  if (Status s = broadphase(spheres, active_, bits, threads, out.pairs, stats); !s) return s;
+  // Objects whose filters pair them with nothing active stay out of the tree.
+  std::span<const std::uint32_t> pairable = active_, unpaired;
+  if (!in.filters.empty()) {
+    split_by_filters(active_, in.filters, pairable_, unpaired_);
+    pairable = pairable_;
+    unpaired = unpaired_;
+    ms(Stage::cull) += sw.lap();
+  }
+
+  if (Status s = broadphase(spheres, pairable, unpaired, in.filters, bits, threads, out.pairs, stats); !s) return s;
   stats.pairs = out.pairs.size();
 
   sw.lap();

@@ -1,6 +1,7 @@
 #pragma once
-// The frame pipeline every CPU-side detector shares: validate, visibility (1), count (2),
-// cull + mu + m (3), broadphase (4-8, backend specific), object states, shading (9).
+// The frame pipeline every CPU-side detector shares: visibility (1) or the caller's id map,
+// count (2), cull + mu + m (3), the collision filters' pre-pass, broadphase (4-8, backend
+// specific), object states, shading (9). Detector::detect() has checked the input before.
 
 #include <memory>
 #include <span>
@@ -14,29 +15,37 @@ namespace viscd::detail {
 
 class PipelineDetector : public Detector {
  public:
-  [[nodiscard]] Status detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) final;
   [[nodiscard]] std::uint64_t memory_bytes() const final;
-  /// The last frame's visibility map (empty without camera); for tests and tools.
+  /// The last frame's visibility map (empty without camera, or with the caller's id map); for
+  /// tests and tools.
   [[nodiscard]] const VisibilityMap& visibility_map() const { return map_; }
-
- private:
-  Status detect_frame(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out);
 
  protected:
   explicit PipelineDetector(const Config& config) : Detector(config) {}
+  [[nodiscard]] Status run_frame(const FrameInput& input, FrameResult& out) final;
   /// Stage 1 into map_ (already sized).
   virtual void rasterize(const CameraRig& cam, std::span<const Sphere> spheres, int threads) = 0;
   /// Bytes held by the backend's own stages (raster, broadphase).
   [[nodiscard]] virtual std::uint64_t backend_memory_bytes() const = 0;
-  /// Stages 4-8 over the active set; writes sorted pairs and stats (bits, layout, stage times).
-  [[nodiscard]] virtual Status broadphase(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+  /// Stages 4-8 over `pairable` (ascending: the active objects that can pair with another under
+  /// the filters, all active objects without filters); `filters` is empty or one per sphere and
+  /// decides each candidate pair. Writes sorted pairs and stats (bits, layout, stage times).
+  /// `unpaired` (ascending) are the active objects left out of `pairable`: they pair with nothing
+  /// but queries see them.
+  [[nodiscard]] virtual Status broadphase(std::span<const Sphere> spheres, std::span<const std::uint32_t> pairable,
+                                          std::span<const std::uint32_t> unpaired, std::span<const Filter> filters,
                                           int bits, int threads, std::vector<Pair>& pairs, FrameStats& stats) = 0;
 
   VisibilityMap map_;
 
  private:
-  std::vector<std::uint32_t> counts_, active_;
-  std::vector<std::vector<std::uint32_t>> count_scratch_;
+  std::vector<std::uint32_t> counts_, hist_, active_, pairable_, unpaired_;
 };
+
+/// The filters' pre-pass: with G the OR of the groups and M the OR of the masks over `active`, an
+/// object can pair with another only when (mask & G) != 0 and (group & M) != 0. Splits `active`
+/// (ascending) into those that can (`pairable`) and the rest (`unpaired`), both ascending.
+void split_by_filters(std::span<const std::uint32_t> active, std::span<const Filter> filters,
+                      std::vector<std::uint32_t>& pairable, std::vector<std::uint32_t>& unpaired);
 
 }  // namespace viscd::detail

@@ -19,7 +19,9 @@ class ReferenceDetector final : public PipelineDetector {
   void rasterize(const CameraRig& cam, std::span<const Sphere> spheres, int) override {
     rasterize_reference(cam, spheres, map_);
   }
-  Status broadphase(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits, int threads,
+  // Queries: the base class's brute force over the active spheres (answers_queries() is false).
+  Status broadphase(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                    std::span<const std::uint32_t>, std::span<const Filter> filters, int bits, int threads,
                     std::vector<Pair>& pairs, FrameStats& stats) override {
     // Report the same m and layout as the LBVH backends would, so stats compare one to one.
     Stopwatch sw;
@@ -27,7 +29,7 @@ class ReferenceDetector final : public PipelineDetector {
     stats.bits = bits;
     stats.layout = make_layout(config_.layout, bits, e.bounds, e.mean_diameter()).to_string();
     stats.stage_ms[static_cast<std::size_t>(Stage::layout)] = sw.lap();
-    const bool complete = brute_force_pairs(spheres, active, pairs, pairs_within_cap(config_.pair_memory_cap));
+    const bool complete = brute_force_pairs(spheres, active, pairs, pairs_within_cap(config_.pair_memory_cap), filters);
     stats.stage_ms[static_cast<std::size_t>(Stage::query)] = sw.lap();
     if (!complete) return check_pair_cap(pairs.size() + 1, config_.pair_memory_cap, true);
     return {};

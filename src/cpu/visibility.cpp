@@ -1,7 +1,12 @@
 #include "cpu/visibility.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "cpu/parallel.hpp"
 #include "viscd/assert.hpp"
@@ -68,42 +73,64 @@ void rasterize_reference(const CameraRig& cam, std::span<const Sphere> spheres, 
   }
 }
 
+bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int threads, std::vector<std::uint32_t>& hist) {
+  VISCD_ASSERT(objects < 0xFFFFFFFFu, "ids are 32-bit");
+  hist.assign(objects + 2, 0u);
+  const auto bad = static_cast<std::uint32_t>(objects + 1);
+  const std::size_t n = ids.size();
+  const int tasks = threads_for(n, threads);
+  // Runs of equal ids (++hist[id] per pixel would wait on its own store along a run).
+  auto count_range = [&](std::size_t b, std::size_t e, auto add) {
+    const std::uint32_t* p = ids.data();
+    std::uint32_t cur = p[b], run = 0;
+    std::size_t i = b;
+    while (i < e) {
+#if defined(__SSE2__)
+      if (i + 4 <= e) {
+        const __m128i same = _mm_cmpeq_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p + i)),
+                                             _mm_set1_epi32(static_cast<int>(cur)));
+        if (_mm_movemask_epi8(same) == 0xFFFF) {
+          i += 4, run += 4;
+          continue;
+        }
+      }
+#endif
+      const std::size_t stop = std::min(e, i + 4);
+      for (; i < stop; ++i) {
+        const std::uint32_t id = p[i];
+        if (id != cur) {
+          add(std::min(cur, bad), run);
+          cur = id, run = 0;
+        }
+        ++run;
+      }
+    }
+    add(std::min(cur, bad), run);
+  };
+  if (tasks == 1) {
+    if (n) count_range(0, n, [&](std::uint32_t id, std::uint32_t run) { hist[id] += run; });
+  } else {
+    // Rows of different tasks rarely share an id, so the atomic adds do not contend.
+    for_chunks(n, static_cast<std::size_t>(tasks), [&](std::size_t b, std::size_t e, std::size_t) {
+      count_range(b, e, [&](std::uint32_t id, std::uint32_t run) {
+        std::atomic_ref<std::uint32_t>(hist[id]).fetch_add(run, std::memory_order_relaxed);
+      });
+    });
+  }
+  return hist[bad] == 0;
+}
+
 void count_pixels(const VisibilityMap& map, std::size_t objects, int threads, std::vector<std::uint32_t>& counts,
-                  std::vector<std::vector<std::uint32_t>>& scratch) {
+                  std::vector<std::uint32_t>& hist) {
   if (map.has_counts && map.counts.size() == objects) {  // counted while rasterising
     counts.assign(map.counts.begin(), map.counts.end());
     return;
   }
-  const std::size_t n = map.ids.size();
-  const int t_count = threads_for(n, threads);
-  if (scratch.size() < static_cast<std::size_t>(t_count)) scratch.resize(static_cast<std::size_t>(t_count));
-  counts.assign(objects, 0);
-  const auto chunks = static_cast<std::size_t>(t_count);
-  for (std::size_t t = 0; t < chunks; ++t) scratch[t].resize(objects + 1);  // outside the tasks: may allocate
-  for_chunks(n, chunks, [&](std::size_t b, std::size_t e, std::size_t t) {
-    auto& h = scratch[t];
-    std::fill(h.begin(), h.end(), 0u);
-    // By runs of equal ids (++h[id] per pixel would wait on its own store along a run).
-    std::uint32_t cur = map.ids[b], run = 0;
-    for (std::size_t i = b; i < e; ++i) {
-      const std::uint32_t id = map.ids[i];
-      if (id != cur) {
-        h[cur] += run;
-        cur = id, run = 0;
-      }
-      ++run;
-    }
-    h[cur] += run;
-  });
-  if (chunks == 1) {
-    std::copy(scratch[0].begin() + 1, scratch[0].end(), counts.begin());
-    return;
-  }
-  parallel_for(objects, t_count, [&](std::size_t k) {
-    std::uint32_t sum = 0;
-    for (std::size_t u = 0; u < chunks; ++u) sum += scratch[u][k + 1];
-    counts[k] = sum;
-  });
+  const bool ids_valid =
+      count_ids(std::span<const std::uint32_t>(map.ids.data(), map.ids.size()), objects, threads, hist);
+  VISCD_ASSERT(ids_valid, "a rasterizer writes ids of the frame's objects only");
+  (void)ids_valid;
+  counts.assign(hist.begin() + 1, hist.begin() + 1 + static_cast<std::ptrdiff_t>(objects));
 }
 
 void shade(const CameraRig& cam, const VisibilityMap& map, std::span<const ObjectState> state, int threads,

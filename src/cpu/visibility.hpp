@@ -60,10 +60,18 @@ void write_normal(const CameraRig& cam, std::span<const Sphere> spheres, Visibil
 /// The reference rasterizer: for every pixel, every sphere. O(W H N); the oracle.
 void rasterize_reference(const CameraRig& cam, std::span<const Sphere> spheres, VisibilityMap& map);
 
+/// Stage 2 over an id map (the detector's own or the caller's): hist[id] = the pixels holding id,
+/// for id in [0, objects] (0 = background), and hist[objects + 1] = the pixels whose id exceeds
+/// `objects`. Returns false when there are any. Parallel over contiguous ranges of rows, each
+/// counted as runs of equal ids (4 pixels at a time while a run lasts) added into the shared
+/// histogram; a run costs one atomic add. Needs objects < 2^32 - 1.
+[[nodiscard]] bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int threads,
+                             std::vector<std::uint32_t>& hist);
+
 /// Stage 2: pixels per object over the map: the rasterizer's counts when it left them for
-/// `objects` objects, else per-thread histograms over the id map (`scratch` reused).
+/// `objects` objects, else count_ids() over the id map (`hist` is its scratch, reused).
 void count_pixels(const VisibilityMap& map, std::size_t objects, int threads, std::vector<std::uint32_t>& counts,
-                  std::vector<std::vector<std::uint32_t>>& scratch);
+                  std::vector<std::uint32_t>& hist);
 
 /// Stage 9: lit spheres, red colliding, blue free, yellow culled; dark background. RGBA8.
 void shade(const CameraRig& cam, const VisibilityMap& map, std::span<const ObjectState> state, int threads,

@@ -180,11 +180,14 @@ void GlDetector::wait_for_stage_times(FrameStats& stats) {
 
 // ---- the frame ----
 
-Status GlDetector::detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) {
+Status GlDetector::run_frame(const FrameInput& input, FrameResult& out) {
+  if (!input.filters.empty()) return Status::failure("the gl backend does not take filters yet");
+  if (!input.id_map.empty()) return Status::failure("the gl backend does not take an id map (FrameInput::id_map) yet");
+  if (input.gl_id_texture != 0) return Status::failure("the gl backend does not take an id texture yet");
   try {
-    return detect_frame(spheres, camera, out);
+    return detect_frame(input.spheres, input.camera, out);
   } catch (const std::bad_alloc&) {
-    return Status::failure(detail::out_of_memory_message(spheres.size(), camera, config_));
+    return Status::failure(detail::out_of_memory_message(input.spheres.size(), input.camera, config_));
   }
 }
 

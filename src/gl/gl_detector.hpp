@@ -41,7 +41,6 @@ class GlDetector final : public Detector {
   [[nodiscard]] static Result<std::unique_ptr<GlDetector>> create(const Config& config, const GlOptions& options);
   ~GlDetector() override;
 
-  [[nodiscard]] Status detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) override;
   void wait_for_stage_times(FrameStats& stats) override;
   [[nodiscard]] std::string_view name() const override { return "gl"; }
   [[nodiscard]] std::uint64_t memory_bytes() const override;
@@ -71,6 +70,11 @@ class GlDetector final : public Detector {
   /// counter mode.
   [[nodiscard]] Result<std::vector<std::uint32_t>> count_id_map(std::span<const std::uint32_t> ids, int width,
                                                                 int height, std::uint32_t objects);
+
+ protected:
+  /// The frame. Filters, the caller's id map and a gl id texture are refused (not taken yet).
+  /// Queries: the base class's brute force over the active spheres (answers_queries() is false).
+  [[nodiscard]] Status run_frame(const FrameInput& input, FrameResult& out) override;
 
  private:
   GlDetector(const Config& config, const GlOptions& options) : Detector(config), options_(options) {}

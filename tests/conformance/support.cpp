@@ -161,6 +161,9 @@ void check_frame(const FrameResult& got, std::span<const Sphere> spheres, const 
     EXPECT_TRUE(test::same_pairs(got.pairs, want.reference.pairs)) << "pairs against the reference backend";
   }
   EXPECT_EQ(got.stats.pairs, got.pairs.size());
+  if (!config.contact_events) {
+    EXPECT_TRUE(got.began.empty() && got.ended.empty()) << "contact events without Config::contact_events";
+  }
 
   // States: culled outside the active set, colliding iff in a pair, free otherwise.
   ASSERT_EQ(got.state.size(), n);

@@ -85,6 +85,108 @@ TEST(Allocation, SteadyStateFramesAllocateNothing) {
   }
 }
 
+TEST(Allocation, SteadyStateFramesWithFiltersAndEventsAllocateNothing) {
+#ifdef VISCD_VALIDATE
+  GTEST_SKIP() << "VISCD_VALIDATE runs validate_lbvh every frame, which allocates by design";
+#endif
+  Scene scene = Scene::make({.objects = 20000});
+  const Camera cam = camera_preset("zoom-out", scene, 640, 360).value();
+  // A third pairs with nothing (out of the tree), a third only among themselves, the rest default.
+  std::vector<Filter> filters(scene.spheres().size());
+  for (std::size_t k = 0; k < filters.size(); k += 3) filters[k] = {4, 0};
+  for (std::size_t k = 1; k < filters.size(); k += 3) filters[k] = {2, 2};
+  for (const bool with_camera : {false, true}) {
+    Config c;
+    c.contact_events = true;
+    auto det = make_cpu_detector(c);
+    FrameResult f;
+    auto frame = [&] {
+      scene.step(1.0f / 60.0f);
+      FrameInput in;
+      in.spheres = scene.spheres();
+      in.camera = with_camera ? &cam : nullptr;
+      in.filters = filters;
+      return det->detect(in, f);
+    };
+    for (int k = 0; k < 3; ++k) ASSERT_TRUE(frame().ok());
+    Status st;
+    const long n = allocations_during([&] {
+      for (int k = 0; k < 4 && st.ok(); ++k) st = frame();
+    });
+    ASSERT_TRUE(st.ok()) << st.error();
+    EXPECT_EQ(n, 0) << "allocations in a steady-state frame with filters and events, camera " << with_camera;
+    if (!with_camera) {
+      EXPECT_GT(f.pairs.size(), 0u);
+    }
+  }
+}
+
+TEST(Allocation, SteadyStateFramesFromTheCallersIdMapAllocateNothing) {
+#ifdef VISCD_VALIDATE
+  GTEST_SKIP() << "VISCD_VALIDATE runs validate_lbvh every frame, which allocates by design";
+#endif
+  Scene scene = Scene::make({.objects = 20000});
+  const Camera cam = camera_preset("zoom-out", scene, 640, 360).value();
+  // A map from a frame of the detector's own, then given back frame after frame.
+  auto own = make_cpu_detector(Config{});
+  FrameResult f;
+  ASSERT_TRUE(own->detect(scene.spheres(), &cam, f).ok());
+  std::vector<std::uint32_t> map(640 * 360);
+  for (std::size_t k = 0; k < map.size(); ++k)
+    map[k] = k % 97 == 0 ? 0 : 1 + static_cast<std::uint32_t>(k / 13 % 20000);
+  Config c;
+  c.lambda = 5;
+  c.contact_events = true;
+  auto det = make_cpu_detector(c);
+  auto frame = [&] {
+    scene.step(1.0f / 60.0f);
+    FrameInput in;
+    in.spheres = scene.spheres();
+    in.camera = &cam;
+    in.id_map = map;
+    in.id_map_width = 640;
+    in.id_map_height = 360;
+    return det->detect(in, f);
+  };
+  for (int k = 0; k < 3; ++k) ASSERT_TRUE(frame().ok());
+  Status st;
+  const long n = allocations_during([&] {
+    for (int k = 0; k < 4 && st.ok(); ++k) st = frame();
+  });
+  ASSERT_TRUE(st.ok()) << st.error();
+  EXPECT_EQ(n, 0) << "allocations in a steady-state frame from the caller's id map";
+}
+
+TEST(Allocation, QueriesAllocateNothingOnceTheirOutputsHaveRoom) {
+  Scene scene = Scene::make({.objects = 20000});
+  std::vector<Filter> filters(scene.spheres().size());
+  for (std::size_t k = 0; k < filters.size(); k += 2) filters[k] = {4, 0};
+  auto det = make_cpu_detector(Config{});
+  FrameInput in;
+  in.spheres = scene.spheres();
+  in.filters = filters;
+  FrameResult f;
+  ASSERT_TRUE(det->detect(in, f).ok());
+  std::vector<RayHit> hits;
+  std::vector<std::uint32_t> idx;
+  hits.reserve(20000);
+  idx.reserve(20000);
+  Ray r;
+  r.origin[0] = -scene.world_radius(), r.origin[1] = 0, r.origin[2] = 0;
+  r.dir[0] = 1, r.dir[1] = 0, r.dir[2] = 0.01f;
+  RayHit h{};
+  ASSERT_TRUE(det->ray_cast(r, h));  // the first query builds the tree of the filtered-out objects
+  const long n = allocations_during([&] {
+    for (int k = 0; k < 10; ++k) {
+      (void)det->ray_cast(r, h);
+      det->ray_cast_all(r, hits);
+      det->overlap({0, 0, scene.world_radius() * 0.5f, 3}, idx);
+    }
+  });
+  EXPECT_EQ(n, 0);
+  EXPECT_GT(hits.size(), 1u);
+}
+
 TEST(Allocation, CounterSeesAllocations) {
   // The instrument works: a vector of 1000 ints allocates.
   const long n = allocations_during([] {

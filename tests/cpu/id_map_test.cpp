@@ -1,0 +1,240 @@
+// The caller's visibility map (FrameInput::id_map): counting (count_ids) against a histogram
+// written here, hand-worked maps, a detector's own map given back as the caller's (the same
+// pixels, culling, m and pairs), and the errors.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "cpu/pipeline.hpp"
+#include "cpu/visibility.hpp"
+#include "test_util.hpp"
+#include "viscd/scene.hpp"
+
+namespace viscd {
+namespace {
+
+using test::same_pairs;
+
+// Runs of random ids in [0, max_id], lengths 1 to max_run.
+std::vector<std::uint32_t> random_map(std::size_t pixels, std::uint32_t max_id, std::uint32_t max_run,
+                                      std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::vector<std::uint32_t> ids;
+  while (ids.size() < pixels) {
+    const auto id = static_cast<std::uint32_t>(rng() % (std::uint64_t{max_id} + 1));
+    const std::size_t run = 1 + rng() % max_run;
+    for (std::size_t k = 0; k < run && ids.size() < pixels; ++k) ids.push_back(id);
+  }
+  return ids;
+}
+
+std::vector<std::uint32_t> histogram(const std::vector<std::uint32_t>& ids, std::size_t objects) {
+  std::vector<std::uint32_t> h(objects + 2, 0);
+  for (std::uint32_t id : ids) ++h[id > objects ? objects + 1 : id];
+  return h;
+}
+
+TEST(CountIds, AgainstAHistogram) {
+  std::vector<std::uint32_t> hist;
+  for (std::size_t pixels : {0u, 1u, 3u, 4u, 5u, 7u, 8u, 9u, 4095u, 4096u, 4097u, 100003u, 921600u}) {
+    for (std::uint32_t max_run : {1u, 3u, 4u, 5u, 64u, 5000u}) {
+      for (std::size_t objects : {1u, 7u, 1000u}) {
+        const auto ids = random_map(pixels, static_cast<std::uint32_t>(objects), max_run, pixels + max_run);
+        for (int threads : {1, 2, 5}) {
+          ASSERT_TRUE(detail::count_ids(ids, objects, threads, hist));
+          ASSERT_EQ(hist, histogram(ids, objects)) << pixels << " pixels, runs up to " << max_run << ", " << objects
+                                                   << " objects, " << threads << " threads";
+        }
+      }
+    }
+  }
+}
+
+TEST(CountIds, IdsBeyondTheObjectsAreCountedApart) {
+  std::vector<std::uint32_t> hist;
+  for (std::size_t pixels : {1u, 6u, 5000u, 200000u}) {
+    for (std::size_t at : {std::size_t{0}, pixels / 2, pixels - 1}) {
+      auto ids = random_map(pixels, 10, 9, at + 1);
+      ids[at] = 11;  // objects = 10: ids 0..10 are fine
+      for (int threads : {1, 2}) {
+        EXPECT_FALSE(detail::count_ids(ids, 10, threads, hist)) << pixels << " pixels, bad id at " << at;
+        EXPECT_EQ(hist, histogram(ids, 10));
+      }
+      ids[at] = 0xFFFFFFFFu;
+      EXPECT_FALSE(detail::count_ids(ids, 10, 2, hist));
+      EXPECT_EQ(hist[11], 1u);
+    }
+  }
+}
+
+FrameResult detect_map(Detector& d, std::span<const Sphere> s, std::span<const std::uint32_t> map, int w, int h,
+                       const Camera* cam = nullptr, Status* status = nullptr) {
+  FrameInput in;
+  in.spheres = s;
+  in.camera = cam;
+  in.id_map = map;
+  in.id_map_width = w;
+  in.id_map_height = h;
+  FrameResult out;
+  const Status st = d.detect(in, out);
+  if (status)
+    *status = st;
+  else
+    EXPECT_TRUE(st.ok()) << d.name() << ": " << st.error();
+  return out;
+}
+
+using Factory = std::unique_ptr<Detector> (*)(const Config&);
+const Factory kBackends[] = {make_cpu_detector, make_reference_detector};
+
+TEST(IdMap, HandWorked) {
+  // 4 x 3 map of 3 objects: object 0 (id 1) 4 pixels, object 1 (id 2) 2, object 2 (id 3) 3.
+  const std::vector<std::uint32_t> map = {1, 1, 0, 2,  //
+                                          1, 1, 0, 2,  //
+                                          0, 3, 3, 3};
+  // Every sphere overlaps every other.
+  const std::vector<Sphere> s = {{0, 0, 0, 1}, {1, 0, 0, 1}, {0, 1, 0, 1}};
+  for (Factory make : kBackends) {
+    Config c;
+    c.lambda = 3;
+    auto d = make(c);
+    // No camera: counts are map pixels. Object 1 (2 < 3 pixels) is culled.
+    FrameResult f = detect_map(*d, s, map, 4, 3);
+    EXPECT_EQ(f.pixels, (std::vector<float>{4, 2, 3})) << d->name();
+    EXPECT_EQ(f.stats.active, 2u);
+    EXPECT_TRUE(f.stats.has_pixels);
+    EXPECT_FALSE(f.stats.has_camera);
+    EXPECT_DOUBLE_EQ(f.stats.mean_pixels, 3.0);
+    EXPECT_EQ(f.stats.bits, 16) << "mu = 3 < a = 100";
+    EXPECT_EQ(f.pairs, (std::vector<Pair>{{0, 2}}));
+    EXPECT_EQ(f.state, (std::vector<ObjectState>{ObjectState::colliding, ObjectState::culled, ObjectState::colliding}));
+    // A camera of 8 x 6 pixels: 4 screen pixels per map pixel. lambda 10: object 1 (8) culled.
+    Camera cam;
+    cam.width = 8, cam.height = 6;
+    c.lambda = 10;
+    d->set_config(c);
+    f = detect_map(*d, s, map, 4, 3, &cam);
+    EXPECT_EQ(f.pixels, (std::vector<float>{16, 8, 12})) << d->name();
+    EXPECT_TRUE(f.stats.has_camera);
+    EXPECT_DOUBLE_EQ(f.stats.mean_pixels, 12.0);
+    EXPECT_EQ(f.pairs, (std::vector<Pair>{{0, 2}}));
+    // lambda 8: all active; culling off: all active whatever lambda.
+    c.lambda = 8;
+    d->set_config(c);
+    EXPECT_EQ(detect_map(*d, s, map, 4, 3, &cam).pairs, (std::vector<Pair>{{0, 1}, {0, 2}, {1, 2}}));
+    c.lambda = 1000;
+    c.culling = false;
+    d->set_config(c);
+    f = detect_map(*d, s, map, 4, 3);
+    EXPECT_EQ(f.pairs.size(), 3u);
+    EXPECT_EQ(f.pixels, (std::vector<float>{4, 2, 3})) << "pixels are reported with culling off too";
+    // Adaptive m from mu: a = 1, b = 2 puts mu = 3 at 64 bits.
+    c.culling = true;
+    c.lambda = 0;
+    c.a = 1, c.b = 2;
+    d->set_config(c);
+    EXPECT_EQ(detect_map(*d, s, map, 4, 3).stats.bits, 64);
+  }
+}
+
+// A detector's own frame, then its map given back as the caller's: the same frame.
+void check_own_map_given_back(const std::vector<Sphere>& s, const Camera& cam, Config c, const std::string& what) {
+  for (Factory make : kBackends) {
+    auto d = make(c);
+    const FrameResult own = test::run_frame(*d, s, &cam);
+    const detail::VisibilityMap& map = static_cast<detail::PipelineDetector&>(*d).visibility_map();
+    const std::vector<std::uint32_t> ids(map.ids.begin(), map.ids.end());
+    const int w = map.width, h = map.height;
+    auto fresh = make(c);  // another detector: no state of the first frame
+    const FrameResult given = detect_map(*fresh, s, ids, w, h, &cam);
+    EXPECT_EQ(given.pixels, own.pixels) << d->name() << ": " << what;
+    EXPECT_EQ(given.state, own.state) << d->name() << ": " << what;
+    EXPECT_EQ(given.stats.active, own.stats.active) << d->name() << ": " << what;
+    EXPECT_EQ(given.stats.mean_pixels, own.stats.mean_pixels) << d->name() << ": " << what;
+    EXPECT_EQ(given.stats.bits, own.stats.bits) << d->name() << ": " << what;
+    EXPECT_EQ(given.stats.layout, own.stats.layout) << d->name() << ": " << what;
+    EXPECT_TRUE(same_pairs(given.pairs, own.pairs)) << d->name() << ": " << what;
+    EXPECT_TRUE(given.image.empty());
+  }
+}
+
+TEST(IdMap, OwnMapGivenBack) {
+  Scene scene = Scene::make({.objects = 3000});
+  const Camera cam = camera_preset("zoom-in", scene, 200, 120).value();
+  Config c;
+  c.lambda = 20;
+  check_own_map_given_back(std::vector<Sphere>(scene.spheres().begin(), scene.spheres().end()), cam, c,
+                           "zoom-in, map = screen");
+  c.map_width = 100, c.map_height = 50;  // a smaller map: counts scaled by 200 * 120 / (100 * 50)
+  check_own_map_given_back(std::vector<Sphere>(scene.spheres().begin(), scene.spheres().end()), cam, c,
+                           "zoom-in, 100x50 map of a 200x120 screen");
+}
+
+TEST(IdMap, Errors) {
+  const std::vector<Sphere> s = {{0, 0, 0, 1}, {1, 0, 0, 1}, {0, 1, 0, 1}};
+  const std::vector<std::uint32_t> map = {1, 1, 0, 2, 1, 1, 0, 4, 0, 3, 3, 3};  // id 4 at (3, 1)
+  for (Factory make : kBackends) {
+    auto d = make(Config{});
+    Status st;
+    detect_map(*d, s, map, 4, 3, nullptr, &st);
+    ASSERT_FALSE(st.ok()) << d->name();
+    EXPECT_NE(st.error().find("(3, 1)"), std::string::npos) << st.error();
+    EXPECT_NE(st.error().find("id 4"), std::string::npos) << st.error();
+    EXPECT_NE(st.error().find("3 objects"), std::string::npos) << st.error();
+    // Sizes.
+    detect_map(*d, s, map, 4, 4, nullptr, &st);
+    ASSERT_FALSE(st.ok());
+    EXPECT_NE(st.error().find("holds 12 ids, but 4x4 needs 16"), std::string::npos) << st.error();
+    detect_map(*d, s, map, 12, 0, nullptr, &st);
+    EXPECT_FALSE(st.ok());
+    detect_map(*d, s, map, -4, -3, nullptr, &st);
+    EXPECT_FALSE(st.ok());
+    const std::vector<std::uint32_t> line(20000, 0);
+    detect_map(*d, s, line, 20000, 1, nullptr, &st);
+    ASSERT_FALSE(st.ok()) << "a side beyond kMaxMapSide";
+    EXPECT_NE(st.error().find("too large"), std::string::npos) << st.error();
+    // Shading needs the detector's own map; a gl texture is the gl backend's.
+    Config shade;
+    shade.shade = true;
+    d->set_config(shade);
+    const std::vector<std::uint32_t> good = {1, 1, 0, 2, 1, 1, 0, 2, 0, 3, 3, 3};
+    Camera cam;
+    detect_map(*d, s, good, 4, 3, &cam, &st);
+    ASSERT_FALSE(st.ok());
+    EXPECT_NE(st.error().find("Config::shade"), std::string::npos) << st.error();
+    d->set_config(Config{});
+    FrameInput in;
+    in.spheres = s;
+    in.gl_id_texture = 5;
+    in.id_map_width = 4, in.id_map_height = 3;
+    FrameResult out;
+    st = d->detect(in, out);
+    ASSERT_FALSE(st.ok());
+    EXPECT_NE(st.error().find("gl_id_texture"), std::string::npos) << st.error();
+    in.id_map = good;
+    st = d->detect(in, out);
+    ASSERT_FALSE(st.ok());
+    EXPECT_NE(st.error().find("both"), std::string::npos) << st.error();
+    // And the detector goes on.
+    const FrameResult f = detect_map(*d, s, good, 4, 3);
+    EXPECT_EQ(f.pixels, (std::vector<float>{4, 2, 3}));
+  }
+}
+
+TEST(IdMap, MapSizeOfConfigIsNotUsed) {
+  // Config::map_width x map_height (even an invalid one) gives way to the id map's size.
+  const std::vector<Sphere> s = {{0, 0, 0, 1}, {1, 0, 0, 1}};
+  const std::vector<std::uint32_t> map = {1, 2, 2, 0};
+  Config c;
+  c.map_width = 7, c.map_height = 0;
+  c.lambda = 0;
+  Camera cam;
+  cam.width = 4, cam.height = 4;  // 16 screen pixels over 4 map pixels
+  for (Factory make : kBackends) {
+    auto d = make(c);
+    EXPECT_EQ(detect_map(*d, s, map, 2, 2, &cam).pixels, (std::vector<float>{4, 8})) << d->name();
+  }
+}
+
+}  // namespace
+}  // namespace viscd
