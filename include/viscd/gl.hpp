@@ -48,6 +48,15 @@ struct GlOptions {
   /// codes then equal the cpu backend's bit for bit. FrameStats::bits/layout report what was
   /// used in both modes.
   bool sync_layout = false;
+  /// false (default): the detector creates a headless EGL context of its own. true: it uses the
+  /// OpenGL 4.5 context current on the calling thread when it is created (an engine's, any
+  /// window system), so that it can read the engine's textures (FrameInput::gl_id_texture) and
+  /// the engine can read its buffers. That context must then be current whenever the detector
+  /// is called or destroyed. The detector leaves GL state changed: the bound program, vertex
+  /// array, framebuffer (0), viewport and depth test (after drawing a map of its own), shader
+  /// storage, atomic counter and indirect-dispatch buffer bindings, texture units 0 and 1.
+  /// `debug` installs no callback on a context that is not the detector's own.
+  bool use_current_context = false;
 };
 
 /// Creates the gl backend: an EGL surfaceless OpenGL 4.5 core context of its own and the

@@ -43,6 +43,10 @@ Status validate_frame_input(const FrameInput& in, const Config& config) {
       return Status::failure("FrameInput: the id map holds " + std::to_string(in.id_map.size()) + " ids, but " +
                              std::to_string(w) + "x" + std::to_string(h) + " needs " + std::to_string(want));
   }
+  if ((!in.id_map.empty() || in.gl_id_texture != 0) && config.shade)
+    return Status::failure(
+        "Config::shade needs the detector's own visibility map (depth and normals); with the caller's id map "
+        "(FrameInput::id_map or gl_id_texture) no image can be shaded");
   if (!in.filters.empty() && in.filters.size() != in.spheres.size())
     return Status::failure("FrameInput: " + std::to_string(in.filters.size()) + " filters for " +
                            std::to_string(in.spheres.size()) + " spheres; give none or one per sphere");

@@ -43,6 +43,13 @@ std::uint64_t bytes_of(const std::vector<T>& v) {
 /// Pairs the cap allows (0 = no cap: the largest count).
 [[nodiscard]] std::size_t pairs_within_cap(std::size_t cap);
 
+/// The filters' pre-pass rule, every backend's: with `groups` the OR of the groups and `masks` the
+/// OR of the masks over the active objects, an object can pair with another only when
+/// (mask & groups) != 0 and (group & masks) != 0; the others stay out of the tree.
+[[nodiscard]] constexpr bool may_pair(const Filter& f, std::uint32_t groups, std::uint32_t masks) {
+  return (f.mask & groups) != 0 && (f.group & masks) != 0;
+}
+
 /// Bounds of the active centres and the sum of their diameters; partial extents of parts of the
 /// active set merge in any grouping to the same bounds (the sum is a double: merged in a fixed
 /// order, it is the same for every executor).

@@ -25,7 +25,7 @@ void split_by_filters(std::span<const std::uint32_t> active, std::span<const Fil
   unpaired.reserve(filters.size());
   for (const std::uint32_t k : active) {
     const Filter f = filters[k];
-    ((f.mask & groups) != 0 && (f.group & masks) != 0 ? pairable : unpaired).push_back(k);
+    (may_pair(f, groups, masks) ? pairable : unpaired).push_back(k);
   }
 }
 
@@ -36,10 +36,6 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
   if (in.gl_id_texture != 0)
     return Status::failure("FrameInput::gl_id_texture is for the gl backend; the " + std::string(name()) +
                            " backend reads the caller's visibility map from FrameInput::id_map");
-  if (own_map && config_.shade)
-    return Status::failure(
-        "Config::shade needs the detector's own visibility map (depth and normals); with "
-        "FrameInput::id_map no image can be shaded");
   // Every parallel stage of this frame runs on the caller's executor, or on viscd's pool.
   const ExecutorScope scope(config_.executor);
   const int threads = resolve_threads(config_.threads, config_.executor ? config_.executor->concurrency() : 0);

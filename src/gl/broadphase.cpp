@@ -206,6 +206,8 @@ Status GlDetector::broadphase(std::uint32_t n_bound, std::uint32_t objects, cons
     glNamedBufferSubData(info_.get(), offsetof(shader::FrameInfo, pair_count), 4, &zero);
     pairs_.bind_storage(VISCD_BIND_PAIRS);
     glProgramUniform1ui(query_.get(), query_.uniform("u_capacity"), pair_capacity_);
+    glProgramUniform1ui(query_.get(), query_.uniform("u_has_filters"), has_filters_ ? 1u : 0u);
+    if (has_filters_) filters_.bind_storage(VISCD_BIND_FILTERS);
     stage_begin(Stage::query, 0);
     dispatch_indirect(query_, per_object);
     barrier();
@@ -252,6 +254,7 @@ Status GlDetector::run_broadphase(std::span<const Sphere> spheres, std::span<con
   if (Status s = validate_spheres(spheres); !s) return s;
   if (!ctx_->make_current()) return Status::failure("OpenGL: cannot make the detector's context current");
   upload_spheres(spheres);
+  has_filters_ = false;
   const auto n = static_cast<std::uint32_t>(active.size());
   active_.reserve(4 * static_cast<GLsizeiptr>(n));
   states_.reserve(4 * static_cast<GLsizeiptr>(spheres.size()));

@@ -59,6 +59,21 @@ Result<std::unique_ptr<Context>> Context::create(bool debug) {
   return ctx;
 }
 
+Result<std::unique_ptr<Context>> Context::adopt_current() {
+  using R = Result<std::unique_ptr<Context>>;
+  std::unique_ptr<Context> ctx(new Context());
+  ctx->adopted_ = true;
+  const GLubyte* version = glGetString(GL_VERSION);
+  if (!version)
+    return R::failure("OpenGL: GlOptions::use_current_context is set, but no OpenGL context is current on this thread");
+  if (epoxy_gl_version() < 45 || !epoxy_is_desktop_gl())
+    return R::failure(std::string("OpenGL: the current context is ") + reinterpret_cast<const char*>(version) +
+                      "; the gl backend needs OpenGL 4.5 (desktop, core or compatibility)");
+  ctx->description_ = std::string(reinterpret_cast<const char*>(glGetString(GL_RENDERER))) + " | " +
+                      reinterpret_cast<const char*>(version);
+  return ctx;
+}
+
 Context::~Context() {
   if (display_ != EGL_NO_DISPLAY) {
     if (context_ != EGL_NO_CONTEXT) {
@@ -71,6 +86,7 @@ Context::~Context() {
 }
 
 bool Context::make_current() const {
+  if (adopted_) return glGetString(GL_VERSION) != nullptr;
   if (eglGetCurrentContext() == context_) return true;
   return eglMakeCurrent(display_, EGL_NO_SURFACE, EGL_NO_SURFACE, context_) == EGL_TRUE;
 }

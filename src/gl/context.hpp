@@ -21,11 +21,16 @@ class Context {
   /// Creates the context. `debug`: a debug context with synchronous debug output, whose
   /// errors are collected (take_errors()). Fails with a message naming the step that failed.
   [[nodiscard]] static Result<std::unique_ptr<Context>> create(bool debug);
+  /// The caller's context, current on this thread (any window system): used, never made current,
+  /// destroyed or given a debug callback by viscd. Fails when none is current or it is older
+  /// than OpenGL 4.5.
+  [[nodiscard]] static Result<std::unique_ptr<Context>> adopt_current();
   ~Context();
   Context(const Context&) = delete;
   Context& operator=(const Context&) = delete;
 
-  /// Makes this context current on the calling thread.
+  /// Makes this context current on the calling thread (an adopted one: checks that a context
+  /// is current, which the caller keeps so).
   [[nodiscard]] bool make_current() const;
   /// "llvmpipe (LLVM 15.0.6, 256 bits) | 4.5 (Core Profile) Mesa 22.3.6"
   [[nodiscard]] const std::string& description() const { return description_; }
@@ -39,6 +44,7 @@ class Context {
 
   EGLDisplay display_ = EGL_NO_DISPLAY;
   EGLContext context_ = EGL_NO_CONTEXT;
+  bool adopted_ = false;
   std::string description_;
   std::mutex mutex_;
   std::vector<std::string> errors_;

@@ -14,7 +14,7 @@ namespace gl {
 Result<std::unique_ptr<GlDetector>> GlDetector::create(const Config& config, const GlOptions& options) {
   using R = Result<std::unique_ptr<GlDetector>>;
   std::unique_ptr<GlDetector> d(new GlDetector(config, options));
-  auto ctx = Context::create(options.debug);
+  auto ctx = options.use_current_context ? Context::adopt_current() : Context::create(options.debug);
   if (!ctx) return R::failure(ctx.error());
   d->ctx_ = std::move(ctx.value());
   if (Status s = d->init(); !s) return R::failure(s.error());
@@ -36,6 +36,7 @@ Status GlDetector::init() {
                             {&scan_add_, "scan_add.comp"},
                             {&count_, "count.comp"},
                             {&cull_, "cull.comp"},
+                            {&pairable_, "pairable.comp"},
                             {&compact_, "compact.comp"},
                             {&dispatch_args_, "dispatch_args.comp"},
                             {&bounds_, "bounds.comp"},
@@ -70,6 +71,10 @@ Status GlDetector::init() {
   empty_vao_ = VertexArray(name);
   glCreateFramebuffers(1, &name);
   empty_fbo_ = Framebuffer(name);
+  glCreateSamplers(1, &name);
+  nearest_ = Sampler(name);
+  glSamplerParameteri(name, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glSamplerParameteri(name, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
   info_.reserve(sizeof(shader::FrameInfo));
   dispatch_.reserve(sizeof(shader::DispatchArgs));
   GLint groups = 0;
@@ -181,31 +186,28 @@ void GlDetector::wait_for_stage_times(FrameStats& stats) {
 // ---- the frame ----
 
 Status GlDetector::run_frame(const FrameInput& input, FrameResult& out) {
-  if (!input.filters.empty()) return Status::failure("the gl backend does not take filters yet");
-  if (!input.id_map.empty()) return Status::failure("the gl backend does not take an id map (FrameInput::id_map) yet");
-  if (input.gl_id_texture != 0) return Status::failure("the gl backend does not take an id texture yet");
   try {
-    return detect_frame(input.spheres, input.camera, out);
+    return detect_frame(input, out);
   } catch (const std::bad_alloc&) {
     return Status::failure(detail::out_of_memory_message(input.spheres.size(), input.camera, config_));
   }
 }
 
-Status GlDetector::detect_frame(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) {
-  if (Status s = detail::validate_frame(spheres, camera, config_); !s) return s;
+Status GlDetector::detect_frame(const FrameInput& in, FrameResult& out) {
   // Passes over N run one invocation per object (scan blocks of VISCD_SCAN_BLOCK), one
   // dispatch each: the driver's work-group limit bounds N.
   const std::uint64_t max_objects =
       std::min<std::uint64_t>((std::uint64_t{1} << 29) - 1, std::uint64_t{max_groups_} * VISCD_WG_SIZE);
-  if (spheres.size() > max_objects)
+  if (in.spheres.size() > max_objects)
     return Status::failure("the gl backend handles at most " + std::to_string(max_objects) +
                            " objects on this driver (GL_MAX_COMPUTE_WORK_GROUP_COUNT = " + std::to_string(max_groups_) +
                            " groups of " + std::to_string(VISCD_WG_SIZE) + "); the frame has " +
-                           std::to_string(spheres.size()) + ": use the cpu backend");
+                           std::to_string(in.spheres.size()) + ": use the cpu backend");
   if (!ctx_->make_current()) return Status::failure("OpenGL: cannot make the detector's context current");
   if (Status s = gl_errors("an earlier call"); !s) return s;
-  const auto n_all = static_cast<std::uint32_t>(spheres.size());
-  const bool has_camera = camera != nullptr;
+  const auto n_all = static_cast<std::uint32_t>(in.spheres.size());
+  const bool has_camera = in.camera != nullptr;
+  const bool callers_map = !in.id_map.empty() || in.gl_id_texture != 0;
   FrameStats& stats = out.stats;
   std::string layout_text = std::move(stats.layout);  // keep its buffer: no allocation per frame
   stats = FrameStats{};
@@ -213,17 +215,21 @@ Status GlDetector::detect_frame(std::span<const Sphere> spheres, const Camera* c
   stats.objects = n_all;
   stats.has_camera = has_camera;
 
-  begin_frame(spheres, camera);
-  if (has_camera) {
+  begin_frame(in);
+  stats.has_pixels = has_pixels_;
+  if (callers_map) {
+    if (Status s = count_callers_map(in); !s) return s;
+  } else if (has_camera) {
     if (Status s = render_visibility(n_all); !s) return s;
   }
-  cull(n_all, has_camera);
+  cull(n_all);
   measure_extent();
-  const LayoutChoice choice = choose_layout(n_all, has_camera, stats);
+  const LayoutChoice choice = choose_layout(n_all, has_pixels_, stats);
   if (Status s = broadphase(choice.n_bound, n_all, choice.layout, choice.bounds, out.pairs, stats); !s) return s;
-  remember_frame(n_all, has_camera, stats);
+  if (Status s = id_check(in); !s) return s;
+  remember_frame(n_all, has_pixels_, stats);
   mark_colliding(static_cast<std::uint32_t>(out.pairs.size()));
-  read_states_and_pixels(n_all, has_camera, out);
+  read_states_and_pixels(n_all, has_pixels_, out);
   shade(out);
   const double layout_ms = stats.stage_ms[static_cast<std::size_t>(Stage::layout)];
   read_timers(stats);
@@ -231,36 +237,56 @@ Status GlDetector::detect_frame(std::span<const Sphere> spheres, const Camera* c
   return gl_errors("detect()");
 }
 
-void GlDetector::begin_frame(std::span<const Sphere> spheres, const Camera* camera) {
-  const auto n = static_cast<GLsizeiptr>(spheres.size());
-  upload_spheres(spheres);
+void GlDetector::begin_frame(const FrameInput& in) {
+  const auto n = static_cast<GLsizeiptr>(in.spheres.size());
+  upload_spheres(in.spheres);
+  has_filters_ = !in.filters.empty();
+  if (has_filters_) {
+    static_assert(sizeof(Filter) == 8, "Filter must match GLSL uvec2 (group, mask)");
+    filters_.reserve(8 * n);
+    glNamedBufferSubData(filters_.get(), 0, 8 * n, in.filters.data());
+  }
   for (Buffer* b : {&counts_, &pixels_, &flags_, &scan_out_, &active_, &states_}) b->reserve(4 * n);
   partials_.reserve(static_cast<GLsizeiptr>(sizeof(shader::BoundsPartial)) * (n / VISCD_WG_SIZE + 1));
-  const shader::FrameInfo zero_info{};
+  shader::FrameInfo zero_info{};
+  zero_info.id_check.y = 0xFFFFFFFFu;  // atomicMin's start: no bad pixel
   glNamedBufferSubData(info_.get(), 0, sizeof zero_info, &zero_info);
-  if (camera) {
-    const detail::MapSize map = detail::map_size(config_, *camera);
-    rig_.emplace(*camera, map.width, map.height);
+  const bool callers_map = !in.id_map.empty() || in.gl_id_texture != 0;
+  has_pixels_ = callers_map || in.camera;
+  rig_.reset();
+  if (callers_map) {
+    pixel_scale_ = detail::map_pixel_scale(in.camera, in.id_map_width, in.id_map_height);
+  } else if (in.camera) {
+    const detail::MapSize map = detail::map_size(config_, *in.camera);
+    rig_.emplace(*in.camera, map.width, map.height);
+    pixel_scale_ = rig_->pixel_scale;
   } else {
-    rig_.reset();
+    pixel_scale_ = 1.0;
   }
 }
 
-void GlDetector::cull(std::uint32_t objects, bool has_counts) {
+void GlDetector::cull(std::uint32_t objects) {
   stage_begin(Stage::cull);
   counts_.bind_storage(VISCD_BIND_COUNTS);
   pixels_.bind_storage(VISCD_BIND_PIXELS);
   flags_.bind_storage(VISCD_BIND_FLAGS);
   states_.bind_storage(VISCD_BIND_STATE);
   info_.bind_storage(VISCD_BIND_INFO);
+  if (has_filters_) filters_.bind_storage(VISCD_BIND_FILTERS);
   const GLuint p = cull_.get();
   glProgramUniform1ui(p, cull_.uniform("u_n"), objects);
-  glProgramUniform1ui(p, cull_.uniform("u_has_counts"), has_counts ? 1u : 0u);
+  glProgramUniform1ui(p, cull_.uniform("u_has_counts"), has_pixels_ ? 1u : 0u);
   glProgramUniform1ui(p, cull_.uniform("u_culling"), config_.culling ? 1u : 0u);
-  glProgramUniform1d(p, cull_.uniform("u_scale"), rig_ ? rig_->pixel_scale : 1.0);
+  glProgramUniform1ui(p, cull_.uniform("u_has_filters"), has_filters_ ? 1u : 0u);
+  glProgramUniform1d(p, cull_.uniform("u_scale"), pixel_scale_);
   glProgramUniform1d(p, cull_.uniform("u_lambda"), static_cast<double>(config_.lambda));
   cull_.dispatch(objects);
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
+  if (has_filters_) {
+    glProgramUniform1ui(pairable_.get(), pairable_.uniform("u_n"), objects);
+    pairable_.dispatch(objects);
+    glMemoryBarrier(GL_ALL_BARRIER_BITS);
+  }
   scan(flags_.get(), scan_out_.get(), objects);
   // scan() leaves the total (the active count) in block_sums_[blocks]; copy it on the GPU.
   const std::uint32_t blocks = (objects + VISCD_SCAN_BLOCK - 1) / VISCD_SCAN_BLOCK;
@@ -290,11 +316,11 @@ void GlDetector::measure_extent() {
   stage_end(Stage::layout);
 }
 
-GlDetector::LayoutChoice GlDetector::choose_layout(std::uint32_t objects, bool has_camera, FrameStats& stats) {
+GlDetector::LayoutChoice GlDetector::choose_layout(std::uint32_t objects, bool has_pixels, FrameStats& stats) {
   detail::Stopwatch sw;
-  // The default mode needs a previous frame of the same N (and camera presence: mu exists only
-  // with a camera); otherwise this frame runs as sync_layout.
-  const bool use_prev = !options_.sync_layout && have_prev_ && prev_objects_ == objects && prev_camera_ == has_camera;
+  // The default mode needs a previous frame of the same N (and pixel counts in both or neither:
+  // mu exists only with them); otherwise this frame runs as sync_layout.
+  const bool use_prev = !options_.sync_layout && have_prev_ && prev_objects_ == objects && prev_camera_ == has_pixels;
   // `info` is the FrameInfo whose active count, bounds and diameter sum choose the layout, `mu`
   // the mean pixels that choose m: the previous frame's (default) or this frame's (sync).
   shader::FrameInfo info{};
@@ -311,9 +337,9 @@ GlDetector::LayoutChoice GlDetector::choose_layout(std::uint32_t objects, bool h
     // mu over all N objects, culled ones included (docs/architecture.md, "Contracts"). The cpu
     // backend sums count * scale in double; with scale 1 (map = screen) both sums are exact and
     // equal, otherwise they may differ in the last ulp.
-    if (has_camera) mu = objects ? static_cast<double>(info.total_pixels) * rig_->pixel_scale / objects : 0.0;
+    if (has_pixels) mu = objects ? static_cast<double>(info.total_pixels) * pixel_scale_ / objects : 0.0;
   }
-  const int bits = detail::choose_bits(config_, has_camera, mu);
+  const int bits = detail::choose_bits(config_, has_pixels, mu);
   choice.bounds.lo = {info.lo.x, info.lo.y, info.lo.z};
   choice.bounds.hi = {info.hi.x, info.hi.y, info.hi.z};
   const std::uint32_t n = info.active_count;
@@ -327,18 +353,30 @@ GlDetector::LayoutChoice GlDetector::choose_layout(std::uint32_t objects, bool h
   return choice;
 }
 
-void GlDetector::remember_frame(std::uint32_t objects, bool has_camera, FrameStats& stats) {
+void GlDetector::remember_frame(std::uint32_t objects, bool has_pixels, FrameStats& stats) {
   // This frame's values, read back by the broadphase's final wait.
   stats.pairs = frame_info_.pair_count;
-  stats.active = frame_info_.active_count;
-  if (has_camera)
-    stats.mean_pixels = objects ? static_cast<double>(frame_info_.total_pixels) * rig_->pixel_scale / objects : 0.0;
+  stats.active = frame_info_.visible_count;
+  if (has_pixels)
+    stats.mean_pixels = objects ? static_cast<double>(frame_info_.total_pixels) * pixel_scale_ / objects : 0.0;
   // They become the next frame's layout inputs in the default mode.
   have_prev_ = true;
   prev_info_ = frame_info_;
   prev_mean_pixels_ = stats.mean_pixels;
   prev_objects_ = objects;
-  prev_camera_ = has_camera;
+  prev_camera_ = has_pixels;
+}
+
+Status GlDetector::id_check(const FrameInput& in) const {
+  const std::uint32_t bad = frame_info_.id_check.x;
+  if (bad == 0) return {};
+  if (!in.id_map.empty()) return detail::id_map_error(in.id_map, in.id_map_width, in.spheres.size());
+  const std::uint32_t first = frame_info_.id_check.y;
+  const auto w = static_cast<std::uint32_t>(in.id_map_width);
+  return Status::failure("FrameInput::gl_id_texture: texel (" + std::to_string(first % w) + ", " +
+                         std::to_string(first / w) + ") and " + std::to_string(bad - 1) +
+                         " more hold ids above the frame's " + std::to_string(in.spheres.size()) +
+                         " objects (an id is an object index + 1, 0 is background)");
 }
 
 void GlDetector::mark_colliding(std::uint32_t pairs) {
@@ -351,12 +389,12 @@ void GlDetector::mark_colliding(std::uint32_t pairs) {
   stage_end(Stage::query, 2);
 }
 
-void GlDetector::read_states_and_pixels(std::uint32_t objects, bool has_camera, FrameResult& out) {
+void GlDetector::read_states_and_pixels(std::uint32_t objects, bool has_pixels, FrameResult& out) {
   state_words_.resize(objects);
   if (objects) glGetNamedBufferSubData(states_.get(), 0, 4 * static_cast<GLsizeiptr>(objects), state_words_.data());
   out.state.resize(objects);
   for (std::uint32_t k = 0; k < objects; ++k) out.state[k] = static_cast<ObjectState>(state_words_[k]);
-  if (has_camera) {
+  if (has_pixels) {
     out.pixels.resize(objects);
     if (objects) glGetNamedBufferSubData(pixels_.get(), 0, 4 * static_cast<GLsizeiptr>(objects), out.pixels.data());
   } else {

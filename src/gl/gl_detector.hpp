@@ -83,13 +83,18 @@ class GlDetector final : public Detector {
   void upload_spheres(std::span<const Sphere> spheres);
 
   // The frame's stages, in order (gl_detector.cpp unless named).
-  /// Uploads the spheres, sizes the per-object buffers, zeroes FrameInfo, sets up the camera.
-  void begin_frame(std::span<const Sphere> spheres, const Camera* camera);
+  /// Uploads the spheres (and filters), sizes the per-object buffers, zeroes FrameInfo, sets up
+  /// the camera and the map's pixel scale.
+  void begin_frame(const FrameInput& in);
   /// Stages 1-2 (visibility.cpp): the G-buffer and the pixel count per object.
   [[nodiscard]] Status render_visibility(std::uint32_t objects);
-  /// Stage 3: pixels, active flags and first states; the compaction into the active list; the
-  /// active count in FrameInfo and the indirect dispatch sizes from it.
-  void cull(std::uint32_t objects, bool has_counts);
+  /// Stage 2 on the caller's map (visibility.cpp): FrameInput::id_map uploaded, or
+  /// FrameInput::gl_id_texture checked and read.
+  [[nodiscard]] Status count_callers_map(const FrameInput& in);
+  /// Stage 3: pixels, active flags and first states; with filters, the objects that can pair with
+  /// none out of the tree; the compaction into the tree's list; its count in FrameInfo and the
+  /// indirect dispatch sizes from it.
+  void cull(std::uint32_t objects);
   /// Stage 4's inputs on the GPU: the active centres' bounds and diameter sum into FrameInfo.
   void measure_extent();
   /// Stage 4 on the host: m and the Morton layout from this frame's FrameInfo (a mid-frame
@@ -99,20 +104,23 @@ class GlDetector final : public Detector {
     detail::Aabb bounds;
     std::uint32_t n_bound = 0;  // sizes the buffers of stages 5-8: n when known, else N
   };
-  [[nodiscard]] LayoutChoice choose_layout(std::uint32_t objects, bool has_camera, FrameStats& stats);
-  /// After the broadphase: this frame's n and mu into stats, and kept for the next frame.
-  void remember_frame(std::uint32_t objects, bool has_camera, FrameStats& stats);
+  [[nodiscard]] LayoutChoice choose_layout(std::uint32_t objects, bool has_pixels, FrameStats& stats);
+  /// After the broadphase: this frame's active count and mu into stats, and kept for the next frame.
+  void remember_frame(std::uint32_t objects, bool has_pixels, FrameStats& stats);
+  /// A caller's map holding ids above N: the frame's error (after the final wait).
+  [[nodiscard]] Status id_check(const FrameInput& in) const;
   /// Both objects of every pair become colliding (the cull pass wrote free / culled).
   void mark_colliding(std::uint32_t pairs);
   /// States and pixels back to the host.
-  void read_states_and_pixels(std::uint32_t objects, bool has_camera, FrameResult& out);
+  void read_states_and_pixels(std::uint32_t objects, bool has_pixels, FrameResult& out);
   /// Stage 9 (visibility.cpp) and the image back to the host.
   void shade(FrameResult& out);
 
   // visibility.cpp
   void ensure_map(int w, int h);
   void draw_gbuffer(std::uint32_t n);
-  [[nodiscard]] Status count_pixels(std::uint32_t n);
+  /// Counts the ids of `ids` (w x h) into counts_[0..n) (ids above n into FrameInfo.id_check).
+  [[nodiscard]] Status count_pixels(GLuint ids, int w, int h, std::uint32_t n);
   void make_mesh();
   void set_camera_uniforms(const Program& p) const;
 
@@ -143,18 +151,18 @@ class GlDetector final : public Detector {
   void stage_begin(Stage s, std::size_t part = 0);
   void stage_end(Stage s, std::size_t part = 0);
   void read_timers(FrameStats& stats);
-  Status detect_frame(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out);
+  Status detect_frame(const FrameInput& in, FrameResult& out);
 
   GlOptions options_;
   std::unique_ptr<Context> ctx_;
   // Programs.
-  Program scan_local_, scan_blocks_, scan_add_, count_, cull_, compact_, dispatch_args_, bounds_, bounds_fold_, morton_,
-      sort_local_, radix_hist_, radix_scan_, radix_scatter_, build_, fit_, query_, state_, shade_, impostor_, mesh_,
-      count_atomic_;
+  Program scan_local_, scan_blocks_, scan_add_, count_, cull_, pairable_, compact_, dispatch_args_, bounds_,
+      bounds_fold_, morton_, sort_local_, radix_hist_, radix_scan_, radix_scatter_, build_, fit_, query_, state_,
+      shade_, impostor_, mesh_, count_atomic_;
   std::uint32_t count_atomic_n_ = 0;  // N the atomic_uint program was built for
   // Buffers (see shaders/shared/layout.h for their contents).
-  Buffer spheres_, counts_, pixels_, flags_, scan_out_, block_sums_, active_, info_, partials_, hist_, dispatch_,
-      nodes_, parent_, arrivals_, sorted_, leaf_boxes_, pairs_, pairs_tmp_, states_, image_;
+  Buffer filters_, spheres_, counts_, pixels_, flags_, scan_out_, block_sums_, active_, info_, partials_, hist_,
+      dispatch_, nodes_, parent_, arrivals_, sorted_, leaf_boxes_, pairs_, pairs_tmp_, states_, image_;
   Buffer keys_[2], values_[2];
   Buffer mesh_vbo_, mesh_ibo_;
   GLsizei mesh_indices_ = 0;
@@ -166,6 +174,9 @@ class GlDetector final : public Detector {
   GLint max_fragment_counters_ = 0, max_counter_buffer_bytes_ = 0;
   // This frame's camera over its map (nullopt without a camera), and the states' readback.
   std::optional<detail::CameraRig> rig_;
+  double pixel_scale_ = 1.0;  // screen pixels per map pixel (1 without a camera)
+  bool has_pixels_ = false;   // pixels are counted this frame (a camera, or the caller's map)
+  bool has_filters_ = false;  // FrameInput::filters were given this frame
   std::vector<std::uint32_t> state_words_;
   // This frame's FrameInfo, read back once at the end of the broadphase (with the pair count).
   shader::FrameInfo frame_info_{};
@@ -174,10 +185,13 @@ class GlDetector final : public Detector {
   shader::FrameInfo prev_info_{};   // its active count, active-centre bounds, diameter sum
   double prev_mean_pixels_ = 0.0;   // its mu
   std::uint32_t prev_objects_ = 0;  // its N
-  bool prev_camera_ = false;
+  bool prev_camera_ = false;        // it counted pixels (a camera or the caller's map)
   std::uint64_t mid_frame_waits_ = 0;
   // G-buffer.
   Texture ids_tex_, depth_tex_, normal_tex_, zbuffer_;
+  // Nearest sampling for the id map, whatever the texture's own filters (an integer texture
+  // with a linear filter is incomplete and reads as 0): bound while counting.
+  Sampler nearest_;
   Framebuffer gbuffer_, empty_fbo_;
   VertexArray empty_vao_, mesh_vao_;
   int map_w_ = 0, map_h_ = 0;

@@ -52,6 +52,9 @@ struct FramebufferDeleter {
 struct VertexArrayDeleter {
   static void destroy(GLuint n) { glDeleteVertexArrays(1, &n); }
 };
+struct SamplerDeleter {
+  static void destroy(GLuint n) { glDeleteSamplers(1, &n); }
+};
 struct QueryDeleter {
   static void destroy(GLuint n) { glDeleteQueries(1, &n); }
 };
@@ -66,6 +69,7 @@ using Texture = Handle<TextureDeleter>;
 using Framebuffer = Handle<FramebufferDeleter>;
 using VertexArray = Handle<VertexArrayDeleter>;
 using Query = Handle<QueryDeleter>;
+using Sampler = Handle<SamplerDeleter>;
 using Shader = Handle<ShaderDeleter>;
 using ProgramHandle = Handle<ProgramDeleter>;
 

@@ -1,5 +1,6 @@
 // Stages 1, 2 and 9 of the gl backend: G-buffer pass, pixel counting, deferred shading.
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <string>
 
@@ -57,9 +58,50 @@ Status GlDetector::render_visibility(std::uint32_t objects) {
   draw_gbuffer(objects);
   stage_end(Stage::visibility);
   stage_begin(Stage::count);
-  if (Status s = count_pixels(objects); !s) return s;
+  if (Status s = count_pixels(ids_tex_.get(), map_w_, map_h_, objects); !s) return s;
   stage_end(Stage::count);
   return {};
+}
+
+Status GlDetector::count_callers_map(const FrameInput& in) {
+  const int w = in.id_map_width, h = in.id_map_height;
+  const auto objects = static_cast<std::uint32_t>(in.spheres.size());
+  GLuint ids = in.gl_id_texture;
+  if (ids == 0) {
+    // The caller's array as a texture of our own. Its row 0 is the top; counting does not care.
+    ensure_map(w, h);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
+    glTextureSubImage2D(ids_tex_.get(), 0, 0, 0, w, h, GL_RED_INTEGER, GL_UNSIGNED_INT, in.id_map.data());
+    ids = ids_tex_.get();
+  } else {
+    if (glIsTexture(ids) != GL_TRUE)
+      return Status::failure("FrameInput::gl_id_texture = " + std::to_string(ids) +
+                             " is not a texture of the detector's OpenGL context (GlOptions::use_current_context "
+                             "makes the detector use the caller's)");
+    GLint tw = 0, th = 0, format = 0;
+    glGetTextureLevelParameteriv(ids, 0, GL_TEXTURE_WIDTH, &tw);
+    glGetTextureLevelParameteriv(ids, 0, GL_TEXTURE_HEIGHT, &th);
+    glGetTextureLevelParameteriv(ids, 0, GL_TEXTURE_INTERNAL_FORMAT, &format);
+    if (format != GL_R32UI) {
+      char hex[16];
+      std::snprintf(hex, sizeof hex, "0x%04x", static_cast<unsigned>(format));
+      return Status::failure("FrameInput::gl_id_texture = " + std::to_string(ids) +
+                             ": expected an R32UI texture (object index + 1 per texel); its internal format is " + hex);
+    }
+    if (tw != w || th != h)
+      return Status::failure("FrameInput::gl_id_texture = " + std::to_string(ids) + " is " + std::to_string(tw) + "x" +
+                             std::to_string(th) + " texels, but id_map_width x id_map_height is " + std::to_string(w) +
+                             "x" + std::to_string(h));
+  }
+  stage_begin(Stage::count);
+  // Always the ssbo counter: it checks every id against N, which a caller's map needs.
+  const GlCounter mode = options_.counter;
+  options_.counter = GlCounter::ssbo;
+  const Status s = count_pixels(ids, w, h, objects);
+  options_.counter = mode;
+  stage_end(Stage::count);
+  return s;
 }
 
 // The G-buffer: ids (R32UI), view depth (R32F), normal (RGBA32F) and a D32F depth buffer.
@@ -157,13 +199,14 @@ void GlDetector::draw_gbuffer(std::uint32_t n) {
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
 }
 
-// Stage 2 from ids_tex_ into counts_[0..n).
-Status GlDetector::count_pixels(std::uint32_t n) {
+// Stage 2 from an id texture into counts_[0..n).
+Status GlDetector::count_pixels(GLuint ids, int w, int h, std::uint32_t n) {
   counts_.reserve(4 * static_cast<GLsizeiptr>(n));
   const GLuint zero = 0;
   glClearNamedBufferSubData(counts_.get(), GL_R32UI, 0, counts_.size(), GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
-  glBindTextureUnit(VISCD_UNIT_IDS, ids_tex_.get());
+  glBindTextureUnit(VISCD_UNIT_IDS, ids);
+  glBindSampler(VISCD_UNIT_IDS, nearest_.get());
   if (options_.counter == GlCounter::atomic_uint) {
     if (n == 0) return {};
     if (!count_atomic_ || count_atomic_n_ != n) {
@@ -177,16 +220,19 @@ Status GlDetector::count_pixels(std::uint32_t n) {
     glBindBufferRange(GL_ATOMIC_COUNTER_BUFFER, VISCD_BIND_ATOMIC_COUNTERS, counts_.get(), 0,
                       4 * static_cast<GLsizeiptr>(n));
     glBindFramebuffer(GL_FRAMEBUFFER, empty_fbo_.get());
-    glViewport(0, 0, map_w_, map_h_);
+    glViewport(0, 0, w, h);
     glUseProgram(count_atomic_.get());
     glBindVertexArray(empty_vao_.get());
     glDrawArrays(GL_TRIANGLES, 0, 3);
     glBindFramebuffer(GL_FRAMEBUFFER, 0);
   } else {
     counts_.bind_storage(VISCD_BIND_COUNTS);
-    glProgramUniform2i(count_.get(), count_.uniform("u_map"), map_w_, map_h_);
-    dispatch_over_map(count_.get(), map_w_, map_h_);
+    info_.bind_storage(VISCD_BIND_INFO);
+    glProgramUniform2i(count_.get(), count_.uniform("u_map"), w, h);
+    glProgramUniform1ui(count_.get(), count_.uniform("u_n"), n);
+    dispatch_over_map(count_.get(), w, h);
   }
+  glBindSampler(VISCD_UNIT_IDS, 0);
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
   return {};
 }
@@ -253,7 +299,7 @@ Result<std::vector<std::uint32_t>> GlDetector::count_id_map(std::span<const std:
   glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
   glTextureSubImage2D(ids_tex_.get(), 0, 0, 0, width, height, GL_RED_INTEGER, GL_UNSIGNED_INT, bottom_up.data());
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
-  if (Status s = count_pixels(objects); !s) return R::failure(s.error());
+  if (Status s = count_pixels(ids_tex_.get(), width, height, objects); !s) return R::failure(s.error());
   std::vector<std::uint32_t> counts(objects);
   if (objects) glGetNamedBufferSubData(counts_.get(), 0, 4 * static_cast<GLsizeiptr>(objects), counts.data());
   if (Status s = gl_errors("count_id_map()"); !s) return R::failure(s.error());

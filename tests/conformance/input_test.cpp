@@ -4,25 +4,13 @@
 // - the caller's id map: hand-worked counts, culling and pairs;
 // - ray and overlap queries on the last frame against brute-force loops over ray_hits_sphere and
 //   spheres_overlap, with and without culling.
-// A backend that does not take an input yet must refuse it with a message that says so; its case
-// then checks that and skips, naming what is missing.
+// Every backend takes every input.
 #include <random>
 
 #include "conformance/conformance.hpp"
 
 namespace viscd::conformance {
 namespace {
-
-// The gl backend refuses filters and id maps (not taken yet): check that it says so, then skip.
-#define VISCD_SKIP_IF_REFUSED(status, what)                                                     \
-  do {                                                                                          \
-    if (backend() == "gl") {                                                                    \
-      ASSERT_FALSE((status).ok()) << "gl accepted " what;                                       \
-      EXPECT_NE((status).error().find("does not take"), std::string::npos) << (status).error(); \
-      GTEST_SKIP() << "gl refuses " what " (not taken yet): " << (status).error();              \
-    }                                                                                           \
-    ASSERT_TRUE((status).ok()) << (status).error();                                             \
-  } while (false)
 
 TEST_P(ConformancePairs, Filters) {
   const Camera cam = scene_camera(15.0f);
@@ -53,7 +41,7 @@ TEST_P(ConformancePairs, Filters) {
       cfg.lambda = 40;
       detector_->set_config(cfg);
       const Status st = detector_->detect(in, frame_);
-      VISCD_SKIP_IF_REFUSED(st, "filters");
+      ASSERT_TRUE(st.ok()) << st.error();
       // The active set as without filters (filters never cull), the pairs filtered.
       Expected want = expect_frame(c.spheres, camera, cfg, true);
       want.pairs = test::oracle_filtered_pairs(c.spheres, c.filters, &want.active);
@@ -80,7 +68,7 @@ TEST_P(ConformanceFrames, CallersIdMap) {
   in.id_map_width = 4, in.id_map_height = 3;
   FrameResult f;
   const Status st = detector_->detect(in, f);
-  VISCD_SKIP_IF_REFUSED(st, "an id map");
+  ASSERT_TRUE(st.ok()) << st.error();
   EXPECT_EQ(f.pixels, (std::vector<float>{16, 8, 12}));
   EXPECT_EQ(f.pairs, (std::vector<Pair>{{0, 2}}));
   EXPECT_EQ(f.state, (std::vector<ObjectState>{ObjectState::colliding, ObjectState::culled, ObjectState::colliding}));

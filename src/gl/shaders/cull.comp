@@ -1,8 +1,9 @@
 #version 450 core
 // Stage 3, step 1 (paper Fig. 3): screen-scaled pixels (double, as core/visibility.cpp), the
 // active flag (pixels >= lambda, or every object without culling or camera), the object's first
-// state (free when active, culled otherwise; the pair pass later marks colliding ones) and the
-// integer pixel total.
+// state (free when active, culled otherwise; the pair pass later marks colliding ones), the
+// integer pixel total, the count of active objects and, with filters, the OR of their groups and
+// of their masks (pairable.comp's inputs).
 #include "shared/layout.h"
 layout(local_size_x = VISCD_WG_SIZE) in;
 layout(std430, binding = VISCD_BIND_COUNTS) readonly buffer Counts { uint counts[]; };
@@ -10,16 +11,23 @@ layout(std430, binding = VISCD_BIND_PIXELS) writeonly buffer Pixels { float pixe
 layout(std430, binding = VISCD_BIND_FLAGS) writeonly buffer Flags { uint flags[]; };
 layout(std430, binding = VISCD_BIND_STATE) writeonly buffer State { uint state[]; };
 layout(std430, binding = VISCD_BIND_INFO) buffer Info { FrameInfo info; };
+layout(std430, binding = VISCD_BIND_FILTERS) readonly buffer Filters { uvec2 filters[]; };
 uniform uint u_n;
+uniform uint u_has_filters;
 uniform uint u_has_counts;  // 0: no camera, every object active
 uniform uint u_culling;
 uniform double u_scale;  // screen pixels per map pixel
 uniform double u_lambda;
-shared uint s_total;
+shared uint s_total, s_active, s_group, s_mask;
 
 void main() {
   const uint k = gl_GlobalInvocationID.x;
-  if (gl_LocalInvocationID.x == 0u) s_total = 0u;
+  if (gl_LocalInvocationID.x == 0u) {
+    s_total = 0u;
+    s_active = 0u;
+    s_group = 0u;
+    s_mask = 0u;
+  }
   barrier();
   if (k < u_n) {
     uint flag = 1u;
@@ -32,7 +40,18 @@ void main() {
     }
     flags[k] = flag;
     state[k] = flag != 0u ? VISCD_STATE_FREE : VISCD_STATE_CULLED;
+    if (flag != 0u) {
+      atomicAdd(s_active, 1u);
+      if (u_has_filters != 0u) {
+        atomicOr(s_group, filters[k].x);
+        atomicOr(s_mask, filters[k].y);
+      }
+    }
   }
   barrier();
-  if (gl_LocalInvocationID.x == 0u && s_total != 0u) atomicAdd(info.total_pixels, s_total);
+  if (gl_LocalInvocationID.x != 0u) return;
+  if (s_total != 0u) atomicAdd(info.total_pixels, s_total);
+  if (s_active != 0u) atomicAdd(info.visible_count, s_active);
+  if (s_group != 0u) atomicOr(info.filter_or.x, s_group);
+  if (s_mask != 0u) atomicOr(info.filter_or.y, s_mask);
 }

@@ -13,7 +13,9 @@ layout(std430, binding = VISCD_BIND_LEAF_BOXES) readonly buffer LeafBoxes { Leaf
 layout(std430, binding = VISCD_BIND_NODES) readonly buffer Nodes { LbvhNode nodes[]; };
 layout(std430, binding = VISCD_BIND_PAIRS) writeonly buffer Pairs { uvec2 pairs[]; };
 layout(std430, binding = VISCD_BIND_INFO) buffer Info { FrameInfo info; };
+layout(std430, binding = VISCD_BIND_FILTERS) readonly buffer Filters { uvec2 filters[]; };
 uniform uint u_capacity;
+uniform uint u_has_filters;  // pairs also need (group_i & mask_j) != 0 && (group_j & mask_i) != 0
 
 bool overlap_exact(vec4 a, vec4 b) {
   precise float dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
@@ -50,6 +52,10 @@ void main() {
         const uint q = ch & ~VISCD_LEAF_BIT;
         if (overlap_exact(a, sorted_spheres[q])) {
           const uint ib = sorted_ids[q];
+          if (u_has_filters != 0u) {
+            const uvec2 fa = filters[ia], fb = filters[ib];
+            if ((fa.x & fb.y) == 0u || (fb.x & fa.y) == 0u) continue;
+          }
           const uint slot = atomicAdd(info.pair_count, 1u);
           if (slot < u_capacity) pairs[slot] = uvec2(max(ia, ib), min(ia, ib));  // x = j, y = i
         }

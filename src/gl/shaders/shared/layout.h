@@ -68,6 +68,7 @@ struct dvec2 {
 #define VISCD_BIND_STATE 20       // uint state[N]: ObjectState
 #define VISCD_BIND_IMAGE 21       // uint rgba8[W * H], rows top to bottom
 #define VISCD_BIND_DISPATCH 22    // DispatchArgs: indirect dispatch sizes from the active count
+#define VISCD_BIND_FILTERS 23     // uvec2 filters[N]: x = group, y = mask (viscd::Filter)
 // Atomic counter buffer binding of the paper's atomic_uint counting mode.
 #define VISCD_BIND_ATOMIC_COUNTERS 0
 // Texture units.
@@ -86,15 +87,17 @@ struct dvec2 {
 
 // Per-frame values the CPU reads back once after culling, and the pair counter.
 struct FrameInfo {
-  uint active_count;  // number of active objects n
-  uint total_pixels;  // sum of map pixel counts over all objects
-  uint pair_count;    // pairs found by the query (may exceed the pair buffer's capacity)
-  uint pad0;
+  uint active_count;   // objects in the tree, n: the active ones that may pair (all active without filters)
+  uint total_pixels;   // sum of map pixel counts over all objects
+  uint pair_count;     // pairs found by the query (may exceed the pair buffer's capacity)
+  uint visible_count;  // active objects (not culled), filters aside
   vec4 lo;  // bounds of the active centres (xyz)
   vec4 hi;
   vec4 root_lo;  // root box of the fitted tree (xyz)
   vec4 root_hi;
   dvec2 diameter_sum;  // x = sum of 2r over the active objects (double, as core/broadphase.cpp)
+  uvec4 filter_or;     // x = OR of the groups, y = OR of the masks of the active objects (with filters)
+  uvec4 id_check;      // x = map pixels whose id exceeds N, y = the first such pixel (row-major index)
 };
 
 // Work-group counts of the passes after culling, written on the GPU from FrameInfo.active_count
@@ -127,8 +130,9 @@ struct LeafBox {
 };
 
 #ifdef __cplusplus
-static_assert(sizeof(FrameInfo) == 96 && offsetof(FrameInfo, lo) == 16 && offsetof(FrameInfo, root_lo) == 48 &&
-              offsetof(FrameInfo, diameter_sum) == 80);
+static_assert(sizeof(FrameInfo) == 128 && offsetof(FrameInfo, lo) == 16 && offsetof(FrameInfo, root_lo) == 48 &&
+              offsetof(FrameInfo, diameter_sum) == 80 && offsetof(FrameInfo, filter_or) == 96 &&
+              offsetof(FrameInfo, id_check) == 112);
 static_assert(sizeof(BoundsPartial) == 48 && offsetof(BoundsPartial, diameter_sum) == 32);
 static_assert(sizeof(LbvhNode) == 64 && offsetof(LbvhNode, child) == 48 && offsetof(LbvhNode, last) == 56);
 static_assert(sizeof(LeafBox) == 24);
