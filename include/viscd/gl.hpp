@@ -66,6 +66,28 @@ struct GlOptions {
 /// frame's; zero on the first frame), except `layout`, which is host time.
 [[nodiscard]] Result<std::unique_ptr<Detector>> make_gl_detector(const Config& config, const GlOptions& options = {});
 
+/// Your own visibility map, written by the G-buffer pass your renderer draws anyway (the paper's
+/// setting): one more colour attachment, an R32UI texture holding object index + 1 per pixel and
+/// 0 where no object is. Draw the objects as instances 0 .. N-1 in their index order, paste these
+/// snippets into that pass's shaders (after #version; define VISCD_ID_LOCATION as the
+/// attachment's output location before the fragment snippet), call viscd_write_id() in the
+/// vertex shader's main(), and clear the attachment to 0 each frame
+/// (glClearNamedFramebufferuiv). Then give the texture to the detector:
+/// FrameInput::gl_id_texture, with GlOptions::use_current_context so that both share your
+/// context. docs/embedding.md shows the whole loop (examples/engine_loop.cpp).
+inline constexpr const char* kGlIdVertexGlsl =
+    "flat out uint viscd_id;\n"
+    "void viscd_write_id() { viscd_id = uint(gl_InstanceID) + 1u; }\n";
+inline constexpr const char* kGlIdFragmentGlsl =
+    "flat in uint viscd_id;\n"
+    "layout(location = VISCD_ID_LOCATION) out uint viscd_id_out;\n"
+    "#define viscd_output_id() (viscd_id_out = viscd_id)\n";
+/// Creates the R32UI id texture of `width` x `height` texels (one level, nearest filtering) in
+/// the OpenGL context current on this thread, for a G-buffer's id attachment; the caller owns
+/// it (glDeleteTextures). Fails when no OpenGL 4.5 context is current, the size is outside
+/// 1 .. kMaxMapSide (or above kMaxMapPixels), or viscd was built without VISCD_ENABLE_GL.
+[[nodiscard]] Result<unsigned> make_gl_id_texture(int width, int height);
+
 /// The OpenGL device the gl backend would run on, as "renderer | version", e.g.
 /// "llvmpipe (LLVM 15.0.6, 256 bits) | 4.5 (Core Profile) Mesa 22.3.6"; fails with the reason
 /// when no OpenGL 4.5 core context can be created or viscd was built without VISCD_ENABLE_GL.

@@ -24,6 +24,10 @@ Result<std::unique_ptr<Detector>> make_gl_detector(const Config&, const GlOption
 Result<std::string> gl_device() {
   return Result<std::string>::failure("viscd was built without the gl backend (VISCD_ENABLE_GL=OFF)");
 }
+
+Result<unsigned> make_gl_id_texture(int, int) {
+  return Result<unsigned>::failure("viscd was built without the gl backend (VISCD_ENABLE_GL=OFF)");
+}
 #endif
 
 bool is_software_renderer(std::string_view device) {

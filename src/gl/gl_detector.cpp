@@ -430,6 +430,26 @@ std::uint64_t gl::GlDetector::memory_bytes() const {
   return b;
 }
 
+Result<unsigned> make_gl_id_texture(int width, int height) {
+  using R = Result<unsigned>;
+  if (Status s = validate_map_size(width, height); !s) return R::failure(s.error());
+  if (width < 1 || height < 1)
+    return R::failure("an id texture of " + std::to_string(width) + "x" + std::to_string(height) +
+                      " texels: both sides must be at least 1");
+  if (!glGetString(GL_VERSION) || epoxy_gl_version() < 45)
+    return R::failure("make_gl_id_texture: no OpenGL 4.5 context is current on this thread");
+  GLuint t = 0;
+  glCreateTextures(GL_TEXTURE_2D, 1, &t);
+  glTextureStorage2D(t, 1, GL_R32UI, width, height);
+  glTextureParameteri(t, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glTextureParameteri(t, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  if (const GLenum e = glGetError(); e != GL_NO_ERROR) {
+    glDeleteTextures(1, &t);
+    return R::failure("make_gl_id_texture: OpenGL error " + std::to_string(e));
+  }
+  return t;
+}
+
 Result<std::string> gl_device() {
   auto ctx = gl::Context::create(false);
   if (!ctx) return Result<std::string>::failure(ctx.error());

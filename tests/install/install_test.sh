@@ -2,6 +2,8 @@
 # Installs the built viscd into a scratch prefix and uses it from separate projects:
 #  - examples/game_loop.cpp with find_package(viscd) and viscd::viscd alone, which must link
 #    nothing but Threads (and libepoxy, link-only, for the gl backend);
+#  - examples/engine_loop.cpp (when viscd was built with the gl backend): the engine's own
+#    G-buffer and id texture, events, filters, a ray query, in the engine's context;
 #  - tests/install/tools/ with find_package(viscd COMPONENTS tools) and viscd::tools;
 #  - tests/install/missing_component/: a component viscd does not have is not found.
 # Neither consumer may need nlohmann_json: it is disabled for them.
@@ -36,11 +38,18 @@ if grep -rqi "nlohmann\|viscd_options" "$prefix"/lib*/cmake/viscd/; then
   exit 1
 fi
 
-cmake -S "$here" -B "$work/consumer" "${consumer_flags[@]}" >/dev/null
+with_gl=OFF
+grep -q "^VISCD_ENABLE_GL:BOOL=ON" "$build/CMakeCache.txt" && with_gl=ON
+cmake -S "$here" -B "$work/consumer" "${consumer_flags[@]}" -DVISCD_CONSUMER_GL=$with_gl >/dev/null
 cmake --build "$work/consumer" >/dev/null
 "$work/consumer/game_loop" | tee "$work/out.txt"
 grep -q "tick  *80:" "$work/out.txt"
 echo "install test: find_package(viscd) + game_loop OK"
+if [[ $with_gl == ON ]]; then
+  "$work/consumer/engine_loop" | tee "$work/engine_out.txt"
+  grep -q "tick  *60:" "$work/engine_out.txt"
+  echo "install test: engine_loop (the engine's id texture, events, filters, a ray query) OK"
+fi
 
 cmake -S "$here/tools" -B "$work/tools_consumer" "${consumer_flags[@]}" >/dev/null
 cmake --build "$work/tools_consumer" >/dev/null
