@@ -552,7 +552,7 @@ std::string stats_json(const FrameStats& st, std::string_view backend) {
   j["backend"] = backend;
   j["objects"] = st.objects;
   j["active"] = st.active;
-  j["mean_pixels"] = st.has_camera ? nlohmann::ordered_json(st.mean_pixels) : nlohmann::ordered_json(nullptr);
+  j["mean_pixels"] = st.has_pixels ? nlohmann::ordered_json(st.mean_pixels) : nlohmann::ordered_json(nullptr);
   j["bits"] = st.bits;
   j["layout"] = st.layout;
   j["pairs"] = st.pairs;
