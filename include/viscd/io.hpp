@@ -84,7 +84,7 @@ class AtomicFile {
 /// text is streamed in blocks: memory use does not grow with the number of pairs.
 [[nodiscard]] Status write_pairs_csv(const std::filesystem::path& path, std::span<const Pair> pairs);
 [[nodiscard]] Status write_pairs_csv(AtomicFile& out, std::span<const Pair> pairs);
-/// Frame stats as a JSON object (N, active, mu (null when no pixels were counted), m, layout, pairs,
+/// Frame stats as a JSON object (N, active, mu (null unless has_pixels or has_camera), m, layout, pairs,
 /// per-stage ms).
 [[nodiscard]] std::string stats_json(const FrameStats& stats, std::string_view backend);
 /// Writes text to a file, creating parent folders; whole or not at all (AtomicFile).

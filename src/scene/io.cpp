@@ -238,7 +238,8 @@ Result<SphereTable> parse_sphere_table(std::string_view text, std::string_view s
     if (trim(line).empty()) return true;
     const auto fields = split(line, ",", false);
     if (!header) {
-      const bool xyzr = fields.size() >= 4 && fields[0] == "x" && fields[1] == "y" && fields[2] == "z" && fields[3] == "r";
+      const bool xyzr =
+          fields.size() >= 4 && fields[0] == "x" && fields[1] == "y" && fields[2] == "z" && fields[3] == "r";
       with_filters = xyzr && fields.size() == 6 && fields[4] == "group" && fields[5] == "mask";
       if (!xyzr || (fields.size() != 4 && !with_filters)) {
         error = where(source, no) + "expected the header `x,y,z,r` or `x,y,z,r,group,mask`, found '" +
@@ -552,7 +553,8 @@ std::string stats_json(const FrameStats& st, std::string_view backend) {
   j["backend"] = backend;
   j["objects"] = st.objects;
   j["active"] = st.active;
-  j["mean_pixels"] = st.has_pixels ? nlohmann::ordered_json(st.mean_pixels) : nlohmann::ordered_json(nullptr);
+  j["mean_pixels"] =
+      st.has_pixels || st.has_camera ? nlohmann::ordered_json(st.mean_pixels) : nlohmann::ordered_json(nullptr);
   j["bits"] = st.bits;
   j["layout"] = st.layout;
   j["pairs"] = st.pairs;
