@@ -1,10 +1,13 @@
-// libFuzzer target: the sphere readers, parse_xyzr and parse_csv, on arbitrary bytes.
+// libFuzzer target: the sphere readers, parse_xyzr, parse_csv and parse_sphere_table, on arbitrary
+// bytes.
 //
 // Checks (any failure aborts, so libFuzzer keeps the input as a reproducer):
 // - neither reader crashes, leaks or trips a sanitizer;
 // - an accepted file holds only valid spheres: finite, |x|, |y|, |z|, r <= kMaxCoordinate, r >= 0;
 // - accepted spheres round-trip: written as CSV with 9 significant digits (as write_spheres_csv
 //   does) and read back by parse_csv, they come back equal;
+// - parse_sphere_table accepts what parse_csv accepts, with the same spheres, and gives either no
+//   filters or one per sphere;
 // - a rejected file has a non-empty message; with VISCD_FUZZ_STRICT_MESSAGES, also one without
 //   control characters (bytes < 0x20 and 0x7f), so that messages print safely on a terminal.
 
@@ -67,6 +70,16 @@ void check(const SpheresResult& result) {
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text(reinterpret_cast<const char*>(data), size);
   check(viscd::parse_xyzr(text, "fuzz.xyzr"));
-  check(viscd::parse_csv(text, "fuzz.csv"));
+  const SpheresResult csv = viscd::parse_csv(text, "fuzz.csv");
+  check(csv);
+  const viscd::Result<viscd::SphereTable> table = viscd::parse_sphere_table(text, "fuzz.csv");
+  if (table.ok() != csv.ok()) fail("parse_sphere_table and parse_csv disagree on accepting the input");
+  if (table.ok()) {
+    const auto& t = table.value();
+    if (!t.filters.empty() && t.filters.size() != t.spheres.size()) fail("filters are neither none nor one per sphere");
+    if (t.spheres.size() != csv.value().size()) fail("parse_sphere_table and parse_csv read different spheres");
+  } else if (table.error() != csv.error()) {
+    fail("parse_sphere_table and parse_csv give different messages", table.error());
+  }
   return 0;
 }

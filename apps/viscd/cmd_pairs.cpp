@@ -10,7 +10,7 @@ namespace viscd::app {
 namespace {
 
 struct PairsArgs {
-  std::string spheres, camera, out = "pairs.csv", stats, validate_hash;
+  std::string spheres, camera, id_map, out = "pairs.csv", stats, validate_hash;
   PipelineOptions pipeline;
 };
 
@@ -23,25 +23,42 @@ int run_pairs(const PairsArgs& a) {
                                    [](char ch) { return std::isxdigit(static_cast<unsigned char>(ch)) != 0; });
     if (!hex16) return usage_fail("--validate-hash: expected 16 hex digits, got '" + printable(a.validate_hash) + "'");
   }
+  if (!a.id_map.empty() && a.pipeline.map_size.empty())
+    return usage_fail("--id-map needs --map-size WxH, the size of the map in pixels");
   // Refuse before anything is read or written.
   std::vector<NamedPath> inputs = {{"--spheres", a.spheres}}, outputs = {{"--out", a.out}};
   if (!a.camera.empty()) inputs.push_back({"--camera", a.camera});
+  if (!a.id_map.empty()) inputs.push_back({"--id-map", a.id_map});
   if (!a.stats.empty()) outputs.push_back({"--stats", a.stats});
   if (Status s = check_outputs(inputs, outputs); !s) return usage_fail(s.error());
 
-  auto spheres = read_spheres(a.spheres);
-  if (!spheres) return fail(spheres.error());
+  auto table = read_sphere_table(a.spheres);
+  if (!table) return fail(table.error());
   std::optional<Camera> camera;
   if (!a.camera.empty()) {
     auto c = read_camera(a.camera);
     if (!c) return fail(c.error());
     camera = c.value();
   }
+  std::vector<std::uint32_t> ids;
+  if (!a.id_map.empty()) {
+    auto m = read_id_map(a.id_map, config.value().map_width, config.value().map_height);
+    if (!m) return fail(m.error());
+    ids = std::move(m.value());
+  }
   auto detector = make_backend(a.pipeline, config.value(), false);
   if (!detector) return fail(detector.error());
+  FrameInput input;
+  input.spheres = table.value().spheres;
+  input.filters = table.value().filters;
+  input.camera = camera ? &*camera : nullptr;
+  if (!a.id_map.empty()) {
+    input.id_map = ids;
+    input.id_map_width = config.value().map_width;
+    input.id_map_height = config.value().map_height;
+  }
   FrameResult frame;
-  if (Status s = detector.value()->detect(spheres.value(), camera ? &*camera : nullptr, frame); !s)
-    return fail(s.error());
+  if (Status s = detector.value()->detect(input, frame); !s) return fail(s.error());
   detector.value()->wait_for_stage_times(frame.stats);  // one frame: its GPU times are wanted now
 
   // Both outputs are written in full to temporary files first and renamed into place only when
@@ -87,13 +104,22 @@ void add_pairs_command(CLI::App& app, int& rc) {
       "pairs",
       "One frame from files: read spheres (and optionally a camera for culling), write the colliding\n"
       "pairs as CSV (header i,j; 0-based; sorted; i < j) and the frame's stats as JSON.\n"
-      "Without --camera every object is active and adaptive bits use 32. Outputs are written whole\n"
-      "or not at all, and never over an input.");
+      "Without --camera (and without --id-map) every object is active and adaptive bits use 32.\n"
+      "A CSV with group and mask columns filters pairs: i and j pair only when\n"
+      "(group_i & mask_j) != 0 and (group_j & mask_i) != 0. Outputs are written whole or not at\n"
+      "all, and never over an input.");
   cmd->add_option("--spheres", args->spheres,
-                  "sphere file: XYZR text (x y z r per line, # comments) or .csv with header x,y,z,r")
+                  "sphere file: XYZR text (x y z r per line, # comments) or .csv with header x,y,z,r or\n"
+                  "x,y,z,r,group,mask (group, mask: unsigned 32-bit, decimal or 0x hex; default 1 and\n"
+                  "0xFFFFFFFF when the columns are absent)")
       ->required();
   cmd->add_option("--camera", args->camera,
                   "camera JSON {eye, target, up, fov_y_deg, near, far, width, height}: enables culling");
+  cmd->add_option("--id-map", args->id_map,
+                  "your own visibility map instead of viscd's: raw little-endian uint32 ids, row-major from\n"
+                  "the top-left pixel, 0 = background, object index + 1 elsewhere; its size is --map-size\n"
+                  "WxH (the file must be W*H*4 bytes). Culls by its pixel counts (scaled to --camera's\n"
+                  "screen when given, else map pixels) against --lambda");
   cmd->add_option("--out", args->out, "pairs CSV to write")->capture_default_str();
   cmd->add_option("--stats", args->stats, "stats JSON to write (N, active, mu, m, layout, pairs, per-stage ms)");
   cmd->add_option("--validate-hash", args->validate_hash,

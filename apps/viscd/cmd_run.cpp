@@ -3,6 +3,7 @@
 #include <cinttypes>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 
 #include "common.hpp"
@@ -17,7 +18,7 @@ struct RunArgs {
   std::string camera = "zoom-out";
   std::string size = "1280x720";
   std::string out_dir = "viscd-out";
-  std::string screenshot, csv, json;
+  std::string screenshot, csv, json, events, pairs_dir;
   bool quiet = false;
 };
 
@@ -60,8 +61,17 @@ int run_run(RunArgs a) {
   const std::filesystem::path json = a.json.empty() ? out / "summary.json" : std::filesystem::path(a.json);
   std::vector<NamedPath> inputs;
   if (file_camera) inputs.push_back({"--camera", a.camera});
-  if (Status s = check_outputs(inputs, {{"--screenshot", shot}, {"--csv", csv}, {"--json", json}}); !s)
-    return usage_fail(s.error());
+  std::vector<NamedPath> outputs = {{"--screenshot", shot}, {"--csv", csv}, {"--json", json}};
+  if (!a.events.empty()) outputs.push_back({"--events", a.events});
+  if (Status s = check_outputs(inputs, outputs); !s) return usage_fail(s.error());
+  if (!a.pairs_dir.empty()) {
+    std::vector<NamedPath> others = inputs;
+    others.insert(others.end(), outputs.begin(), outputs.end());
+    if (Status s = check_folder_output({"--pairs-dir", a.pairs_dir}, others); !s) return usage_fail(s.error());
+  }
+  if (!a.events.empty()) {  // the events need the detector to keep the last frame's pairs
+    config.value().contact_events = true;
+  }
 
   auto detector = make_backend(a.pipeline, config.value(), a.quiet);
   if (!detector) return fail(detector.error());
@@ -88,6 +98,23 @@ int run_run(RunArgs a) {
   // The per-frame CSV streams into its temporary file as the run goes (renamed at the end).
   auto csv_file = AtomicFile::create(csv);
   if (!csv_file) return fail(csv_file.error());
+  // So do the events; the pairs files go into a folder that replaces --pairs-dir at the end.
+  std::optional<AtomicFile> events_file;
+  std::string events_rows;
+  if (!a.events.empty()) {
+    auto f = AtomicFile::create(a.events);
+    if (!f) return fail(f.error());
+    events_file.emplace(std::move(f.value()));
+    events_rows = "frame,i,j,event\n";
+  }
+  std::optional<StagedFolder> pairs_dir;
+  std::size_t pairs_digits = 6;  // frame_000000.csv: names sort in frame order
+  if (!a.pairs_dir.empty()) {
+    auto d = StagedFolder::create(a.pairs_dir, "--pairs-dir", "frame_", ".csv");
+    if (!d) return usage_fail(d.error());
+    pairs_dir.emplace(std::move(d.value()));
+    for (int f = a.frames - 1; f >= 1000000; f /= 10) ++pairs_digits;
+  }
   std::ostringstream rows;
   rows << "frame,time_s,objects,active,mean_pixels,bits,layout,pairs,simulate_ms";
   for (std::size_t s = 0; s < kStageCount; ++s) rows << ',' << stage_name(static_cast<Stage>(s)) << "_ms";
@@ -111,6 +138,28 @@ int run_run(RunArgs a) {
     if (Status s = det.detect(scene.spheres(), &cam, frame); !s) {
       progress.finish();
       return fail("frame " + std::to_string(f) + ": " + s.error());
+    }
+    if (events_file) {
+      // Sorted by frame, then begin before end, then (i, j): began and ended are sorted.
+      for (const auto& [list, kind] : {std::pair{&frame.began, ",begin\n"}, std::pair{&frame.ended, ",end\n"}})
+        for (const Pair& p : *list)
+          events_rows += std::to_string(f) + ',' + std::to_string(p.i) + ',' + std::to_string(p.j) + kind;
+      if (events_rows.size() > (1 << 20) || last) {
+        if (Status s = events_file->write(events_rows); !s) {
+          progress.finish();
+          return fail(s.error());
+        }
+        events_rows.clear();
+      }
+    }
+    if (pairs_dir) {
+      const std::string number = std::to_string(f);
+      const std::string name =
+          "frame_" + std::string(pairs_digits - std::min(pairs_digits, number.size()), '0') + number + ".csv";
+      if (Status s = write_pairs_csv(pairs_dir->file(name), frame.pairs); !s) {
+        progress.finish();
+        return fail(s.error());
+      }
     }
     const FrameStats& st = frame.stats;
     double total = sim;
@@ -183,6 +232,10 @@ int run_run(RunArgs a) {
   if (Status s = json_file.value().write(summary.dump(2) + "\n"); !s) return fail(s.error());
   for (AtomicFile* f : {&shot_file.value(), &csv_file.value(), &json_file.value()})
     if (Status s = f->commit(); !s) return fail(s.error());
+  if (events_file)
+    if (Status s = events_file->commit(); !s) return fail(s.error());
+  if (pairs_dir)
+    if (Status s = pairs_dir->commit(); !s) return fail(s.error());
   if (!a.quiet)
     std::printf("wrote %s, %s, %s\n", printable(shot.string(), 200).c_str(), printable(csv.string(), 200).c_str(),
                 printable(json.string(), 200).c_str());
@@ -211,6 +264,14 @@ void add_run_command(CLI::App& app, int& rc) {
   cmd->add_option("--screenshot", args->screenshot, "screenshot PNG path (default OUT/screenshot.png)");
   cmd->add_option("--csv", args->csv, "per-frame CSV path (default OUT/frames.csv)");
   cmd->add_option("--json", args->json, "summary JSON path (default OUT/summary.json)");
+  cmd->add_option("--events", args->events,
+                  "contact events CSV to write: frame,i,j,event with event begin (the pair overlaps now and\n"
+                  "did not in the frame before) or end (the other way round; also when an object is\n"
+                  "culled); sorted by frame, then begin before end, then i, j. Frame 0's pairs all begin");
+  cmd->add_option("--pairs-dir", args->pairs_dir,
+                  "folder to write every frame's pairs into, as frame_000000.csv, frame_000001.csv, ...\n"
+                  "(header i,j; the names sort in frame order). The folder is replaced as a whole at the\n"
+                  "end; an existing one may hold only frame_*.csv files");
   cmd->add_flag("--quiet,-q", args->quiet, "print nothing but errors");
   add_pipeline_options(*cmd, args->pipeline, true);
   cmd->callback([args, &rc] { rc = run_run(*args); });

@@ -1,7 +1,12 @@
 #include "common.hpp"
 
+#include <fcntl.h>
 #include <sys/resource.h>
 #include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
 
 #include <algorithm>
 #include <charconv>
@@ -276,6 +281,149 @@ Status check_outputs(const std::vector<NamedPath>& inputs, const std::vector<Nam
         return Status::failure(out.option + " and " + outputs[j].option + " name the same file " + shown);
   }
   return {};
+}
+
+Status check_folder_output(const NamedPath& folder, const std::vector<NamedPath>& others) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const std::string shown = printable(folder.path.string(), 200);
+  if (folder.path.empty()) return Status::failure(folder.option + ": expected a folder name");
+  if (fs::exists(folder.path, ec) && !fs::is_directory(folder.path, ec))
+    return Status::failure(folder.option + " " + shown + ": is a file, expected a folder");
+  // Where a name leads (through links, also for names that do not exist yet), without a trailing "/".
+  auto where = [&](const fs::path& x) {
+    fs::path c = fs::weakly_canonical(fs::absolute(x, ec), ec).lexically_normal();
+    if (!c.has_filename() && c != c.root_path()) c = c.parent_path();
+    return c;
+  };
+  const fs::path dir = where(folder.path);
+  for (const NamedPath& other : others) {
+    if (other.path.empty()) continue;
+    const fs::path p = where(other.path);
+    if (std::mismatch(dir.begin(), dir.end(), p.begin(), p.end()).first == dir.end())
+      return Status::failure(other.option + " " + printable(other.path.string(), 200) + " lies in " + folder.option +
+                             " " + shown + ", which is replaced as a whole: name a file elsewhere");
+  }
+  return {};
+}
+
+Result<StagedFolder> StagedFolder::create(const std::filesystem::path& dest, const std::string& option,
+                                          std::string_view prefix, std::string_view suffix) {
+  namespace fs = std::filesystem;
+  using R = Result<StagedFolder>;
+  std::error_code ec;
+  const std::string shown = printable(dest.string(), 200);
+  if (fs::exists(dest, ec)) {
+    if (!fs::is_directory(dest, ec)) return R::failure(option + " " + shown + ": is a file, expected a folder");
+    for (const auto& entry : fs::directory_iterator(dest, ec)) {
+      const std::string name = entry.path().filename().string();
+      if (!entry.is_regular_file(ec) || !name.starts_with(prefix) || !name.ends_with(suffix))
+        return R::failure(option + " " + shown + " holds " + printable(name, 100) + ", which is not a file " +
+                          std::string(prefix) + "*" + std::string(suffix) +
+                          " of an earlier run: refusing to replace the folder (name a new or empty one)");
+    }
+    if (ec) return R::failure(option + " " + shown + ": cannot list the folder: " + ec.message());
+  }
+  const fs::path abs = fs::absolute(dest, ec);
+  const fs::path parent = abs.parent_path();
+  fs::create_directories(parent, ec);
+  if (ec) return R::failure(option + " " + shown + ": cannot create its parent folder: " + ec.message());
+  std::string tmpl = (parent / ("." + abs.filename().string() + ".tmp-XXXXXX")).string();
+  if (!::mkdtemp(tmpl.data()))
+    return R::failure(option + " " + shown + ": cannot create a folder beside it: " + std::strerror(errno));
+  return StagedFolder(abs, tmpl);
+}
+
+StagedFolder::StagedFolder(StagedFolder&& o) noexcept
+    : dest_(std::move(o.dest_)), staging_(std::move(o.staging_)), done_(o.done_) {
+  o.done_ = true;
+}
+
+StagedFolder::~StagedFolder() {
+  if (done_) return;
+  std::error_code ec;
+  std::filesystem::remove_all(staging_, ec);
+}
+
+Status StagedFolder::commit() {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const std::string shown = printable(dest_.string(), 200);
+  // The staged files are durable (AtomicFile syncs each); make the folder's entries so too.
+  if (const int fd = ::open(staging_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC); fd >= 0) {
+    ::fsync(fd);
+    ::close(fd);
+  }
+  if (fs::exists(dest_, ec)) {
+    if (::renameat2(AT_FDCWD, staging_.c_str(), AT_FDCWD, dest_.c_str(), RENAME_EXCHANGE) == 0) {
+      fs::remove_all(staging_, ec);  // now the old folder
+      done_ = true;
+      return {};
+    }
+    // No exchange on this file system: move the old folder aside, the new one in, the old one out.
+    const fs::path old = staging_.string() + ".old";
+    if (::rename(dest_.c_str(), old.c_str()) != 0)
+      return Status::failure(shown + ": cannot replace the folder: " + std::strerror(errno));
+    if (::rename(staging_.c_str(), dest_.c_str()) != 0) {
+      const int e = errno;
+      (void)::rename(old.c_str(), dest_.c_str());
+      return Status::failure(shown + ": cannot replace the folder: " + std::strerror(e));
+    }
+    fs::remove_all(old, ec);
+    done_ = true;
+    return {};
+  }
+  if (::rename(staging_.c_str(), dest_.c_str()) != 0)
+    return Status::failure(shown + ": cannot create the folder: " + std::strerror(errno));
+  done_ = true;
+  return {};
+}
+
+Result<std::vector<std::uint32_t>> read_id_map(const std::filesystem::path& path, int width, int height) {
+  using R = Result<std::vector<std::uint32_t>>;
+  const std::string name = printable(path.string(), 200);
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) return R::failure(name + ": is a folder, expected a file");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return R::failure(name + ": cannot open for reading: " + std::strerror(errno));
+  in.seekg(0, std::ios::end);
+  const auto size = static_cast<std::uint64_t>(in.tellg());
+  const std::uint64_t want = static_cast<std::uint64_t>(width) * static_cast<std::uint64_t>(height) * 4;
+  if (size != want)
+    return R::failure(name + ": " + std::to_string(size) + " bytes, but a " + std::to_string(width) + "x" +
+                      std::to_string(height) + " id map of 32-bit ids has " + std::to_string(want) + " bytes");
+  in.seekg(0);
+  std::vector<unsigned char> bytes(static_cast<std::size_t>(size));
+  if (!in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(size)))
+    return R::failure(name + ": read error: " + std::strerror(errno));
+  std::vector<std::uint32_t> ids(bytes.size() / 4);
+  for (std::size_t k = 0; k < ids.size(); ++k)  // little-endian whatever the host
+    ids[k] = std::uint32_t{bytes[4 * k]} | std::uint32_t{bytes[4 * k + 1]} << 8 |
+             std::uint32_t{bytes[4 * k + 2]} << 16 | std::uint32_t{bytes[4 * k + 3]} << 24;
+  return ids;
+}
+
+Result<std::vector<float>> parse_numbers(std::string_view text, std::size_t count, std::string_view option,
+                                         std::string_view form) {
+  using R = Result<std::vector<float>>;
+  std::vector<float> v;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t comma = text.find(',', start);
+    const std::string_view field = text.substr(start, comma == std::string_view::npos ? text.npos : comma - start);
+    float x = 0;
+    const auto [p, ec] = std::from_chars(field.data(), field.data() + field.size(), x);
+    if (field.empty() || ec != std::errc() || p != field.data() + field.size() || !std::isfinite(x))
+      return R::failure(std::string(option) + ": expected " + std::string(form) + " (" + std::to_string(count) +
+                        " finite numbers separated by commas), got '" + printable(text) + "'");
+    v.push_back(x);
+    if (comma == std::string_view::npos) break;
+    start = comma + 1;
+  }
+  if (v.size() != count)
+    return R::failure(std::string(option) + ": expected " + std::string(form) + " (" + std::to_string(count) +
+                      " numbers), got " + std::to_string(v.size()) + " in '" + printable(text) + "'");
+  return v;
 }
 
 Progress::Progress(std::string label, std::size_t total, bool quiet)

@@ -86,6 +86,42 @@ struct NamedPath {
 /// (also through links), two outputs naming the same file, and an output that is a folder.
 [[nodiscard]] Status check_outputs(const std::vector<NamedPath>& inputs, const std::vector<NamedPath>& outputs);
 
+/// Refuses, before anything is read or written, a folder output that will be replaced as a whole
+/// (`--pairs-dir`) when any other input or output names it or lies inside it.
+[[nodiscard]] Status check_folder_output(const NamedPath& folder, const std::vector<NamedPath>& others);
+
+/// A folder written whole or not at all: files go into a hidden folder beside the destination,
+/// and commit() puts it in the destination's place in one step (exchanged with an existing
+/// folder, which is then removed), so a reader sees the old folder or the new one. A destination
+/// that exists must be a folder holding only files whose names start with `prefix` and end with
+/// `suffix` (an earlier run's): anything else is refused rather than deleted. Destroyed
+/// uncommitted, it removes what it wrote. Move-only.
+class StagedFolder {
+ public:
+  [[nodiscard]] static Result<StagedFolder> create(const std::filesystem::path& dest, const std::string& option,
+                                                   std::string_view prefix, std::string_view suffix);
+  StagedFolder(StagedFolder&& o) noexcept;
+  StagedFolder& operator=(StagedFolder&&) = delete;
+  StagedFolder(const StagedFolder&) = delete;
+  ~StagedFolder();
+  /// Where a file of the folder is written until commit().
+  [[nodiscard]] std::filesystem::path file(std::string_view name) const { return staging_ / name; }
+  [[nodiscard]] Status commit();
+
+ private:
+  StagedFolder(std::filesystem::path dest, std::filesystem::path staging)
+      : dest_(std::move(dest)), staging_(std::move(staging)) {}
+  std::filesystem::path dest_, staging_;
+  bool done_ = false;
+};
+
+/// Reads a raw id map: width x height little-endian uint32 ids, row-major from the top-left. A
+/// file of another size than width * height * 4 bytes is an error naming both sizes.
+[[nodiscard]] Result<std::vector<std::uint32_t>> read_id_map(const std::filesystem::path& path, int width, int height);
+/// Parses `count` comma-separated finite numbers ("1,2.5,-3"); the error names the option.
+[[nodiscard]] Result<std::vector<float>> parse_numbers(std::string_view text, std::size_t count,
+                                                       std::string_view option, std::string_view form);
+
 /// A progress bar on a terminal (stderr), plain lines every 10 % otherwise.
 class Progress {
  public:
@@ -107,6 +143,7 @@ double median(std::vector<double> v);
 void add_pairs_command(CLI::App& app, int& rc);
 void add_run_command(CLI::App& app, int& rc);
 void add_bench_command(CLI::App& app, int& rc);
+void add_query_command(CLI::App& app, int& rc);
 #ifdef VISCD_HAVE_VIEWER
 void add_view_command(CLI::App& app, int& rc);
 #endif

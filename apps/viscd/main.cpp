@@ -21,6 +21,9 @@ int main(int argc, char** argv) {
       "  viscd run --camera zoom-in --frames 60 --screenshot near.png\n"
       "  viscd pairs --spheres scene.xyzr --out pairs.csv --stats stats.json\n"
       "  viscd pairs --spheres scene.csv --camera cam.json --lambda 50\n"
+      "  viscd pairs --spheres scene.csv --id-map ids.u32 --map-size 1280x720   # your own visibility map\n"
+      "  viscd query --spheres scene.csv --ray 0,0,-50,0,0,1 --all      # the spheres a ray hits\n"
+      "  viscd run --events events.csv --pairs-dir pairs/              # contact events, every frame's pairs\n"
       "  viscd bench paper --sizes 1000,10000,100000   # the paper's tables and figures\n"
       "  viscd view                                 # the same in a window (xvfb-run without a display)\n"
       "\nExit codes: 0 success, 1 bad input or a failed run, 2 bad usage (unknown option, bad value),\n"
@@ -32,6 +35,7 @@ int main(int argc, char** argv) {
   int rc = 0;
   viscd::app::add_run_command(app, rc);
   viscd::app::add_pairs_command(app, rc);
+  viscd::app::add_query_command(app, rc);
   viscd::app::add_bench_command(app, rc);
 #ifdef VISCD_HAVE_VIEWER
   viscd::app::add_view_command(app, rc);

@@ -25,10 +25,25 @@ namespace viscd {
 /// XYZR text: one sphere per line as four numbers `x y z r` separated by blanks (or commas);
 /// `#` starts a comment; blank lines are ignored. An empty file is zero spheres.
 [[nodiscard]] Result<std::vector<Sphere>> parse_xyzr(std::string_view text, std::string_view source);
-/// CSV with the header `x,y,z,r` (spaces allowed), then one sphere per line.
+/// CSV with the header `x,y,z,r` (spaces allowed), then one sphere per line. The header
+/// `x,y,z,r,group,mask` is read too: its group and mask columns are checked and dropped (read
+/// them with parse_sphere_table).
 [[nodiscard]] Result<std::vector<Sphere>> parse_csv(std::string_view text, std::string_view source);
 /// Reads a sphere file: `.csv` is CSV, anything else XYZR.
 [[nodiscard]] Result<std::vector<Sphere>> read_spheres(const std::filesystem::path& path);
+
+/// Spheres and, where the file gives them, their collision filters.
+struct SphereTable {
+  std::vector<Sphere> spheres;
+  /// One per sphere when the file has group and mask columns; else empty (no filtering).
+  std::vector<Filter> filters;
+};
+/// CSV with the header `x,y,z,r` or `x,y,z,r,group,mask`. Group and mask are unsigned 32-bit
+/// integers, decimal (`4294967295`) or hexadecimal (`0xFFFFFFFF`); anything else, a value beyond
+/// 32 bits or a missing column is an error naming the line and what was expected.
+[[nodiscard]] Result<SphereTable> parse_sphere_table(std::string_view text, std::string_view source);
+/// Reads a sphere file with its filters: `.csv` as parse_sphere_table, anything else XYZR (no filters).
+[[nodiscard]] Result<SphereTable> read_sphere_table(const std::filesystem::path& path);
 
 /// Camera JSON: {"eye":[x,y,z], "target":[x,y,z], "up":[0,1,0], "fov_y_deg":60, "near":0.1,
 /// "far":1000, "width":1280, "height":720}. Missing keys take those defaults; unknown keys are errors.
@@ -69,7 +84,8 @@ class AtomicFile {
 /// text is streamed in blocks: memory use does not grow with the number of pairs.
 [[nodiscard]] Status write_pairs_csv(const std::filesystem::path& path, std::span<const Pair> pairs);
 [[nodiscard]] Status write_pairs_csv(AtomicFile& out, std::span<const Pair> pairs);
-/// Frame stats as a JSON object (N, active, mu, m, layout, pairs, per-stage ms).
+/// Frame stats as a JSON object (N, active, mu (null unless has_pixels or has_camera), m, layout, pairs,
+/// per-stage ms).
 [[nodiscard]] std::string stats_json(const FrameStats& stats, std::string_view backend);
 /// Writes text to a file, creating parent folders; whole or not at all (AtomicFile).
 [[nodiscard]] Status write_text(const std::filesystem::path& path, std::string_view text);

@@ -117,6 +117,8 @@ Status Detector::detect(const FrameInput& input, FrameResult& out) {
 Status Detector::detect_checked(const FrameInput& input, FrameResult& out) {
   if (Status s = detail::validate_frame_input(input, config_); !s) return s;
   if (Status s = run_frame(input, out); !s) return s;
+  // Pixels were counted when there is a camera or the caller's map, whatever the backend.
+  out.stats.has_pixels = input.camera != nullptr || !input.id_map.empty() || input.gl_id_texture != 0;
   if (config_.contact_events) {
     pair_differences(previous_pairs_, out.pairs, out.began, out.ended);
     reserve_with_headroom(previous_pairs_, out.pairs.size());

@@ -346,14 +346,20 @@ Status BucketBroadphase::find_pairs(std::span<const std::uint32_t> active, bool 
 
 namespace {
 
-// A ray prepared for slab tests against boxes widened by ray_box_margin() (in double: see there).
+// A ray prepared for slab tests against boxes widened by ray_box_margin(), in double (see there).
+// Along an axis the widened slab [lo - margin, hi + margin] is entered at (lo - (o + margin)) / d
+// and left at (hi - (o - margin)) / d for d > 0 (the other way round for d < 0); along an axis
+// with d = 0 the origin must lie in the slab.
 struct RaySetup {
-  double o[3], inv[3], margin;
-  bool flat[3];
-  explicit RaySetup(const Ray& r) : margin(ray_box_margin(r.origin)) {
+  double lo_shift[3], hi_shift[3], inv[3];  // o + margin, o - margin, 1 / d
+  bool flat[3], negative[3];
+  explicit RaySetup(const Ray& r) {
+    const double margin = ray_box_margin(r.origin);
     for (int k = 0; k < 3; ++k) {
-      o[k] = r.origin[k];
+      lo_shift[k] = double{r.origin[k]} + margin;
+      hi_shift[k] = double{r.origin[k]} - margin;
       flat[k] = r.dir[k] == 0;
+      negative[k] = r.dir[k] < 0;
       inv[k] = flat[k] ? 0.0 : 1.0 / double{r.dir[k]};
     }
   }
@@ -364,18 +370,57 @@ inline bool ray_box(const RaySetup& q, const Aabb& b, double t_hi, double& t_ent
   const float lo[3] = {b.lo.x, b.lo.y, b.lo.z}, hi[3] = {b.hi.x, b.hi.y, b.hi.z};
   double t0 = 0, t1 = t_hi;
   for (int k = 0; k < 3; ++k) {
-    const double l = double{lo[k]} - q.margin, h = double{hi[k]} + q.margin;
+    const double a = (double{lo[k]} - q.lo_shift[k]) * q.inv[k], c = (double{hi[k]} - q.hi_shift[k]) * q.inv[k];
     if (q.flat[k]) {
-      if (q.o[k] < l || q.o[k] > h) return false;
-      continue;
+      if (double{lo[k]} > q.lo_shift[k] || double{hi[k]} < q.hi_shift[k]) return false;
+    } else {
+      t0 = std::max(t0, q.negative[k] ? c : a);
+      t1 = std::min(t1, q.negative[k] ? a : c);
     }
-    double a = (l - q.o[k]) * q.inv[k], c = (h - q.o[k]) * q.inv[k];
-    if (a > c) std::swap(a, c);
-    t0 = std::max(t0, a);
-    t1 = std::min(t1, c);
   }
   t_enter = t0;
   return t0 <= t1;
+}
+
+// The lanes of a bucket whose conservative boxes (centre -/+ h, in double) the segment t in
+// [0, t_hi] meets, widened as ray_box(): only those need the exact test. Padding lanes (NaN) fail.
+inline std::uint32_t ray_lanes(const RaySetup& q, const BucketLanes& b, double t_hi) {
+  std::uint32_t mask = 0;
+#if defined(__SSE2__)
+  const float* axis[3] = {b.x, b.y, b.z};
+  // Two floats into two doubles (the 64-bit load reads through a may_alias type).
+  auto two = [](const float* f) {
+    return _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(f))));
+  };
+  for (std::uint32_t l = 0; l < kBucket; l += 2) {
+    const __m128d h = two(b.h + l);
+    __m128d t0 = _mm_setzero_pd(), t1 = _mm_set1_pd(t_hi);
+    __m128d inside = _mm_cmpeq_pd(h, h);  // all set, but NaN lanes clear
+    for (int k = 0; k < 3; ++k) {
+      const __m128d c = two(axis[k] + l);
+      const __m128d lo = _mm_sub_pd(c, h), hi = _mm_add_pd(c, h);
+      if (q.flat[k]) {
+        inside = _mm_and_pd(inside, _mm_and_pd(_mm_cmple_pd(lo, _mm_set1_pd(q.lo_shift[k])),
+                                               _mm_cmpge_pd(hi, _mm_set1_pd(q.hi_shift[k]))));
+        continue;
+      }
+      const __m128d inv = _mm_set1_pd(q.inv[k]);
+      const __m128d a = _mm_mul_pd(_mm_sub_pd(lo, _mm_set1_pd(q.lo_shift[k])), inv);
+      const __m128d e = _mm_mul_pd(_mm_sub_pd(hi, _mm_set1_pd(q.hi_shift[k])), inv);
+      t0 = _mm_max_pd(t0, q.negative[k] ? e : a);
+      t1 = _mm_min_pd(t1, q.negative[k] ? a : e);
+    }
+    mask |= static_cast<std::uint32_t>(_mm_movemask_pd(_mm_and_pd(inside, _mm_cmple_pd(t0, t1)))) << l;
+  }
+#else
+  for (std::uint32_t l = 0; l < kBucket; ++l) {
+    const float h = b.h[l];
+    const Aabb box{{b.x[l] - h, b.y[l] - h, b.z[l] - h}, {b.x[l] + h, b.y[l] + h, b.z[l] + h}};
+    double te = 0;
+    if (!std::isnan(h) && ray_box(q, box, t_hi, te)) mask |= 1u << l;
+  }
+#endif
+  return mask;
 }
 
 // Every t whose float rounding is at most `limit` is at most this.
@@ -392,7 +437,7 @@ void BucketBroadphase::ray_walk(const Ray& ray, double& t_hi, Visit&& visit) con
   const RaySetup q(ray);
   double te = 0;
   if (bvh_.leaves < 2) {
-    if (ray_box(q, bucket_boxes_[0], t_hi, te)) visit(0u);
+    if (ray_box(q, bucket_boxes_[0], t_hi, te)) visit(q, 0u);
     return;
   }
   if (!ray_box(q, bvh_.root_box, t_hi, te)) return;
@@ -409,7 +454,7 @@ void BucketBroadphase::ray_walk(const Ray& ray, double& t_hi, Visit&& visit) con
     const Entry e = stack[--sp];
     if (e.t > t_hi) continue;
     if (e.node & kLeafBit) {
-      visit(e.node & ~kLeafBit);
+      visit(q, e.node & ~kLeafBit);
       continue;
     }
     const BvhNode& nd = bvh_.nodes[e.node];
@@ -424,12 +469,11 @@ void BucketBroadphase::ray_walk(const Ray& ray, double& t_hi, Visit&& visit) con
 
 bool BucketBroadphase::ray_first(const Ray& ray, std::span<const std::uint32_t> ids, RayHit& best, bool found) const {
   double t_hi = upper_t(found ? std::min(best.t, ray.max_t) : ray.max_t);
-  const std::size_t n = sorted_ids_.size();
-  ray_walk(ray, t_hi, [&](std::uint32_t b) {
+  ray_walk(ray, t_hi, [&](const RaySetup& q, std::uint32_t b) {
     const BucketLanes& ln = lanes_[b];
     const std::size_t first = std::size_t{b} * kBucket;
-    const auto count = static_cast<std::uint32_t>(std::min<std::size_t>(kBucket, n - first));
-    for (std::uint32_t l = 0; l < count; ++l) {
+    for (std::uint32_t m = ray_lanes(q, ln, t_hi); m; m &= m - 1) {
+      const auto l = static_cast<std::uint32_t>(std::countr_zero(m));
       float t = 0;
       if (!ray_sphere(ray.origin, ray.dir, ray.max_t, Sphere{ln.x[l], ln.y[l], ln.z[l], ln.r[l]}, t)) continue;
       const std::uint32_t id = sorted_ids_[first + l];
@@ -445,12 +489,11 @@ bool BucketBroadphase::ray_first(const Ray& ray, std::span<const std::uint32_t> 
 
 void BucketBroadphase::ray_all(const Ray& ray, std::span<const std::uint32_t> ids, std::vector<RayHit>& hits) const {
   double t_hi = upper_t(ray.max_t);
-  const std::size_t n = sorted_ids_.size();
-  ray_walk(ray, t_hi, [&](std::uint32_t b) {
+  ray_walk(ray, t_hi, [&](const RaySetup& q, std::uint32_t b) {
     const BucketLanes& ln = lanes_[b];
     const std::size_t first = std::size_t{b} * kBucket;
-    const auto count = static_cast<std::uint32_t>(std::min<std::size_t>(kBucket, n - first));
-    for (std::uint32_t l = 0; l < count; ++l) {
+    for (std::uint32_t m = ray_lanes(q, ln, t_hi); m; m &= m - 1) {
+      const auto l = static_cast<std::uint32_t>(std::countr_zero(m));
       float t = 0;
       if (!ray_sphere(ray.origin, ray.dir, ray.max_t, Sphere{ln.x[l], ln.y[l], ln.z[l], ln.r[l]}, t)) continue;
       const std::uint32_t id = sorted_ids_[first + l];

@@ -11,22 +11,31 @@
 namespace viscd::detail {
 
 std::uint64_t PipelineDetector::memory_bytes() const {
-  return map_.memory_bytes() + bytes_of(counts_) + bytes_of(hist_) + bytes_of(active_) + bytes_of(pairable_) +
-         bytes_of(unpaired_) + backend_memory_bytes();
+  return map_.memory_bytes() + bytes_of(counts_) + bytes_of(hist_) + bytes_of(count_scratch_) + bytes_of(active_) +
+         bytes_of(pairable_) + bytes_of(unpaired_) + backend_memory_bytes();
 }
 
 void split_by_filters(std::span<const std::uint32_t> active, std::span<const Filter> filters,
                       std::vector<std::uint32_t>& pairable, std::vector<std::uint32_t>& unpaired) {
   std::uint32_t groups = 0, masks = 0;
   for (const std::uint32_t k : active) groups |= filters[k].group, masks |= filters[k].mask;
-  pairable.clear();
-  unpaired.clear();
-  pairable.reserve(filters.size());  // at most every object: no allocation as the split changes
+  // At most every object: no allocation as the split changes from frame to frame.
+  pairable.reserve(filters.size());
   unpaired.reserve(filters.size());
+  pairable.resize(active.size());
+  unpaired.resize(active.size());
+  // Branch-free: each id goes to both lists, and only one of them moves on.
+  std::size_t p = 0, u = 0;
   for (const std::uint32_t k : active) {
     const Filter f = filters[k];
-    (may_pair(f, groups, masks) ? pairable : unpaired).push_back(k);
+    const bool can = may_pair(f, groups, masks);
+    pairable[p] = k;
+    unpaired[u] = k;
+    p += can;
+    u += !can;
   }
+  pairable.resize(p);
+  unpaired.resize(u);
 }
 
 Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
@@ -56,7 +65,7 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     // The caller's map: no stage 1; counted, then culled exactly as a map of our own.
     map_ = VisibilityMap{};
     ms(Stage::visibility) = sw.lap();
-    if (!count_ids(in.id_map, n, threads, hist_)) return id_map_error(in.id_map, in.id_map_width, n);
+    if (!count_ids(in.id_map, n, threads, hist_, count_scratch_)) return id_map_error(in.id_map, in.id_map_width, n);
     ms(Stage::count) = sw.lap();
     const double scale = map_pixel_scale(camera, in.id_map_width, in.id_map_height);
     bits = cull_and_choose_bits(std::span<const std::uint32_t>(hist_).subspan(1, n), scale, config_, out.pixels,
@@ -68,7 +77,7 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     map_.resize(map.width, map.height, config_.shade);
     rasterize(*rig, spheres, threads);
     ms(Stage::visibility) = sw.lap();
-    count_pixels(map_, n, threads, counts_, hist_);
+    count_pixels(map_, n, threads, counts_, hist_, count_scratch_);
     ms(Stage::count) = sw.lap();
     bits = cull_and_choose_bits(counts_, rig->pixel_scale, config_, out.pixels, active_, stats);
     ms(Stage::cull) = sw.lap();

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <cmath>
 
 #if defined(__SSE2__)
@@ -73,46 +74,72 @@ void rasterize_reference(const CameraRig& cam, std::span<const Sphere> spheres, 
   }
 }
 
-bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int threads, std::vector<std::uint32_t>& hist) {
-  VISCD_ASSERT(objects < 0xFFFFFFFFu, "ids are 32-bit");
-  hist.assign(objects + 2, 0u);
+namespace {
+
+// Runs of equal ids in ids[b, e): add(id, length) per run, ids above `bad` as `bad`. Eight pixels at
+// a time: the positions where an id differs from its left neighbour come out as bits, and a run
+// costs one pass of the loop over those bits (a branch per pixel would mispredict at every run).
+template <class Add>
+void count_runs(const std::uint32_t* p, std::size_t b, std::size_t e, std::uint32_t bad, Add&& add) {
+  if (b == e) return;
+  std::uint32_t cur = p[b];
+  std::size_t start = b, i = b + 1;
+#if defined(__SSE2__)
+  for (; i + 16 <= e; i += 16) {
+    const auto* q = reinterpret_cast<const __m128i*>(p + i);
+    const auto* left = reinterpret_cast<const __m128i*>(p + i - 1);
+    auto same = [&](int k) {
+      return static_cast<std::uint32_t>(
+          _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(_mm_loadu_si128(q + k), _mm_loadu_si128(left + k)))));
+    };
+    for (std::uint32_t m = (same(0) | same(1) << 4 | same(2) << 8 | same(3) << 12) ^ 0xFFFFu; m; m &= m - 1) {
+      const std::size_t j = i + static_cast<std::size_t>(std::countr_zero(m));
+      add(std::min(cur, bad), static_cast<std::uint32_t>(j - start));
+      cur = p[j];
+      start = j;
+    }
+  }
+#endif
+  for (; i < e; ++i) {
+    if (p[i] == cur) continue;
+    add(std::min(cur, bad), static_cast<std::uint32_t>(i - start));
+    cur = p[i];
+    start = i;
+  }
+  add(std::min(cur, bad), static_cast<std::uint32_t>(e - start));
+}
+
+}  // namespace
+
+bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int threads, std::vector<std::uint32_t>& hist,
+               std::vector<std::uint32_t>& scratch) {
+  VISCD_ASSERT(objects < 0xFFFFFFFFu - 1, "ids are 32-bit");
+  const std::size_t slots = objects + 2;
+  hist.assign(slots, 0u);
   const auto bad = static_cast<std::uint32_t>(objects + 1);
   const std::size_t n = ids.size();
-  const int tasks = threads_for(n, threads);
-  // Runs of equal ids (++hist[id] per pixel would wait on its own store along a run).
-  auto count_range = [&](std::size_t b, std::size_t e, auto add) {
-    const std::uint32_t* p = ids.data();
-    std::uint32_t cur = p[b], run = 0;
-    std::size_t i = b;
-    while (i < e) {
-#if defined(__SSE2__)
-      if (i + 4 <= e) {
-        const __m128i same = _mm_cmpeq_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p + i)),
-                                             _mm_set1_epi32(static_cast<int>(cur)));
-        if (_mm_movemask_epi8(same) == 0xFFFF) {
-          i += 4, run += 4;
-          continue;
-        }
-      }
-#endif
-      const std::size_t stop = std::min(e, i + 4);
-      for (; i < stop; ++i) {
-        const std::uint32_t id = p[i];
-        if (id != cur) {
-          add(std::min(cur, bad), run);
-          cur = id, run = 0;
-        }
-        ++run;
-      }
-    }
-    add(std::min(cur, bad), run);
-  };
+  const auto tasks = static_cast<std::size_t>(threads_for(n, threads));
   if (tasks == 1) {
-    if (n) count_range(0, n, [&](std::uint32_t id, std::uint32_t run) { hist[id] += run; });
+    count_runs(ids.data(), 0, n, bad, [&](std::uint32_t id, std::uint32_t run) { hist[id] += run; });
+  } else if (slots <= n / 8) {
+    // Few objects for the pixels: the first task counts into `hist`, each other one into a
+    // histogram of its own, summed after (clearing and summing cost less than the pixels).
+    if (scratch.size() < (tasks - 1) * slots) scratch.resize((tasks - 1) * slots);
+    for_chunks(n, tasks, [&](std::size_t b, std::size_t e, std::size_t t) {
+      std::uint32_t* h = t == 0 ? hist.data() : scratch.data() + (t - 1) * slots;
+      if (t != 0) std::fill_n(h, slots, 0u);
+      count_runs(ids.data(), b, e, bad, [&](std::uint32_t id, std::uint32_t run) { h[id] += run; });
+    });
+    parallel_for(slots, threads, [&](std::size_t k) {
+      std::uint32_t sum = hist[k];
+      for (std::size_t t = 1; t < tasks; ++t) sum += scratch[(t - 1) * slots + k];
+      hist[k] = sum;
+    });
   } else {
-    // Rows of different tasks rarely share an id, so the atomic adds do not contend.
-    for_chunks(n, static_cast<std::size_t>(tasks), [&](std::size_t b, std::size_t e, std::size_t) {
-      count_range(b, e, [&](std::uint32_t id, std::uint32_t run) {
+    // Many objects: one shared histogram. Rows of different tasks rarely share an id, so the
+    // atomic adds (one per run) do not contend.
+    for_chunks(n, tasks, [&](std::size_t b, std::size_t e, std::size_t) {
+      count_runs(ids.data(), b, e, bad, [&](std::uint32_t id, std::uint32_t run) {
         std::atomic_ref<std::uint32_t>(hist[id]).fetch_add(run, std::memory_order_relaxed);
       });
     });
@@ -121,13 +148,13 @@ bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int thre
 }
 
 void count_pixels(const VisibilityMap& map, std::size_t objects, int threads, std::vector<std::uint32_t>& counts,
-                  std::vector<std::uint32_t>& hist) {
+                  std::vector<std::uint32_t>& hist, std::vector<std::uint32_t>& scratch) {
   if (map.has_counts && map.counts.size() == objects) {  // counted while rasterising
     counts.assign(map.counts.begin(), map.counts.end());
     return;
   }
   const bool ids_valid =
-      count_ids(std::span<const std::uint32_t>(map.ids.data(), map.ids.size()), objects, threads, hist);
+      count_ids(std::span<const std::uint32_t>(map.ids.data(), map.ids.size()), objects, threads, hist, scratch);
   VISCD_ASSERT(ids_valid, "a rasterizer writes ids of the frame's objects only");
   (void)ids_valid;
   counts.assign(hist.begin() + 1, hist.begin() + 1 + static_cast<std::ptrdiff_t>(objects));

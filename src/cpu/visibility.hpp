@@ -63,15 +63,16 @@ void rasterize_reference(const CameraRig& cam, std::span<const Sphere> spheres, 
 /// Stage 2 over an id map (the detector's own or the caller's): hist[id] = the pixels holding id,
 /// for id in [0, objects] (0 = background), and hist[objects + 1] = the pixels whose id exceeds
 /// `objects`. Returns false when there are any. Parallel over contiguous ranges of rows, each
-/// counted as runs of equal ids (4 pixels at a time while a run lasts) added into the shared
-/// histogram; a run costs one atomic add. Needs objects < 2^32 - 1.
+/// counted as runs of equal ids, eight pixels at a time. With few objects for the pixels each task
+/// has a histogram of its own (`scratch`, reused), else every task adds into `hist` atomically,
+/// once per run. Needs objects < 2^32 - 2.
 [[nodiscard]] bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int threads,
-                             std::vector<std::uint32_t>& hist);
+                             std::vector<std::uint32_t>& hist, std::vector<std::uint32_t>& scratch);
 
 /// Stage 2: pixels per object over the map: the rasterizer's counts when it left them for
-/// `objects` objects, else count_ids() over the id map (`hist` is its scratch, reused).
+/// `objects` objects, else count_ids() over the id map (`hist`, `scratch`: its buffers, reused).
 void count_pixels(const VisibilityMap& map, std::size_t objects, int threads, std::vector<std::uint32_t>& counts,
-                  std::vector<std::uint32_t>& hist);
+                  std::vector<std::uint32_t>& hist, std::vector<std::uint32_t>& scratch);
 
 /// Stage 9: lit spheres, red colliding, blue free, yellow culled; dark background. RGBA8.
 void shade(const CameraRig& cam, const VisibilityMap& map, std::span<const ObjectState> state, int threads,

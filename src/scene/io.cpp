@@ -205,32 +205,79 @@ SpheresResult parse_xyzr(std::string_view text, std::string_view source) {
   return out;
 }
 
-SpheresResult parse_csv(std::string_view text, std::string_view source) {
+namespace {
+
+// A group or mask field: an unsigned 32-bit integer, decimal or 0x hex. Returns the message on error.
+std::string parse_filter_field(std::string_view field, const char* name, std::uint32_t& v) {
+  std::string_view t = field;
+  int base = 10;
+  if (t.size() > 2 && t[0] == '0' && (t[1] == 'x' || t[1] == 'X')) {
+    t.remove_prefix(2);
+    base = 16;
+  }
+  std::uint64_t wide = 0;
+  const auto [ptr, ec] = std::from_chars(t.data(), t.data() + t.size(), wide, base);
+  if (t.empty() || ptr != t.data() + t.size() || (ec != std::errc() && ec != std::errc::result_out_of_range))
+    return std::string(name) + ": expected an unsigned 32-bit integer (decimal, or hexadecimal as 0x...), found '" +
+           printable(field) + "'";
+  if (ec == std::errc::result_out_of_range || wide > 0xFFFFFFFFu)
+    return std::string(name) + " = " + printable(field) + " does not fit in 32 bits (at most 4294967295 = 0xFFFFFFFF)";
+  v = static_cast<std::uint32_t>(wide);
+  return {};
+}
+
+}  // namespace
+
+Result<SphereTable> parse_sphere_table(std::string_view text, std::string_view source) {
+  using R = Result<SphereTable>;
   text = skip_bom(text);
-  std::vector<Sphere> out;
+  SphereTable out;
   std::string error;
-  bool header = false;
+  bool header = false, with_filters = false;
   for_each_line(text, [&](std::string_view line, std::size_t no) {
     if (trim(line).empty()) return true;
     const auto fields = split(line, ",", false);
     if (!header) {
-      if (fields.size() != 4 || fields[0] != "x" || fields[1] != "y" || fields[2] != "z" || fields[3] != "r") {
-        error = where(source, no) + "expected the header `x,y,z,r`, found '" + printable(trim(line)) + "'";
+      const bool xyzr =
+          fields.size() >= 4 && fields[0] == "x" && fields[1] == "y" && fields[2] == "z" && fields[3] == "r";
+      with_filters = xyzr && fields.size() == 6 && fields[4] == "group" && fields[5] == "mask";
+      if (!xyzr || (fields.size() != 4 && !with_filters)) {
+        error = where(source, no) + "expected the header `x,y,z,r` or `x,y,z,r,group,mask`, found '" +
+                printable(trim(line)) + "'";
         return false;
       }
       header = true;
       return true;
     }
     Sphere s;
-    if (std::string e = parse_sphere(fields, s); !e.empty()) {
+    Filter f;
+    std::string e;
+    if (with_filters) {
+      if (fields.size() != 6)
+        e = "expected 6 fields `x,y,z,r,group,mask`, found " + std::to_string(fields.size());
+      else
+        e = parse_sphere({fields.begin(), fields.begin() + 4}, s);
+      if (e.empty()) e = parse_filter_field(fields[4], "group", f.group);
+      if (e.empty()) e = parse_filter_field(fields[5], "mask", f.mask);
+    } else {
+      e = parse_sphere(fields, s);
+    }
+    if (!e.empty()) {
       error = where(source, no) + e;
       return false;
     }
-    out.push_back(s);
+    out.spheres.push_back(s);
+    if (with_filters) out.filters.push_back(f);
     return true;
   });
-  if (!error.empty()) return SpheresResult::failure(error);
+  if (!error.empty()) return R::failure(error);
   return out;
+}
+
+SpheresResult parse_csv(std::string_view text, std::string_view source) {
+  auto table = parse_sphere_table(text, source);
+  if (!table) return SpheresResult::failure(table.error());
+  return std::move(table.value().spheres);
 }
 
 SpheresResult read_spheres(const std::filesystem::path& path) {
@@ -238,6 +285,16 @@ SpheresResult read_spheres(const std::filesystem::path& path) {
   if (!text) return SpheresResult::failure(text.error());
   if (path.extension() == ".csv") return parse_csv(text.value(), path.string());
   return parse_xyzr(text.value(), path.string());
+}
+
+Result<SphereTable> read_sphere_table(const std::filesystem::path& path) {
+  using R = Result<SphereTable>;
+  auto text = slurp(path);
+  if (!text) return R::failure(text.error());
+  if (path.extension() == ".csv") return parse_sphere_table(text.value(), path.string());
+  auto spheres = parse_xyzr(text.value(), path.string());
+  if (!spheres) return R::failure(spheres.error());
+  return SphereTable{std::move(spheres.value()), {}};
 }
 
 Result<Camera> parse_camera(std::string_view text, std::string_view source) {
@@ -496,7 +553,8 @@ std::string stats_json(const FrameStats& st, std::string_view backend) {
   j["backend"] = backend;
   j["objects"] = st.objects;
   j["active"] = st.active;
-  j["mean_pixels"] = st.has_camera ? nlohmann::ordered_json(st.mean_pixels) : nlohmann::ordered_json(nullptr);
+  j["mean_pixels"] =
+      st.has_pixels || st.has_camera ? nlohmann::ordered_json(st.mean_pixels) : nlohmann::ordered_json(nullptr);
   j["bits"] = st.bits;
   j["layout"] = st.layout;
   j["pairs"] = st.pairs;

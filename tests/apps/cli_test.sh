@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Command-line tests of the `viscd` tool: exit codes, outputs and messages of `pairs` and `run`.
+# Command-line tests of the `viscd` tool: exit codes, outputs and messages of `pairs`, `query` and
+# `run`.
 # Usage: VISCD=/path/to/viscd bash tests/apps/cli_test.sh WORKDIR
 set -euo pipefail
 
@@ -194,6 +195,174 @@ pass
 step "run --frames 0 is a usage error (exit 2)"
 expect_rc 2 run --frames 0 --objects 100 --out "$W/run6"
 expect_in "$W/err" "--frames" "--frames 0 error"
+pass
+
+# ----------------------------------------------------------------------------------------------
+# Filters, the caller's id map, queries, contact events and per-frame pairs.
+
+# four.csv with filters: 0 and 1 touch but 1 (group 2, mask 0) collides with nothing; 2 and 3
+# overlap and accept each other (2: group 1, mask 0x10; 3: group 0x10, mask 1).
+cat >"$W/four_filters.csv" <<'CSV'
+x,y,z,r,group,mask
+0,0,0,0.5,1,0xFFFFFFFF
+1,0,0,0.5,2,0
+100,0,0,1,1,0x10
+101.5,0,0,1,0x10,1
+CSV
+step "pairs honours group and mask columns: only (2,3)"
+expect_rc 0 pairs --spheres "$W/four_filters.csv" --out "$W/pairs_f.csv"
+expect_file_equals "$W/pairs_f.csv" 'i,j\n2,3\n' "filtered pairs"
+expect_rc 0 pairs --spheres "$W/four_filters.csv" --out "$W/pairs_fr.csv" --backend reference
+expect_file_equals "$W/pairs_fr.csv" 'i,j\n2,3\n' "filtered pairs, reference"
+pass
+
+step "a bad group or mask value exits 1 naming file:line and what was expected"
+printf 'x,y,z,r,group,mask\n0,0,0,1,1,1\n0,0,0,1,1,0x1FFFFFFFF\n' >"$W/bad_mask.csv"
+expect_rc 1 pairs --spheres "$W/bad_mask.csv" --out "$W/pairs_bm.csv"
+expect_in "$W/err" "$W/bad_mask.csv:3: mask" "bad mask error"
+expect_in "$W/err" "32 bits" "bad mask error"
+printf 'x,y,z,r,group,mask\n0,0,0,1,-2,1\n' >"$W/bad_group.csv"
+expect_rc 1 pairs --spheres "$W/bad_group.csv" --out "$W/pairs_bg.csv"
+expect_in "$W/err" "$W/bad_group.csv:2: group: expected an unsigned 32-bit integer" "bad group error"
+[[ ! -e "$W/pairs_bm.csv" && ! -e "$W/pairs_bg.csv" ]] || fail "a failed pairs run wrote its output"
+pass
+
+# A 4x2 id map of the four spheres: ids 1 1 2 2 / 3 4 0 0 (little-endian uint32), so objects 0
+# and 1 cover 2 pixels each, 2 and 3 one each.
+u32() { for v in "$@"; do printf "\\x$(printf %02x "$v")\\x00\\x00\\x00"; done; }
+u32 1 1 2 2 3 4 0 0 >"$W/ids.u32"
+step "pairs --id-map culls by the map's pixels: lambda 2 keeps 0 and 1 -> (0,1)"
+expect_rc 0 pairs --spheres "$W/four.xyzr" --id-map "$W/ids.u32" --map-size 4x2 --lambda 2 --out "$W/pairs_id.csv" \
+  --stats "$W/stats_id.json"
+expect_file_equals "$W/pairs_id.csv" 'i,j\n0,1\n' "pairs from the id map"
+expect_in "$W/stats_id.json" '"active": 2' "stats from the id map"
+expect_in "$W/stats_id.json" '"mean_pixels": 1.5' "stats from the id map (6 pixels / 4 objects)"
+expect_rc 0 pairs --spheres "$W/four.xyzr" --id-map "$W/ids.u32" --map-size 4x2 --lambda 1 --out "$W/pairs_id1.csv"
+expect_file_equals "$W/pairs_id1.csv" "$EXPECTED_PAIRS" "pairs from the id map, lambda 1"
+# With a camera of 8x4 pixels: 4 screen pixels per map pixel; lambda 5 keeps 0 and 1 (8 each).
+printf '{"eye": [0.5, 0, 5], "target": [0.5, 0, 0], "width": 8, "height": 4}\n' >"$W/cam84.json"
+expect_rc 0 pairs --spheres "$W/four.xyzr" --id-map "$W/ids.u32" --map-size 4x2 --camera "$W/cam84.json" \
+  --lambda 5 --out "$W/pairs_idc.csv" --backend reference
+expect_file_equals "$W/pairs_idc.csv" 'i,j\n0,1\n' "pairs from the id map scaled to the camera's screen"
+pass
+
+step "--id-map errors: wrong file size names both sizes, an id beyond N names the pixel, no --map-size"
+expect_rc 1 pairs --spheres "$W/four.xyzr" --id-map "$W/ids.u32" --map-size 4x4 --out "$W/pairs_ide.csv"
+expect_in "$W/err" "32 bytes" "id map size error"
+expect_in "$W/err" "64 bytes" "id map size error"
+u32 1 1 2 2 3 4 0 5 >"$W/ids_bad.u32"
+expect_rc 1 pairs --spheres "$W/four.xyzr" --id-map "$W/ids_bad.u32" --map-size 4x2 --out "$W/pairs_ide.csv"
+expect_in "$W/err" "pixel (3, 1) holds id 5" "id beyond N"
+expect_rc 2 pairs --spheres "$W/four.xyzr" --id-map "$W/ids.u32" --out "$W/pairs_ide.csv"
+expect_in "$W/err" "--map-size" "--id-map without --map-size"
+expect_rc 2 pairs --spheres "$W/four.xyzr" --id-map "$W/ids.u32" --map-size 4x2 --out "$W/ids.u32"
+expect_in "$W/err" "refusing to overwrite an input" "--out naming the id map"
+[[ ! -e "$W/pairs_ide.csv" ]] || fail "a failed pairs run wrote its output"
+pass
+
+step "query --ray: first hit, --all, --max-t (hand-worked on the four spheres)"
+expect_rc 0 query --spheres "$W/four.xyzr" --ray -10,0,0,1,0,0
+expect_file_equals "$W/out" 'i,t\n0,9.5\n' "first hit"
+expect_rc 0 query --spheres "$W/four.xyzr" --ray -10,0,0,1,0,0 --all
+expect_file_equals "$W/out" 'i,t\n0,9.5\n1,10.5\n2,109\n3,110.5\n' "every hit"
+expect_rc 0 query --spheres "$W/four.xyzr" --ray -10,0,0,2,0,0 --all --max-t 5
+expect_file_equals "$W/out" 'i,t\n0,4.75\n' "dir of length 2, max_t 5"
+expect_rc 0 query --spheres "$W/four.xyzr" --ray 0,0,0,0,1,0 --all --backend reference
+expect_file_equals "$W/out" 'i,t\n0,0\n' "origin inside sphere 0: t = 0"
+expect_rc 0 query --spheres "$W/four.xyzr" --ray 0,5,0,0,1,0
+expect_file_equals "$W/out" 'i,t\n' "no hit: the header only"
+pass
+
+step "query --overlap, --camera culling, --out"
+expect_rc 0 query --spheres "$W/four.xyzr" --overlap 0.5,0,0,0
+expect_file_equals "$W/out" 'i\n0\n1\n' "a point touching 0 and 1"
+expect_rc 0 query --spheres "$W/four.xyzr" --overlap 100.75,0,0,0.1 --out "$W/q.csv"
+expect_file_equals "$W/q.csv" 'i\n2\n3\n' "overlap to --out"
+# The camera sees 0 and 1 only (lambda 1): 2 and 3 are culled and invisible to queries.
+expect_rc 0 query --spheres "$W/four.xyzr" --ray -10,0,0,1,0,0 --all --camera "$W/cam.json" --lambda 1
+expect_file_equals "$W/out" 'i,t\n0,9.5\n1,10.5\n' "culled objects are invisible"
+# Filters do not apply to queries: sphere 1 (mask 0) is hit.
+expect_rc 0 query --spheres "$W/four_filters.csv" --ray -10,0,0,1,0,0 --all --max-t 11
+expect_file_equals "$W/out" 'i,t\n0,9.5\n1,10.5\n' "filtered objects are seen"
+pass
+
+step "query usage errors exit 2 naming the option"
+expect_rc 2 query --spheres "$W/four.xyzr" --ray 1,2,3
+expect_in "$W/err" "--ray" "short --ray"
+expect_rc 2 query --spheres "$W/four.xyzr" --ray 0,0,0,0,0,0
+expect_in "$W/err" "must not be zero" "zero direction"
+expect_rc 2 query --spheres "$W/four.xyzr" --ray 0,0,0,1,0,nan
+expect_in "$W/err" "--ray" "NaN in --ray"
+expect_rc 2 query --spheres "$W/four.xyzr" --ray 0,0,0,1,0,0 --overlap 0,0,0,1
+expect_in "$W/err" "one of --ray and --overlap" "both queries"
+expect_rc 2 query --spheres "$W/four.xyzr" --overlap 0,0,0,-1
+expect_in "$W/err" "--overlap" "negative radius"
+expect_rc 2 query --spheres "$W/four.xyzr" --overlap 0,0,0,1 --all
+expect_rc 2 query --spheres "$W/four.xyzr" --overlap 0,0,0,1 --out "$W/four.xyzr"
+expect_in "$W/err" "refusing to overwrite an input" "--out naming --spheres"
+pass
+
+step "run --events and --pairs-dir: events are the set differences of consecutive frames' pairs"
+expect_rc 0 run --objects 3000 --frames 5 --no-culling --dt 0.5 --out "$W/ev" --events "$W/ev/events.csv" \
+  --pairs-dir "$W/ev_pairs" --quiet
+for f in 0 1 2 3 4; do [[ -f "$W/ev_pairs/frame_00000$f.csv" ]] || fail "frame_00000$f.csv missing"; done
+[[ "$(ls "$W/ev_pairs" | wc -l)" -eq 5 ]] || fail "--pairs-dir holds other files than the 5 frames"
+head -n1 "$W/ev/events.csv" | grep -qx 'frame,i,j,event' || fail "events CSV header"
+if command -v python3 >/dev/null 2>&1; then
+  cat >"$W/check_events.py" <<'PY'
+import csv, sys
+rows = list(csv.DictReader(open(sys.argv[1])))
+def pairs(f):
+    return {(int(r["i"]), int(r["j"])) for r in csv.DictReader(open(f"{sys.argv[2]}/frame_{f:06d}.csv"))}
+key = [(int(r["frame"]), 0 if r["event"] == "begin" else 1, int(r["i"]), int(r["j"])) for r in rows]
+assert key == sorted(key), "events not sorted by frame, begin before end, i, j"
+assert all(r["event"] in ("begin", "end") for r in rows)
+before, changes = set(), 0
+for f in range(5):
+    now = pairs(f)
+    got_b = {(int(r["i"]), int(r["j"])) for r in rows if int(r["frame"]) == f and r["event"] == "begin"}
+    got_e = {(int(r["i"]), int(r["j"])) for r in rows if int(r["frame"]) == f and r["event"] == "end"}
+    assert got_b == now - before, f"frame {f}: begin"
+    assert got_e == before - now, f"frame {f}: end"
+    if f:
+        changes += len(got_b) + len(got_e)
+    before = now
+assert len(pairs(0)) > 100 and changes > 0, "a scene with pairs and changes"
+PY
+  python3 "$W/check_events.py" "$W/ev/events.csv" "$W/ev_pairs" || fail "events differ from the pairs files' set differences"
+fi
+pass
+
+step "--pairs-dir replaces an earlier run's folder, refuses one with other files, and what lies in it"
+expect_rc 0 run --objects 300 --frames 2 --out "$W/ev2" --pairs-dir "$W/ev_pairs" --quiet
+[[ "$(ls "$W/ev_pairs" | wc -l)" -eq 2 ]] || fail "--pairs-dir was not replaced by the 2-frame run"
+mkdir -p "$W/mine" && echo keep >"$W/mine/notes.txt"
+expect_rc 2 run --objects 300 --frames 2 --out "$W/ev3" --pairs-dir "$W/mine" --quiet
+expect_in "$W/err" "notes.txt" "a folder with other files"
+[[ -f "$W/mine/notes.txt" ]] || fail "the folder with other files was touched"
+expect_rc 2 run --objects 300 --frames 2 --out "$W/ev3" --pairs-dir "$W/ev3" --quiet
+expect_in "$W/err" "lies in --pairs-dir" "outputs inside --pairs-dir"
+expect_rc 2 run --objects 300 --frames 2 --out "$W/ev3" --events "$W/cam.json" --camera "$W/cam.json" --quiet
+expect_in "$W/err" "refusing to overwrite an input" "--events naming the camera"
+pass
+
+step "a failed run writes neither --events nor --pairs-dir"
+expect_rc 1 run --objects 3000 --frames 3 --no-culling --max-pair-memory 8 --out "$W/ev4" \
+  --events "$W/ev4_events.csv" --pairs-dir "$W/ev4_pairs" --quiet
+[[ ! -e "$W/ev4_events.csv" && ! -e "$W/ev4_pairs" ]] || fail "a failed run left --events or --pairs-dir"
+[[ -z "$(ls -A "$W" | grep '^\.ev4' || true)" ]] || fail "a failed run left a temporary file or folder"
+pass
+
+step "--help of the new options teaches"
+expect_rc 0 query --help
+expect_in "$W/out" "--ray" "query --help"
+expect_in "$W/out" "--overlap" "query --help"
+expect_rc 0 run --help
+expect_in "$W/out" "--events" "run --help"
+expect_in "$W/out" "--pairs-dir" "run --help"
+expect_rc 0 pairs --help
+expect_in "$W/out" "--id-map" "pairs --help"
+expect_in "$W/out" "group" "pairs --help"
 pass
 
 # Kept last so that a failure here does not hide the checks above.

@@ -35,13 +35,14 @@ std::vector<std::uint32_t> histogram(const std::vector<std::uint32_t>& ids, std:
 }
 
 TEST(CountIds, AgainstAHistogram) {
-  std::vector<std::uint32_t> hist;
+  std::vector<std::uint32_t> hist, scratch;
   for (std::size_t pixels : {0u, 1u, 3u, 4u, 5u, 7u, 8u, 9u, 4095u, 4096u, 4097u, 100003u, 921600u}) {
     for (std::uint32_t max_run : {1u, 3u, 4u, 5u, 64u, 5000u}) {
-      for (std::size_t objects : {1u, 7u, 1000u}) {
+      // Few objects for the pixels (a histogram per task) and many (atomic adds into one).
+      for (std::size_t objects : {1u, 7u, 1000u, 300000u}) {
         const auto ids = random_map(pixels, static_cast<std::uint32_t>(objects), max_run, pixels + max_run);
         for (int threads : {1, 2, 5}) {
-          ASSERT_TRUE(detail::count_ids(ids, objects, threads, hist));
+          ASSERT_TRUE(detail::count_ids(ids, objects, threads, hist, scratch));
           ASSERT_EQ(hist, histogram(ids, objects)) << pixels << " pixels, runs up to " << max_run << ", " << objects
                                                    << " objects, " << threads << " threads";
         }
@@ -51,18 +52,21 @@ TEST(CountIds, AgainstAHistogram) {
 }
 
 TEST(CountIds, IdsBeyondTheObjectsAreCountedApart) {
-  std::vector<std::uint32_t> hist;
+  std::vector<std::uint32_t> hist, scratch;
   for (std::size_t pixels : {1u, 6u, 5000u, 200000u}) {
-    for (std::size_t at : {std::size_t{0}, pixels / 2, pixels - 1}) {
-      auto ids = random_map(pixels, 10, 9, at + 1);
-      ids[at] = 11;  // objects = 10: ids 0..10 are fine
-      for (int threads : {1, 2}) {
-        EXPECT_FALSE(detail::count_ids(ids, 10, threads, hist)) << pixels << " pixels, bad id at " << at;
-        EXPECT_EQ(hist, histogram(ids, 10));
+    for (std::uint32_t objects : {10u, 100000u}) {
+      for (std::size_t at : {std::size_t{0}, pixels / 2, pixels - 1}) {
+        auto ids = random_map(pixels, objects, 9, at + 1);
+        ids[at] = objects + 1;  // ids 0..objects are fine
+        for (int threads : {1, 2}) {
+          EXPECT_FALSE(detail::count_ids(ids, objects, threads, hist, scratch))
+              << pixels << " pixels, " << objects << " objects, bad id at " << at;
+          EXPECT_EQ(hist, histogram(ids, objects));
+        }
+        ids[at] = 0xFFFFFFFFu;
+        EXPECT_FALSE(detail::count_ids(ids, objects, 2, hist, scratch));
+        EXPECT_EQ(hist[objects + 1], 1u);
       }
-      ids[at] = 0xFFFFFFFFu;
-      EXPECT_FALSE(detail::count_ids(ids, 10, 2, hist));
-      EXPECT_EQ(hist[11], 1u);
     }
   }
 }

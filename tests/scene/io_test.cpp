@@ -368,6 +368,96 @@ TEST(Csv, BadValuesAreErrors) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// CSV with group and mask columns
+
+std::string table_error(std::string_view text, std::string_view source = "in.csv") {
+  auto r = parse_sphere_table(text, source);
+  EXPECT_FALSE(r.ok()) << "expected an error for:\n" << text;
+  return r.ok() ? std::string() : r.error();
+}
+
+TEST(CsvFilters, DecimalAndHexValues) {
+  auto r = parse_sphere_table(
+      "x,y,z,r,group,mask\n"
+      "1,2,3,4,1,4294967295\n"
+      "0,0,0,0.5, 0x2 ,0X0000000F\n"
+      "5,6,7,8,0,0\n"
+      "9,9,9,1,0xFFFFFFFF,0x80000000\n",
+      "f.csv");
+  ASSERT_TRUE(r.ok()) << r.error();
+  ASSERT_EQ(r.value().spheres.size(), 4u);
+  ASSERT_EQ(r.value().filters.size(), 4u);
+  expect_sphere(r.value().spheres[1], 0, 0, 0, 0.5f);
+  const std::vector<std::pair<std::uint32_t, std::uint32_t>> want = {
+      {1, 0xFFFFFFFFu}, {2, 15}, {0, 0}, {0xFFFFFFFFu, 0x80000000u}};
+  for (std::size_t k = 0; k < want.size(); ++k) {
+    EXPECT_EQ(r.value().filters[k].group, want[k].first) << k;
+    EXPECT_EQ(r.value().filters[k].mask, want[k].second) << k;
+  }
+}
+
+TEST(CsvFilters, WithoutTheColumnsThereAreNoFilters) {
+  auto r = parse_sphere_table("x,y,z,r\n1,2,3,4\n", "f.csv");
+  ASSERT_TRUE(r.ok()) << r.error();
+  EXPECT_EQ(r.value().spheres.size(), 1u);
+  EXPECT_TRUE(r.value().filters.empty());
+  auto h = parse_sphere_table("x,y,z,r,group,mask\n", "f.csv");
+  ASSERT_TRUE(h.ok()) << h.error();
+  EXPECT_TRUE(h.value().spheres.empty() && h.value().filters.empty());
+}
+
+TEST(CsvFilters, PlainReaderTakesTheSpheresOnly) {
+  auto r = parse_csv("x,y,z,r,group,mask\n1,2,3,4,2,0x1\n", "f.csv");
+  ASSERT_TRUE(r.ok()) << r.error();
+  ASSERT_EQ(r.value().size(), 1u);
+  expect_sphere(r.value()[0], 1, 2, 3, 4);
+  // ... but still checks the columns.
+  EXPECT_CONTAINS(csv_error("x,y,z,r,group,mask\n1,2,3,4,2,x\n", "f.csv"), "f.csv:2: mask");
+}
+
+TEST(CsvFilters, BadValuesNameTheLineAndWhatWasExpected) {
+  const char* head = "x,y,z,r,group,mask\n0,0,0,1,1,1\n";
+  for (const char* row : {"0,0,0,1,-1,1", "0,0,0,1,+1,1", "0,0,0,1,1.5,1", "0,0,0,1,one,1", "0,0,0,1,,1",
+                          "0,0,0,1,0x,1", "0,0,0,1,0xG1,1", "0,0,0,1,1e3,1", "0,0,0,1,1 2,1"}) {
+    const std::string e = table_error(std::string(head) + row + "\n", "f.csv");
+    EXPECT_CONTAINS(e, "f.csv:3: group: expected an unsigned 32-bit integer") << row;
+  }
+  for (const char* row : {"0,0,0,1,1,4294967296", "0,0,0,1,1,0x100000000", "0,0,0,1,1,99999999999999999999999"}) {
+    const std::string e = table_error(std::string(head) + row + "\n", "f.csv");
+    EXPECT_CONTAINS(e, "f.csv:3: mask = ") << row;
+    EXPECT_CONTAINS(e, "does not fit in 32 bits") << row;
+  }
+  EXPECT_CONTAINS(table_error(std::string(head) + "0,0,0,1,1\n", "f.csv"), "f.csv:3: expected 6 fields");
+  EXPECT_CONTAINS(table_error(std::string(head) + "0,0,0,1,1,1,1\n", "f.csv"), "expected 6 fields");
+  EXPECT_CONTAINS(table_error(std::string(head) + "0,0,0,-1,1,1\n", "f.csv"), "f.csv:3: r = -1 is negative");
+  // Headers: group without mask, or in another order, are errors at line 1.
+  for (const char* text : {"x,y,z,r,group\n0,0,0,1,1\n", "x,y,z,r,mask,group\n0,0,0,1,1,1\n",
+                           "x,y,z,r,group,mask,extra\n0,0,0,1,1,1,1\n"}) {
+    const std::string e = table_error(text, "f.csv");
+    EXPECT_CONTAINS(e, "f.csv:1:") << text;
+    EXPECT_CONTAINS(e, "x,y,z,r,group,mask") << text;
+  }
+}
+
+TEST(CsvFilters, ReadSphereTable) {
+  TempDir dir;
+  write_file(dir / "f.csv", "x,y,z,r,group,mask\n1,2,3,4,3,0x6\n");
+  auto r = read_sphere_table(dir / "f.csv");
+  ASSERT_TRUE(r.ok()) << r.error();
+  ASSERT_EQ(r.value().filters.size(), 1u);
+  EXPECT_EQ(r.value().filters[0].group, 3u);
+  EXPECT_EQ(r.value().filters[0].mask, 6u);
+  write_file(dir / "f.xyzr", "1 2 3 4\n");
+  auto x = read_sphere_table(dir / "f.xyzr");
+  ASSERT_TRUE(x.ok()) << x.error();
+  EXPECT_EQ(x.value().spheres.size(), 1u);
+  EXPECT_TRUE(x.value().filters.empty());
+  auto missing = read_sphere_table(dir / "none.csv");
+  ASSERT_FALSE(missing.ok());
+  EXPECT_CONTAINS(missing.error(), "none.csv");
+}
+
+// ---------------------------------------------------------------------------------------------
 // read_spheres
 
 TEST(ReadSpheres, MissingFileNamesThePath) {
