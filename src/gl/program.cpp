@@ -113,6 +113,12 @@ void Program::read_uniforms() {
   }
 }
 
+bool Program::has_uniform(std::string_view name) const {
+  for (const auto& u : uniforms_)
+    if (u.first == name) return true;
+  return false;
+}
+
 GLint Program::uniform(std::string_view name) const {
   for (const auto& [n, location] : uniforms_)
     if (n == name) return location;

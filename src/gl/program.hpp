@@ -35,6 +35,8 @@ class Program {
   /// array is named without "[0]". Asserts that the program has it: a misspelt name, or a
   /// uniform the shader does not use, is a bug.
   [[nodiscard]] GLint uniform(std::string_view name) const;
+  /// Whether the program has this active uniform (for one shared by some programs only).
+  [[nodiscard]] bool has_uniform(std::string_view name) const;
   /// Binds the program and dispatches ceil(n / local size) groups (nothing when n == 0).
   void dispatch(std::uint64_t n) const;
 

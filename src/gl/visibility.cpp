@@ -38,7 +38,7 @@ void GlDetector::set_camera_uniforms(const Program& prog) const {
   glProgramUniform3f(p, prog.uniform("u_up"), rig.up.x, rig.up.y, rig.up.z);
   glProgramUniform2f(p, prog.uniform("u_tan_half"), rig.tan_half_x, rig.tan_half_y);
   glProgramUniform2f(p, prog.uniform("u_near_far"), rig.near_plane, rig.far_plane);
-  glProgramUniform2i(p, prog.uniform("u_map"), rig.map_w, rig.map_h);
+  if (prog.has_uniform("u_map")) glProgramUniform2i(p, prog.uniform("u_map"), rig.map_w, rig.map_h);  // impostor only
 }
 
 Status GlDetector::render_visibility(std::uint32_t objects) {
