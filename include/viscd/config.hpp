@@ -30,7 +30,8 @@ struct Config {
   Bits bits = Bits::adaptive;
   /// Bit layout, extended (default) or plain.
   Layout layout = Layout::extended;
-  /// Cull objects below lambda pixels. Applies only when a camera is given. Default on.
+  /// Cull objects below lambda pixels. Applies only when a camera or the caller's id map
+  /// (FrameInput::id_map) is given. Default on.
   bool culling = true;
   /// Visibility-map resolution; 0 x 0 (default) means the camera's screen resolution. Counts
   /// on a smaller or larger map are scaled by screen area / map area before lambda and mu apply.

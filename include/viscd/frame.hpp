@@ -49,10 +49,11 @@ struct FrameInput {
   /// the counts as from a map of its own. With `camera` counts are scaled by screen area / map
   /// area; without one they are map pixels. The map's size replaces Config::map_width x
   /// map_height and follows validate_map_size(); an id above the number of spheres is an error.
-  /// Backends: reference and cpu (the gl backend takes `gl_id_texture` instead, once it can).
+  /// Every backend; the gl backend also takes the map as a texture (`gl_id_texture`).
   std::span<const std::uint32_t> id_map;
   int id_map_width = 0, id_map_height = 0;
-  /// gl backend only: the caller's R32UI texture holding such a map (its size in id_map_width x
+  /// gl backend only: the caller's R32UI texture holding such a map (GlOptions::use_current_context
+  /// shares the caller's context, where the texture lives; its size in id_map_width x
   /// id_map_height); 0 = none. The other backends refuse a frame that sets it.
   unsigned gl_id_texture = 0;
 };
