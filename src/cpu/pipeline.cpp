@@ -11,7 +11,7 @@
 namespace viscd::detail {
 
 std::uint64_t PipelineDetector::memory_bytes() const {
-  return map_.memory_bytes() + bytes_of(counts_) + bytes_of(hist_) + bytes_of(count_scratch_) + bytes_of(active_) +
+  return map_.memory_bytes() + bytes_of(counts_) + bytes_of(hist_) + count_scratch_.memory_bytes() + bytes_of(active_) +
          bytes_of(pairable_) + bytes_of(unpaired_) + backend_memory_bytes();
 }
 

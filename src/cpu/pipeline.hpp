@@ -39,7 +39,8 @@ class PipelineDetector : public Detector {
   VisibilityMap map_;
 
  private:
-  std::vector<std::uint32_t> counts_, hist_, count_scratch_, active_, pairable_, unpaired_;
+  std::vector<std::uint32_t> counts_, hist_, active_, pairable_, unpaired_;
+  CountScratch count_scratch_;
 };
 
 /// The filters' pre-pass: with G the OR of the groups and M the OR of the masks over `active`, an

@@ -34,7 +34,8 @@ std::vector<std::uint32_t> histogram(const std::vector<std::uint32_t>& ids, std:
 }
 
 TEST(CountIds, AgainstAHistogram) {
-  std::vector<std::uint32_t> hist, scratch;
+  std::vector<std::uint32_t> hist;
+  detail::CountScratch scratch;
   for (std::size_t pixels : {0u, 1u, 3u, 4u, 5u, 7u, 8u, 9u, 4095u, 4096u, 4097u, 100003u, 921600u}) {
     for (std::uint32_t max_run : {1u, 3u, 4u, 5u, 64u, 5000u}) {
       // Few objects for the pixels (a histogram per task) and many (atomic adds into one).
@@ -51,7 +52,8 @@ TEST(CountIds, AgainstAHistogram) {
 }
 
 TEST(CountIds, IdsBeyondTheObjectsAreCountedApart) {
-  std::vector<std::uint32_t> hist, scratch;
+  std::vector<std::uint32_t> hist;
+  detail::CountScratch scratch;
   for (std::size_t pixels : {1u, 6u, 5000u, 200000u}) {
     for (std::uint32_t objects : {10u, 100000u}) {
       for (std::size_t at : {std::size_t{0}, pixels / 2, pixels - 1}) {
