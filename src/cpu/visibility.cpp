@@ -122,17 +122,21 @@ bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int thre
   hist.assign(slots, 0u);
   const auto bad = static_cast<std::uint32_t>(objects + 1);
   const std::size_t n = ids.size();
-  const auto tasks = static_cast<std::size_t>(threads_for(n, threads));
+  // In parallel only with few objects for the pixels: a range of rows after the first pays for
+  // every id it touches once more when its counts are added (from another core's cache), and with
+  // many objects, each covering few pixels, that costs more than the second thread saves
+  // (measured on a 1280x720 map, docs/benchmarks.md: at 10^4 objects two threads took 0.40 ms and
+  // one 0.44; at 5 x 10^4, 0.76 and 0.54).
+  const auto tasks = static_cast<std::size_t>(slots * 32 <= n ? threads_for(n, threads) : 1);
   if (tasks == 1) {
     count_runs(ids.data(), 0, n, bad, [&](std::uint32_t id, std::uint32_t run) { hist[id] += run; });
     return hist[bad] == 0;
   }
   // The first chunk counts into `hist`; each other one into a histogram of its own, kept all zero
   // between calls, noting the ids it touches. Those are added to `hist` after and cleared again:
-  // the cost follows the ids seen, not the objects, and no add is atomic. Where the histograms
-  // are small for the pixels, four chunks per thread: a thread that gets no core then holds up
-  // a quarter of its share, which the others take over.
-  const std::size_t chunks = slots * 4 * tasks <= n ? 4 * tasks : tasks;
+  // the cost follows the ids seen, not the objects, and no add is atomic. Four chunks per thread:
+  // a thread that gets no core then holds up a quarter of its share, which the others take over.
+  const std::size_t chunks = 4 * tasks;
   if (scratch.hist.size() < chunks - 1) {
     scratch.hist.resize(chunks - 1);
     scratch.touched.resize(chunks - 1);

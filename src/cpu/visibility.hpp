@@ -74,10 +74,10 @@ struct CountScratch {
 
 /// Stage 2 over an id map (the detector's own or the caller's): hist[id] = the pixels holding id,
 /// for id in [0, objects] (0 = background), and hist[objects + 1] = the pixels whose id exceeds
-/// `objects`. Returns false when there are any. Parallel over contiguous ranges of rows, each
-/// counted as runs of equal ids, 16 pixels at a time; the first range adds into `hist`, the others
-/// into histograms of their own whose touched entries are added after (four ranges per thread
-/// when those histograms are small for the pixels). Needs objects < 2^32 - 2.
+/// `objects`. Returns false when there are any. Counts runs of equal ids, 16 pixels at a time.
+/// With few objects for the pixels (objects + 2 <= pixels / 32) in parallel, four contiguous
+/// ranges of rows per thread: the first adds into `hist`, the others into histograms of their own
+/// whose touched entries are added after; else on the calling thread. Needs objects < 2^32 - 2.
 [[nodiscard]] bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int threads,
                              std::vector<std::uint32_t>& hist, CountScratch& scratch);
 

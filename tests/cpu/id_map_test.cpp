@@ -38,7 +38,7 @@ TEST(CountIds, AgainstAHistogram) {
   detail::CountScratch scratch;
   for (std::size_t pixels : {0u, 1u, 3u, 4u, 5u, 7u, 8u, 9u, 4095u, 4096u, 4097u, 100003u, 921600u}) {
     for (std::uint32_t max_run : {1u, 3u, 4u, 5u, 64u, 5000u}) {
-      // Few objects for the pixels (a histogram per task) and many (atomic adds into one).
+      // Few objects for the pixels (in parallel, a histogram per range of rows) and many (serial).
       for (std::size_t objects : {1u, 7u, 1000u, 300000u}) {
         const auto ids = random_map(pixels, static_cast<std::uint32_t>(objects), max_run, pixels + max_run);
         for (int threads : {1, 2, 5}) {
