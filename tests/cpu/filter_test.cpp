@@ -194,6 +194,38 @@ TEST(FilterDetector, WithCulling) {
   EXPECT_EQ(fc.state, fr.state);
 }
 
+TEST(FilterDetector, ContactEventsFollowTheFilters) {
+  // Frames whose filters change: a pair the filters drop ends, one they let through again begins,
+  // against std::set_difference of the oracle's filtered pair sets.
+  std::vector<Sphere> s = random_spheres_by_half_extent(700, 44, 6.0f, 0.2f, 1.0f);
+  for (auto make : {make_cpu_detector, make_reference_detector}) {
+    Config c;
+    c.contact_events = true;
+    auto d = make(c);
+    std::vector<Pair> before;
+    for (int frame = 0; frame < 8; ++frame) {
+      std::vector<Filter> f = random_filters(s.size(), static_cast<std::uint64_t>(frame % 3));
+      if (frame == 5) f.clear();  // no filters: every overlapping pair
+      for (Sphere& x : s) x.y += 0.05f;
+      FrameInput in;
+      in.spheres = s;
+      in.filters = f;
+      FrameResult out;
+      ASSERT_TRUE(d->detect(in, out).ok());
+      const std::vector<Pair> now = f.empty() ? test::oracle_pairs(s) : oracle_filtered_pairs(s, f);
+      ASSERT_TRUE(same_pairs(out.pairs, now)) << d->name() << ", frame " << frame;
+      std::vector<Pair> began, ended;
+      test::oracle_events(before, now, began, ended);
+      EXPECT_TRUE(same_pairs(out.began, began)) << d->name() << ", frame " << frame;
+      EXPECT_TRUE(same_pairs(out.ended, ended)) << d->name() << ", frame " << frame;
+      if (frame > 0) {
+        EXPECT_FALSE(began.empty() && ended.empty()) << "the filters changed the pairs";
+      }
+      before = now;
+    }
+  }
+}
+
 TEST(FilterDetector, FilterCountMustMatch) {
   const auto s = random_spheres_by_half_extent(10, 1, 3.0f);
   for (auto make : {make_cpu_detector, make_reference_detector}) {
