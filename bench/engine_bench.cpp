@@ -126,7 +126,8 @@ int run_id_map(const Options& o) {
     std::printf("%9u map: %zu runs of equal ids, %.1f %% background\n", n, runs,
                 100.0 * static_cast<double>(background) / static_cast<double>(ids.size()));
     const int threads = detail::resolve_threads(o.threads);
-    std::vector<std::uint32_t> hist, scratch;
+    std::vector<std::uint32_t> hist;
+    detail::CountScratch scratch;
     std::vector<double> count_ms, stage_ms;
     auto d = make_cpu_detector(c);
     for (int k = 0; k < o.warmup + 10 * o.frames; ++k) {

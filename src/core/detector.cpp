@@ -86,7 +86,8 @@ void pair_differences(const std::vector<Pair>& before, const std::vector<Pair>& 
 bool valid_ray(const Ray& r) {
   for (int k = 0; k < 3; ++k)
     if (!std::isfinite(r.origin[k]) || !std::isfinite(r.dir[k])) return false;
-  return r.dir[0] != 0 || r.dir[1] != 0 || r.dir[2] != 0 ? r.max_t >= 0 : false;  // max_t NaN: false
+  const bool moves = r.dir[0] != 0 || r.dir[1] != 0 || r.dir[2] != 0;
+  return moves && r.max_t >= 0;  // false for a NaN max_t too
 }
 
 bool valid_sphere(const Sphere& s) { return validate_spheres(std::span<const Sphere>(&s, 1)).ok(); }

@@ -11,19 +11,17 @@
 namespace viscd::detail {
 
 std::uint64_t PipelineDetector::memory_bytes() const {
-  return map_.memory_bytes() + bytes_of(counts_) + bytes_of(hist_) + bytes_of(count_scratch_) + bytes_of(active_) +
+  return map_.memory_bytes() + bytes_of(counts_) + bytes_of(hist_) + count_scratch_.memory_bytes() + bytes_of(active_) +
          bytes_of(pairable_) + bytes_of(unpaired_) + backend_memory_bytes();
 }
 
-void split_by_filters(std::span<const std::uint32_t> active, std::span<const Filter> filters,
-                      std::vector<std::uint32_t>& pairable, std::vector<std::uint32_t>& unpaired) {
+FilterSplit split_by_filters(std::span<const std::uint32_t> active, std::span<const Filter> filters,
+                             std::vector<std::uint32_t>& pairable, std::vector<std::uint32_t>& unpaired) {
   std::uint32_t groups = 0, masks = 0;
   for (const std::uint32_t k : active) groups |= filters[k].group, masks |= filters[k].mask;
-  // At most every object: no allocation as the split changes from frame to frame.
-  pairable.reserve(filters.size());
-  unpaired.reserve(filters.size());
-  pairable.resize(active.size());
-  unpaired.resize(active.size());
+  // Sized once for every object and never shrunk: no allocation, and no clearing, per frame.
+  if (pairable.size() < filters.size()) pairable.resize(filters.size());
+  if (unpaired.size() < filters.size()) unpaired.resize(filters.size());
   // Branch-free: each id goes to both lists, and only one of them moves on.
   std::size_t p = 0, u = 0;
   for (const std::uint32_t k : active) {
@@ -34,8 +32,7 @@ void split_by_filters(std::span<const std::uint32_t> active, std::span<const Fil
     p += can;
     u += !can;
   }
-  pairable.resize(p);
-  unpaired.resize(u);
+  return {std::span<const std::uint32_t>(pairable.data(), p), std::span<const std::uint32_t>(unpaired.data(), u)};
 }
 
 Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
@@ -93,9 +90,9 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
   // Objects whose filters pair them with nothing active stay out of the tree.
   std::span<const std::uint32_t> pairable = active_, unpaired;
   if (!in.filters.empty()) {
-    split_by_filters(active_, in.filters, pairable_, unpaired_);
-    pairable = pairable_;
-    unpaired = unpaired_;
+    const FilterSplit split = split_by_filters(active_, in.filters, pairable_, unpaired_);
+    pairable = split.pairable;
+    unpaired = split.unpaired;
     ms(Stage::cull) += sw.lap();
   }
 

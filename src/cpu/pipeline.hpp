@@ -39,13 +39,18 @@ class PipelineDetector : public Detector {
   VisibilityMap map_;
 
  private:
-  std::vector<std::uint32_t> counts_, hist_, count_scratch_, active_, pairable_, unpaired_;
+  std::vector<std::uint32_t> counts_, hist_, active_, pairable_, unpaired_;
+  CountScratch count_scratch_;
 };
 
 /// The filters' pre-pass: with G the OR of the groups and M the OR of the masks over `active`, an
 /// object can pair with another only when (mask & G) != 0 and (group & M) != 0. Splits `active`
-/// (ascending) into those that can (`pairable`) and the rest (`unpaired`), both ascending.
-void split_by_filters(std::span<const std::uint32_t> active, std::span<const Filter> filters,
-                      std::vector<std::uint32_t>& pairable, std::vector<std::uint32_t>& unpaired);
+/// (ascending) into those that can and the rest, both ascending, written to the front of
+/// `pairable` and `unpaired` (grown to filters.size() when shorter, never shrunk).
+struct FilterSplit {
+  std::span<const std::uint32_t> pairable, unpaired;
+};
+FilterSplit split_by_filters(std::span<const std::uint32_t> active, std::span<const Filter> filters,
+                             std::vector<std::uint32_t>& pairable, std::vector<std::uint32_t>& unpaired);
 
 }  // namespace viscd::detail

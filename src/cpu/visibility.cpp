@@ -112,43 +112,62 @@ void count_runs(const std::uint32_t* p, std::size_t b, std::size_t e, std::uint3
 }  // namespace
 
 bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int threads, std::vector<std::uint32_t>& hist,
-               std::vector<std::uint32_t>& scratch) {
+               CountScratch& scratch) {
   VISCD_ASSERT(objects < 0xFFFFFFFFu - 1, "ids are 32-bit");
   const std::size_t slots = objects + 2;
   hist.assign(slots, 0u);
   const auto bad = static_cast<std::uint32_t>(objects + 1);
   const std::size_t n = ids.size();
-  const auto tasks = static_cast<std::size_t>(threads_for(n, threads));
+  // In parallel only with few objects for the pixels: a range of rows after the first pays for
+  // every id it touches once more when its counts are added (from another core's cache), and with
+  // many objects, each covering few pixels, that costs more than the second thread saves
+  // (measured on a 1280x720 map, docs/benchmarks.md: at 10^4 objects two threads took 0.40 ms and
+  // one 0.44; at 5 x 10^4, 0.76 and 0.54).
+  const auto tasks = static_cast<std::size_t>(slots * 32 <= n ? threads_for(n, threads) : 1);
   if (tasks == 1) {
     count_runs(ids.data(), 0, n, bad, [&](std::uint32_t id, std::uint32_t run) { hist[id] += run; });
-  } else if (slots <= n / 8) {
-    // Few objects for the pixels: the first task counts into `hist`, each other one into a
-    // histogram of its own, summed after (clearing and summing cost less than the pixels).
-    if (scratch.size() < (tasks - 1) * slots) scratch.resize((tasks - 1) * slots);
-    for_chunks(n, tasks, [&](std::size_t b, std::size_t e, std::size_t t) {
-      std::uint32_t* h = t == 0 ? hist.data() : scratch.data() + (t - 1) * slots;
-      if (t != 0) std::fill_n(h, slots, 0u);
-      count_runs(ids.data(), b, e, bad, [&](std::uint32_t id, std::uint32_t run) { h[id] += run; });
+    return hist[bad] == 0;
+  }
+  // The first chunk counts into `hist`; each other one into a histogram of its own, kept all zero
+  // between calls, noting the ids it touches. Those are added to `hist` after and cleared again:
+  // the cost follows the ids seen, not the objects, and no add is atomic. Four chunks per thread:
+  // a thread that gets no core then holds up a quarter of its share, which the others take over.
+  const std::size_t chunks = 4 * tasks;
+  if (scratch.hist.size() < chunks - 1) {
+    scratch.hist.resize(chunks - 1);
+    scratch.touched.resize(chunks - 1);
+  }
+  for (std::size_t t = 1; t < chunks; ++t) {  // outside the tasks: may allocate
+    if (scratch.hist[t - 1].size() < slots) scratch.hist[t - 1].resize(slots, 0u);
+    const Chunk c = chunk_of(n, t, chunks);
+    scratch.touched[t - 1].clear();
+    scratch.touched[t - 1].reserve(std::min(slots, c.end - c.begin));  // a run per new id at most
+  }
+  for_chunks(n, chunks, [&](std::size_t b, std::size_t e, std::size_t t) {
+    if (t == 0) {
+      count_runs(ids.data(), b, e, bad, [&](std::uint32_t id, std::uint32_t run) { hist[id] += run; });
+      return;
+    }
+    std::uint32_t* h = scratch.hist[t - 1].data();
+    std::vector<std::uint32_t>& touched = scratch.touched[t - 1];
+    count_runs(ids.data(), b, e, bad, [&](std::uint32_t id, std::uint32_t run) {
+      const std::uint32_t before = h[id];
+      h[id] = before + run;
+      if (before == 0) touched.push_back(id);
     });
-    parallel_for(slots, threads, [&](std::size_t k) {
-      std::uint32_t sum = hist[k];
-      for (std::size_t t = 1; t < tasks; ++t) sum += scratch[(t - 1) * slots + k];
-      hist[k] = sum;
-    });
-  } else {
-    // Many objects: one shared histogram. Rows of different tasks rarely share an id, so the
-    // atomic adds (one per run) do not contend.
-    for_chunks(n, tasks, [&](std::size_t b, std::size_t e, std::size_t) {
-      count_runs(ids.data(), b, e, bad, [&](std::uint32_t id, std::uint32_t run) {
-        std::atomic_ref<std::uint32_t>(hist[id]).fetch_add(run, std::memory_order_relaxed);
-      });
-    });
+  });
+  for (std::size_t t = 1; t < chunks; ++t) {
+    std::uint32_t* h = scratch.hist[t - 1].data();
+    for (const std::uint32_t id : scratch.touched[t - 1]) {
+      hist[id] += h[id];
+      h[id] = 0;
+    }
   }
   return hist[bad] == 0;
 }
 
 void count_pixels(const VisibilityMap& map, std::size_t objects, int threads, std::vector<std::uint32_t>& counts,
-                  std::vector<std::uint32_t>& hist, std::vector<std::uint32_t>& scratch) {
+                  std::vector<std::uint32_t>& hist, CountScratch& scratch) {
   if (map.has_counts && map.counts.size() == objects) {  // counted while rasterising
     counts.assign(map.counts.begin(), map.counts.end());
     return;

@@ -60,19 +60,31 @@ void write_normal(const CameraRig& cam, std::span<const Sphere> spheres, Visibil
 /// The reference rasterizer: for every pixel, every sphere. O(W H N); the oracle.
 void rasterize_reference(const CameraRig& cam, std::span<const Sphere> spheres, VisibilityMap& map);
 
+/// count_ids()'s buffers, kept between frames: per range of rows but the first, a histogram (all
+/// zero between calls) and the ids it touched.
+struct CountScratch {
+  std::vector<std::vector<std::uint32_t>> hist, touched;
+  [[nodiscard]] std::uint64_t memory_bytes() const {
+    std::uint64_t b = 0;
+    for (const auto& v : hist) b += v.capacity() * sizeof(std::uint32_t);
+    for (const auto& v : touched) b += v.capacity() * sizeof(std::uint32_t);
+    return b;
+  }
+};
+
 /// Stage 2 over an id map (the detector's own or the caller's): hist[id] = the pixels holding id,
 /// for id in [0, objects] (0 = background), and hist[objects + 1] = the pixels whose id exceeds
-/// `objects`. Returns false when there are any. Parallel over contiguous ranges of rows, each
-/// counted as runs of equal ids, eight pixels at a time. With few objects for the pixels each task
-/// has a histogram of its own (`scratch`, reused), else every task adds into `hist` atomically,
-/// once per run. Needs objects < 2^32 - 2.
+/// `objects`. Returns false when there are any. Counts runs of equal ids, 16 pixels at a time.
+/// With few objects for the pixels (objects + 2 <= pixels / 32) in parallel, four contiguous
+/// ranges of rows per thread: the first adds into `hist`, the others into histograms of their own
+/// whose touched entries are added after; else on the calling thread. Needs objects < 2^32 - 2.
 [[nodiscard]] bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int threads,
-                             std::vector<std::uint32_t>& hist, std::vector<std::uint32_t>& scratch);
+                             std::vector<std::uint32_t>& hist, CountScratch& scratch);
 
 /// Stage 2: pixels per object over the map: the rasterizer's counts when it left them for
 /// `objects` objects, else count_ids() over the id map (`hist`, `scratch`: its buffers, reused).
 void count_pixels(const VisibilityMap& map, std::size_t objects, int threads, std::vector<std::uint32_t>& counts,
-                  std::vector<std::uint32_t>& hist, std::vector<std::uint32_t>& scratch);
+                  std::vector<std::uint32_t>& hist, CountScratch& scratch);
 
 /// Stage 9: lit spheres, red colliding, blue free, yellow culled; dark background. RGBA8.
 void shade(const CameraRig& cam, const VisibilityMap& map, std::span<const ObjectState> state, int threads,

@@ -63,29 +63,35 @@ TEST(FilterRule, HandWorked) {
 
 TEST(FilterPrepass, SplitsByWhatTheActiveSetCanPair) {
   const std::vector<Filter> f = {{1, 2}, {2, 1}, {4, 8}, {8, 4}, {16, 0}, {4, 1}};
+  std::vector<std::uint32_t> pairable_buffer, unpaired_buffer;
   std::vector<std::uint32_t> pairable, unpaired;
+  auto split = [&](const std::vector<std::uint32_t>& active, std::span<const Filter> filters) {
+    const detail::FilterSplit s = detail::split_by_filters(active, filters, pairable_buffer, unpaired_buffer);
+    pairable.assign(s.pairable.begin(), s.pairable.end());
+    unpaired.assign(s.unpaired.begin(), s.unpaired.end());
+  };
   // Active {0, 1, 2, 4}: G = 1 | 2 | 4 | 16 = 23, M = 2 | 1 | 8 | 0 = 11.
   // 0: mask 2 & G, group 1 & M: can. 1: mask 1 & G, group 2 & M: can. 2: mask 8 & G = 0: cannot.
   // 4: mask 0: cannot.
-  detail::split_by_filters(std::vector<std::uint32_t>{0, 1, 2, 4}, f, pairable, unpaired);
+  split({0, 1, 2, 4}, f);
   EXPECT_EQ(pairable, (std::vector<std::uint32_t>{0, 1}));
   EXPECT_EQ(unpaired, (std::vector<std::uint32_t>{2, 4}));
   // Active {0, ..., 4}: G = 31, M = 15. Now 2 (mask 8, group 4) and 3 (mask 4, group 8) can.
-  detail::split_by_filters(std::vector<std::uint32_t>{0, 1, 2, 3, 4}, f, pairable, unpaired);
+  split({0, 1, 2, 3, 4}, f);
   EXPECT_EQ(pairable, (std::vector<std::uint32_t>{0, 1, 2, 3}));
   EXPECT_EQ(unpaired, (std::vector<std::uint32_t>{4}));
   // Active {2, 5}: G = 4, M = 9. 2: mask 8 & 4 = 0: cannot. 5: mask 1 & 4 = 0: cannot.
-  detail::split_by_filters(std::vector<std::uint32_t>{2, 5}, f, pairable, unpaired);
+  split({2, 5}, f);
   EXPECT_TRUE(pairable.empty());
   EXPECT_EQ(unpaired, (std::vector<std::uint32_t>{2, 5}));
   // A necessary condition only: these three pass it (G = M = 7), yet no two accept each other;
   // the broadphase's own test per pair decides.
   const std::vector<Filter> ring = {{1, 2}, {2, 4}, {4, 1}};
-  detail::split_by_filters(std::vector<std::uint32_t>{0, 1, 2}, ring, pairable, unpaired);
+  split({0, 1, 2}, ring);
   EXPECT_EQ(pairable, (std::vector<std::uint32_t>{0, 1, 2}));
   EXPECT_TRUE(unpaired.empty());
   check_both(std::vector<Sphere>(3, Sphere{0, 0, 0, 1}), ring, "three that pass the pre-pass and pair with none");
-  detail::split_by_filters({}, f, pairable, unpaired);
+  split({}, f);
   EXPECT_TRUE(pairable.empty() && unpaired.empty());
 }
 
@@ -186,6 +192,38 @@ TEST(FilterDetector, WithCulling) {
   EXPECT_TRUE(same_pairs(fr.pairs, want)) << "reference";
   EXPECT_TRUE(same_pairs(fc.pairs, want)) << "cpu";
   EXPECT_EQ(fc.state, fr.state);
+}
+
+TEST(FilterDetector, ContactEventsFollowTheFilters) {
+  // Frames whose filters change: a pair the filters drop ends, one they let through again begins,
+  // against std::set_difference of the oracle's filtered pair sets.
+  std::vector<Sphere> s = random_spheres_by_half_extent(700, 44, 6.0f, 0.2f, 1.0f);
+  for (auto make : {make_cpu_detector, make_reference_detector}) {
+    Config c;
+    c.contact_events = true;
+    auto d = make(c);
+    std::vector<Pair> before;
+    for (int frame = 0; frame < 8; ++frame) {
+      std::vector<Filter> f = random_filters(s.size(), static_cast<std::uint64_t>(frame % 3));
+      if (frame == 5) f.clear();  // no filters: every overlapping pair
+      for (Sphere& x : s) x.y += 0.05f;
+      FrameInput in;
+      in.spheres = s;
+      in.filters = f;
+      FrameResult out;
+      ASSERT_TRUE(d->detect(in, out).ok());
+      const std::vector<Pair> now = f.empty() ? test::oracle_pairs(s) : oracle_filtered_pairs(s, f);
+      ASSERT_TRUE(same_pairs(out.pairs, now)) << d->name() << ", frame " << frame;
+      std::vector<Pair> began, ended;
+      test::oracle_events(before, now, began, ended);
+      EXPECT_TRUE(same_pairs(out.began, began)) << d->name() << ", frame " << frame;
+      EXPECT_TRUE(same_pairs(out.ended, ended)) << d->name() << ", frame " << frame;
+      if (frame > 0) {
+        EXPECT_FALSE(began.empty() && ended.empty()) << "the filters changed the pairs";
+      }
+      before = now;
+    }
+  }
 }
 
 TEST(FilterDetector, FilterCountMustMatch) {

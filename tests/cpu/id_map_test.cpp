@@ -35,10 +35,11 @@ std::vector<std::uint32_t> histogram(const std::vector<std::uint32_t>& ids, std:
 }
 
 TEST(CountIds, AgainstAHistogram) {
-  std::vector<std::uint32_t> hist, scratch;
+  std::vector<std::uint32_t> hist;
+  detail::CountScratch scratch;
   for (std::size_t pixels : {0u, 1u, 3u, 4u, 5u, 7u, 8u, 9u, 4095u, 4096u, 4097u, 100003u, 921600u}) {
     for (std::uint32_t max_run : {1u, 3u, 4u, 5u, 64u, 5000u}) {
-      // Few objects for the pixels (a histogram per task) and many (atomic adds into one).
+      // Few objects for the pixels (in parallel, a histogram per range of rows) and many (serial).
       for (std::size_t objects : {1u, 7u, 1000u, 300000u}) {
         const auto ids = random_map(pixels, static_cast<std::uint32_t>(objects), max_run, pixels + max_run);
         for (int threads : {1, 2, 5}) {
@@ -52,7 +53,8 @@ TEST(CountIds, AgainstAHistogram) {
 }
 
 TEST(CountIds, IdsBeyondTheObjectsAreCountedApart) {
-  std::vector<std::uint32_t> hist, scratch;
+  std::vector<std::uint32_t> hist;
+  detail::CountScratch scratch;
   for (std::size_t pixels : {1u, 6u, 5000u, 200000u}) {
     for (std::uint32_t objects : {10u, 100000u}) {
       for (std::size_t at : {std::size_t{0}, pixels / 2, pixels - 1}) {
