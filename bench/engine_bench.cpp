@@ -1,5 +1,5 @@
 // viscd_engine_bench: measurements of the engine-facing features (docs/benchmarks.md, "Filters,
-// id maps and queries"). Three modes, each printing a table (and, with --csv, writing it):
+// id maps and queries"). Four modes, each printing a table (and, with --csv, writing it):
 //
 //   --filters  cpu frames on the moving ring scene without a camera: no filters, every filter the
 //              default, half the objects in a group that collides with nothing (group 2, mask 0:
@@ -10,6 +10,8 @@
 //              detect() from the map): median ms. The map is a cpu frame's own, zoom-out camera.
 //   --rays     ray_cast and overlap on a frame of N objects (no camera): median microseconds per
 //              query over batches, rays from random points of the world in random directions.
+//   --events   cpu frames of the moving ring scene without a camera, contact events off and on,
+//              interleaved run by run: median detect() wall ms of each and their ratio.
 
 #include <CLI/CLI.hpp>
 
@@ -35,7 +37,7 @@ constexpr float kFrameDt = 1.0f / 60.0f;
 struct Options {
   std::vector<std::uint32_t> objects{100000};
   int frames = 20, warmup = 3, repeats = 3, threads = 0;
-  bool filters = false, id_map = false, rays = false;
+  bool filters = false, id_map = false, rays = false, events = false;
   int queries = 20000;
   std::string csv;
 };
@@ -69,6 +71,45 @@ double frame_ms(const Options& o, std::uint32_t n, const std::vector<Filter>& fi
   }
   for (std::size_t st = 0; st < kStageCount; ++st) stage[st] = median(per_stage[st]);
   return median(all);
+}
+
+// Frames with contact events off and on, the variants interleaved run by run in alternating
+// order (same scene sequence): the median detect() ms of each, their ratio, the events per frame.
+int run_events(const Options& o) {
+  CsvWriter csv(o.csv, {"objects", "off_ms", "on_ms", "ratio", "pairs", "events_per_frame"});
+  std::printf("%9s %10s %10s %7s %9s %16s\n", "objects", "off_ms", "on_ms", "ratio", "pairs", "events_per_frame");
+  for (const std::uint32_t n : o.objects) {
+    std::vector<double> off, on, events;
+    std::size_t pairs = 0;
+    for (int rep = 0; rep < o.repeats; ++rep) {
+      for (const bool second : {false, true}) {
+        const bool with_events = second != (rep % 2 == 1);  // the order alternates run by run
+        Scene scene = Scene::make({.objects = n});
+        Config c;
+        c.threads = o.threads;
+        c.contact_events = with_events;
+        auto d = make_cpu_detector(c);
+        FrameResult f;
+        for (int k = 0; k < o.warmup + o.frames; ++k) {
+          scene.step(kFrameDt);
+          const auto t0 = Clock::now();
+          if (Status s = d->detect(scene.spheres(), nullptr, f); !s) {
+            std::fprintf(stderr, "detect failed: %s\n", s.error().c_str());
+            std::exit(1);
+          }
+          if (k < o.warmup) continue;
+          (with_events ? on : off).push_back(ms_since(t0));
+          if (with_events) events.push_back(static_cast<double>(f.began.size() + f.ended.size()));
+        }
+        pairs = f.pairs.size();
+      }
+    }
+    const double a = median(off), b = median(on);
+    std::printf("%9u %10.3f %10.3f %7.3f %9zu %16.1f\n", n, a, b, b / a, pairs, median(events));
+    csv.row({std::to_string(n), format("%.4f", a), format("%.4f", b), format("%.4f", b / a), std::to_string(pairs),
+             format("%.1f", median(events))});
+  }
+  return 0;
 }
 
 int run_filters(const Options& o) {
@@ -219,17 +260,19 @@ int main(int argc, char** argv) {
   app.add_option("--objects", o.objects, "object counts")->delimiter(',');
   app.add_option("--frames", o.frames, "timed frames per run");
   app.add_option("--warmup", o.warmup, "untimed frames first");
-  app.add_option("--repeats", o.repeats, "runs per variant (--filters)");
+  app.add_option("--repeats", o.repeats, "runs per variant (--filters, --events)");
   app.add_option("--threads", o.threads, "as Config::threads (0 = all)");
   app.add_option("--queries", o.queries, "queries per kind (--rays)");
   app.add_option("--csv", o.csv, "also write the table here");
   app.add_flag("--filters", o.filters, "filtered against unfiltered frames");
   app.add_flag("--id-map", o.id_map, "counting a 1280x720 id map");
   app.add_flag("--rays", o.rays, "ray and overlap queries");
+  app.add_flag("--events", o.events, "frames with contact events on against off");
   CLI11_PARSE(app, argc, argv);
   if (o.filters) return viscd::bench::run_filters(o);
   if (o.id_map) return viscd::bench::run_id_map(o);
   if (o.rays) return viscd::bench::run_rays(o);
-  std::fprintf(stderr, "viscd_engine_bench: give --filters, --id-map or --rays\n");
+  if (o.events) return viscd::bench::run_events(o);
+  std::fprintf(stderr, "viscd_engine_bench: give --filters, --id-map, --rays or --events\n");
   return 2;
 }
