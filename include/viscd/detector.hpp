@@ -96,6 +96,14 @@ class Detector {
   [[nodiscard]] virtual bool query_ray(const Ray& ray, RayHit& hit);
   virtual void query_ray_all(const Ray& ray, std::vector<RayHit>& hits);
   virtual void query_overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices);
+  /// The brute-force answers over given spheres with their object indices (ascending): the
+  /// defaults above, for a backend that keeps the active spheres its own way.
+  [[nodiscard]] static bool brute_ray(std::span<const Sphere> spheres, std::span<const std::uint32_t> ids,
+                                      const Ray& ray, RayHit& hit);
+  static void brute_ray_all(std::span<const Sphere> spheres, std::span<const std::uint32_t> ids, const Ray& ray,
+                            std::vector<RayHit>& hits);
+  static void brute_overlap(std::span<const Sphere> spheres, std::span<const std::uint32_t> ids, const Sphere& sphere,
+                            std::vector<std::uint32_t>& indices);
 
   Config config_;
 

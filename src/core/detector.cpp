@@ -163,29 +163,42 @@ void Detector::overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices
   if (queries_ready_ && valid_sphere(sphere)) query_overlap(sphere, indices);
 }
 
-bool Detector::query_ray(const Ray& ray, RayHit& hit) {
+bool Detector::brute_ray(std::span<const Sphere> spheres, std::span<const std::uint32_t> ids, const Ray& ray,
+                         RayHit& hit) {
   bool found = false;
-  for (std::size_t k = 0; k < query_spheres_.size(); ++k) {
+  for (std::size_t k = 0; k < spheres.size(); ++k) {
     float t = 0;
-    if (!ray_hits_sphere(ray, query_spheres_[k], t)) continue;
-    const RayHit h{query_ids_[k], t};
+    if (!ray_hits_sphere(ray, spheres[k], t)) continue;
+    const RayHit h{ids[k], t};
     if (!found || hit_before(h, hit)) hit = h;
     found = true;
   }
   return found;
 }
 
-void Detector::query_ray_all(const Ray& ray, std::vector<RayHit>& hits) {
-  for (std::size_t k = 0; k < query_spheres_.size(); ++k) {
+void Detector::brute_ray_all(std::span<const Sphere> spheres, std::span<const std::uint32_t> ids, const Ray& ray,
+                             std::vector<RayHit>& hits) {
+  for (std::size_t k = 0; k < spheres.size(); ++k) {
     float t = 0;
-    if (ray_hits_sphere(ray, query_spheres_[k], t)) hits.push_back({query_ids_[k], t});
+    if (ray_hits_sphere(ray, spheres[k], t)) hits.push_back({ids[k], t});
   }
   std::sort(hits.begin(), hits.end(), hit_before);
 }
 
+void Detector::brute_overlap(std::span<const Sphere> spheres, std::span<const std::uint32_t> ids,
+                             const Sphere& sphere, std::vector<std::uint32_t>& indices) {
+  for (std::size_t k = 0; k < spheres.size(); ++k)
+    if (spheres_overlap(sphere, spheres[k])) indices.push_back(ids[k]);  // ascending already
+}
+
+bool Detector::query_ray(const Ray& ray, RayHit& hit) { return brute_ray(query_spheres_, query_ids_, ray, hit); }
+
+void Detector::query_ray_all(const Ray& ray, std::vector<RayHit>& hits) {
+  brute_ray_all(query_spheres_, query_ids_, ray, hits);
+}
+
 void Detector::query_overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices) {
-  for (std::size_t k = 0; k < query_spheres_.size(); ++k)
-    if (spheres_overlap(sphere, query_spheres_[k])) indices.push_back(query_ids_[k]);  // ascending already
+  brute_overlap(query_spheres_, query_ids_, sphere, indices);
 }
 
 Status validate_spheres(std::span<const Sphere> spheres) {

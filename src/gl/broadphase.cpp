@@ -255,6 +255,8 @@ Status GlDetector::run_broadphase(std::span<const Sphere> spheres, std::span<con
   if (!ctx_->make_current()) return Status::failure("OpenGL: cannot make the detector's context current");
   upload_spheres(spheres);
   has_filters_ = false;
+  query_copy_ready_ = false;  // a stage test, not a frame: queries see no objects
+  query_objects_ = 0;
   const auto n = static_cast<std::uint32_t>(active.size());
   active_.reserve(4 * static_cast<GLsizeiptr>(n));
   states_.reserve(4 * static_cast<GLsizeiptr>(spheres.size()));

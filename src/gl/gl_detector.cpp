@@ -193,6 +193,39 @@ Status GlDetector::run_frame(const FrameInput& input, FrameResult& out) {
   }
 }
 
+bool GlDetector::query_ray(const Ray& ray, RayHit& hit) {
+  read_active_spheres();
+  return brute_ray(query_active_, query_ids_, ray, hit);
+}
+
+void GlDetector::query_ray_all(const Ray& ray, std::vector<RayHit>& hits) {
+  read_active_spheres();
+  brute_ray_all(query_active_, query_ids_, ray, hits);
+}
+
+void GlDetector::query_overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices) {
+  read_active_spheres();
+  brute_overlap(query_active_, query_ids_, sphere, indices);
+}
+
+void GlDetector::read_active_spheres() {
+  if (query_copy_ready_) return;
+  query_copy_ready_ = true;
+  const std::uint32_t n = query_objects_;
+  query_all_.resize(n);
+  state_words_.resize(n);
+  query_active_.clear();
+  query_ids_.clear();
+  if (n == 0 || !ctx_->make_current()) return;
+  glGetNamedBufferSubData(spheres_.get(), 0, 16 * static_cast<GLsizeiptr>(n), query_all_.data());
+  glGetNamedBufferSubData(states_.get(), 0, 4 * static_cast<GLsizeiptr>(n), state_words_.data());
+  for (std::uint32_t k = 0; k < n; ++k) {
+    if (state_words_[k] == VISCD_STATE_CULLED) continue;
+    query_active_.push_back(query_all_[k]);
+    query_ids_.push_back(k);
+  }
+}
+
 Status GlDetector::detect_frame(const FrameInput& in, FrameResult& out) {
   // Passes over N run one invocation per object (scan blocks of VISCD_SCAN_BLOCK), one
   // dispatch each: the driver's work-group limit bounds N.
@@ -217,6 +250,8 @@ Status GlDetector::detect_frame(const FrameInput& in, FrameResult& out) {
 
   begin_frame(in);
   stats.has_pixels = has_pixels_;
+  query_copy_ready_ = false;  // the spheres and states on the GPU are this frame's now
+  query_objects_ = n_all;
   if (callers_map) {
     if (Status s = count_callers_map(in); !s) return s;
   } else if (has_camera) {

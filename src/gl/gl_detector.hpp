@@ -75,6 +75,13 @@ class GlDetector final : public Detector {
   /// The frame. Filters, the caller's id map and a gl id texture are refused (not taken yet).
   /// Queries: the base class's brute force over the active spheres (answers_queries() is false).
   [[nodiscard]] Status run_frame(const FrameInput& input, FrameResult& out) override;
+  // Queries: the frame's spheres and states stay on the GPU; the first query after a frame reads
+  // them back once (no host copy in frames nobody queries), then Detector's brute force.
+  [[nodiscard]] bool answers_queries() const override { return true; }
+  [[nodiscard]] bool query_ray(const Ray& ray, RayHit& hit) override;
+  void query_ray_all(const Ray& ray, std::vector<RayHit>& hits) override;
+  void query_overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices) override;
+  void read_active_spheres();
 
  private:
   GlDetector(const Config& config, const GlOptions& options) : Detector(config), options_(options) {}
@@ -178,6 +185,11 @@ class GlDetector final : public Detector {
   bool has_pixels_ = false;   // pixels are counted this frame (a camera, or the caller's map)
   bool has_filters_ = false;  // FrameInput::filters were given this frame
   std::vector<std::uint32_t> state_words_;
+  // The last frame's active spheres for queries, read back on the first query after it.
+  bool query_copy_ready_ = false;
+  std::uint32_t query_objects_ = 0;  // N of the last frame
+  std::vector<Sphere> query_all_, query_active_;
+  std::vector<std::uint32_t> query_ids_;
   // This frame's FrameInfo, read back once at the end of the broadphase (with the pair count).
   shader::FrameInfo frame_info_{};
   // The previous frame's values, the default mode's source of m, the layout and the bounds.
