@@ -106,8 +106,9 @@ int main() {
     std::fprintf(stderr, "no EGL display\n");
     return 1;
   }
-  const EGLint attribs[] = {EGL_CONTEXT_MAJOR_VERSION,       4, EGL_CONTEXT_MINOR_VERSION, 5,
-                            EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
+  const EGLint attribs[] = {
+      EGL_CONTEXT_MAJOR_VERSION,           4,       EGL_CONTEXT_MINOR_VERSION, 5, EGL_CONTEXT_OPENGL_PROFILE_MASK,
+      EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
   EGLContext context = eglCreateContext(display, EGL_NO_CONFIG_KHR, EGL_NO_CONTEXT, attribs);
   if (context == EGL_NO_CONTEXT || !eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, context)) {
     std::fprintf(stderr, "no OpenGL 4.5 context\n");
@@ -171,8 +172,8 @@ int main() {
 
   // ---- viscd in the same context ----
   viscd::Config config;
-  config.lambda = 20;             // cull objects covering fewer than 20 screen pixels
-  config.contact_events = true;   // FrameResult::began / ended
+  config.lambda = 20;            // cull objects covering fewer than 20 screen pixels
+  config.contact_events = true;  // FrameResult::began / ended
   viscd::GlOptions options;
   options.use_current_context = true;  // read the engine's id texture
   auto made = viscd::make_gl_detector(config, options);
@@ -256,11 +257,12 @@ int main() {
           std::fprintf(stderr, "pair (%u, %u) passed its filters\n", p.i, p.j);
           return 1;
         }
-      std::printf("tick %3d: %u of %u objects visible enough, %llu pairs (%zu began, %zu ended), aim: %s%u at t = %.2f "
-                  "(%zu hits)\n",
-                  tick, frame.stats.active, frame.stats.objects, static_cast<unsigned long long>(frame.stats.pairs),
-                  frame.began.size(), frame.ended.size(), aimed ? "object " : "nothing ", aimed ? hit.index : 0,
-                  aimed ? hit.t : 0.0f, hits.size());
+      std::printf(
+          "tick %3d: %u of %u objects visible enough, %llu pairs (%zu began, %zu ended), aim: %s%u at t = %.2f "
+          "(%zu hits)\n",
+          tick, frame.stats.active, frame.stats.objects, static_cast<unsigned long long>(frame.stats.pairs),
+          frame.began.size(), frame.ended.size(), aimed ? "object " : "nothing ", aimed ? hit.index : 0,
+          aimed ? hit.t : 0.0f, hits.size());
     }
   }
   made.value().reset();  // destroyed while the engine's context is current

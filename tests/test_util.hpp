@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdint>
 #include <iterator>
+#include <numeric>
 #include <ostream>
 #include <random>
 #include <span>
@@ -22,6 +23,13 @@ inline void PrintTo(const Pair& p, std::ostream* os) { *os << "(" << p.i << "," 
 }  // namespace viscd
 
 namespace viscd::test {
+
+/// The indices 0 .. n-1: every object active.
+inline std::vector<std::uint32_t> all_of(std::size_t n) {
+  std::vector<std::uint32_t> a(n);
+  std::iota(a.begin(), a.end(), 0u);
+  return a;
+}
 
 /// n spheres with centres uniform in [-half_extent, half_extent]^3 and radii uniform in
 /// [rmin, rmax] (std::mt19937_64 seeded with `seed`).

@@ -34,12 +34,9 @@ int run_pairs(const PairsArgs& a) {
 
   auto table = read_sphere_table(a.spheres);
   if (!table) return fail(table.error());
-  std::optional<Camera> camera;
-  if (!a.camera.empty()) {
-    auto c = read_camera(a.camera);
-    if (!c) return fail(c.error());
-    camera = c.value();
-  }
+  auto read = read_optional_camera(a.camera);
+  if (!read) return fail(read.error());
+  const std::optional<Camera>& camera = read.value();
   std::vector<std::uint32_t> ids;
   if (!a.id_map.empty()) {
     auto m = read_id_map(a.id_map, config.value().map_width, config.value().map_height);

@@ -45,12 +45,9 @@ int run_query(const QueryArgs& a) {
   // Queries see the frame's active objects; the file's filters do not apply to them.
   auto table = read_sphere_table(a.spheres);
   if (!table) return fail(table.error());
-  std::optional<Camera> camera;
-  if (!a.camera.empty()) {
-    auto c = read_camera(a.camera);
-    if (!c) return fail(c.error());
-    camera = c.value();
-  }
+  auto read = read_optional_camera(a.camera);
+  if (!read) return fail(read.error());
+  const std::optional<Camera>& camera = read.value();
   auto detector = make_backend(a.pipeline, config.value(), false);
   if (!detector) return fail(detector.error());
   Detector& det = *detector.value();

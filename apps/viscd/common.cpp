@@ -379,6 +379,14 @@ Status StagedFolder::commit() {
   return {};
 }
 
+Result<std::optional<Camera>> read_optional_camera(const std::string& path) {
+  using R = Result<std::optional<Camera>>;
+  if (path.empty()) return std::optional<Camera>{};
+  auto c = read_camera(path);
+  if (!c) return R::failure(c.error());
+  return std::optional<Camera>(c.value());
+}
+
 Result<std::vector<std::uint32_t>> read_id_map(const std::filesystem::path& path, int width, int height) {
   using R = Result<std::vector<std::uint32_t>>;
   const std::string name = printable(path.string(), 200);

@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -115,6 +116,8 @@ class StagedFolder {
   bool done_ = false;
 };
 
+/// Reads a camera JSON file, or nothing when `path` is empty (the option was not given).
+[[nodiscard]] Result<std::optional<Camera>> read_optional_camera(const std::string& path);
 /// Reads a raw id map: width x height little-endian uint32 ids, row-major from the top-left. A
 /// file of another size than width * height * 4 bytes is an error naming both sizes.
 [[nodiscard]] Result<std::vector<std::uint32_t>> read_id_map(const std::filesystem::path& path, int width, int height);

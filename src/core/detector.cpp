@@ -185,8 +185,8 @@ void Detector::brute_ray_all(std::span<const Sphere> spheres, std::span<const st
   std::sort(hits.begin(), hits.end(), hit_before);
 }
 
-void Detector::brute_overlap(std::span<const Sphere> spheres, std::span<const std::uint32_t> ids,
-                             const Sphere& sphere, std::vector<std::uint32_t>& indices) {
+void Detector::brute_overlap(std::span<const Sphere> spheres, std::span<const std::uint32_t> ids, const Sphere& sphere,
+                             std::vector<std::uint32_t>& indices) {
   for (std::size_t k = 0; k < spheres.size(); ++k)
     if (spheres_overlap(sphere, spheres[k])) indices.push_back(ids[k]);  // ascending already
 }

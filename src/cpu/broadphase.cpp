@@ -52,39 +52,16 @@ void sort_chunk_pairs(std::span<const std::vector<std::uint64_t>> lists, std::ui
   }
 }
 
-template <>
-std::vector<std::uint16_t>& LbvhBroadphase::keys<std::uint16_t>() {
-  return keys16_;
-}
-template <>
-std::vector<std::uint32_t>& LbvhBroadphase::keys<std::uint32_t>() {
-  return keys32_;
-}
-template <>
-std::vector<std::uint64_t>& LbvhBroadphase::keys<std::uint64_t>() {
-  return keys64_;
-}
-
 std::uint64_t LbvhBroadphase::memory_bytes() const {
-  auto bytes = [](const auto& v) { return static_cast<std::uint64_t>(v.capacity()) * sizeof(v[0]); };
-  std::uint64_t b = bytes(keys16_) + bytes(keys32_) + bytes(keys64_) + bytes(scratch16_.keys) +
-                    bytes(scratch16_.values) + bytes(scratch32_.keys) + bytes(scratch32_.values) +
-                    bytes(scratch64_.keys) + bytes(scratch64_.values) + bytes(sorted_ids_) + bytes(sorted_spheres_) +
-                    bytes(leaf_boxes_) + bytes(bvh_.nodes) + bytes(bvh_.parent) + bytes(bvh_.leaf_parent) +
-                    bytes(bvh_.arrivals) + pairs_.memory_bytes();
+  std::uint64_t b = bytes_of(sorted_ids_) + bytes_of(sorted_spheres_) + bytes_of(leaf_boxes_) + bytes_of(bvh_.nodes) +
+                    bytes_of(bvh_.parent) + bytes_of(bvh_.leaf_parent) + bytes_of(bvh_.arrivals) +
+                    pairs_.memory_bytes();
+  keys_.for_each([&](const auto& v) { b += bytes_of(v); });
+  scratch_.for_each([&](const auto& s) { b += bytes_of(s.keys) + bytes_of(s.values); });
   return b;
 }
 
-std::vector<std::uint64_t> LbvhBroadphase::sorted_codes() const {
-  switch (bits_) {
-    case 16:
-      return {keys16_.begin(), keys16_.begin() + static_cast<std::ptrdiff_t>(sorted_ids_.size())};
-    case 32:
-      return {keys32_.begin(), keys32_.begin() + static_cast<std::ptrdiff_t>(sorted_ids_.size())};
-    default:
-      return {keys64_.begin(), keys64_.begin() + static_cast<std::ptrdiff_t>(sorted_ids_.size())};
-  }
-}
+std::vector<std::uint64_t> LbvhBroadphase::sorted_codes() const { return keys_.widened(bits_, sorted_ids_.size()); }
 
 Status LbvhBroadphase::run(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
                            Layout layout, int threads, std::size_t pair_memory_cap, std::vector<Pair>& pairs,
@@ -114,7 +91,7 @@ Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const
   auto ms = [&](Stage s) -> double& { return stats.stage_ms[static_cast<std::size_t>(s)]; };
   Stopwatch sw;
   const std::size_t n = active.size();
-  std::vector<K>& key = keys<K>();
+  std::vector<K>& key = keys_.get<K>();
   if (key.size() < n) key.resize(n);
   if (sorted_ids_.size() != n) sorted_ids_.resize(n);
 
@@ -129,15 +106,8 @@ Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const
   ms(Stage::codes) = sw.lap();
 
   // Stage 6: sort.
-  RadixScratch<K>* scratch = nullptr;
-  if constexpr (sizeof(K) == 2)
-    scratch = &scratch16_;
-  else if constexpr (sizeof(K) == 4)
-    scratch = &scratch32_;
-  else
-    scratch = &scratch64_;
   radix_sort<K>(std::span<K>(key.data(), n), std::span<std::uint32_t>(sorted_ids_.data(), n), 8 * sizeof(K), threads,
-                *scratch);
+                scratch_.get<K>());
   ms(Stage::sort) = sw.lap();
 
   // Stage 7: hierarchy, then boxes. Spheres are gathered into sorted order for coherent access.

@@ -121,17 +121,11 @@ class LbvhBroadphase {
   template <class K>
   Status run_keys(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, const Aabb& bounds,
                   int threads, std::size_t pair_memory_cap, std::vector<Pair>& pairs, FrameStats& stats);
-  template <class K>
-  std::vector<K>& keys();
 
   MortonLayout layout_;
   int bits_ = 32;
-  std::vector<std::uint16_t> keys16_;
-  std::vector<std::uint32_t> keys32_;
-  std::vector<std::uint64_t> keys64_;
-  RadixScratch<std::uint16_t> scratch16_;
-  RadixScratch<std::uint32_t> scratch32_;
-  RadixScratch<std::uint64_t> scratch64_;
+  PerWidth<KeyVector> keys_;
+  PerWidth<RadixScratch> scratch_;
   std::vector<std::uint32_t> sorted_ids_;
   std::vector<Sphere> sorted_spheres_;
   std::vector<Aabb> leaf_boxes_;

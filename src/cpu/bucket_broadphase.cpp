@@ -77,52 +77,17 @@ inline std::uint32_t lanes_overlapping(const BucketLanes& b, const Aabb& box) {
 
 }  // namespace
 
-template <>
-std::vector<std::uint16_t>& BucketBroadphase::keys<std::uint16_t>() {
-  return keys16_;
-}
-template <>
-std::vector<std::uint32_t>& BucketBroadphase::keys<std::uint32_t>() {
-  return keys32_;
-}
-template <>
-std::vector<std::uint64_t>& BucketBroadphase::keys<std::uint64_t>() {
-  return keys64_;
-}
-template <>
-RadixScratch<std::uint16_t>& BucketBroadphase::scratch<std::uint16_t>() {
-  return scratch16_;
-}
-template <>
-RadixScratch<std::uint32_t>& BucketBroadphase::scratch<std::uint32_t>() {
-  return scratch32_;
-}
-template <>
-RadixScratch<std::uint64_t>& BucketBroadphase::scratch<std::uint64_t>() {
-  return scratch64_;
-}
-
 std::uint64_t BucketBroadphase::memory_bytes() const {
-  std::uint64_t b =
-      bytes_of(keys16_) + bytes_of(keys32_) + bytes_of(keys64_) + bytes_of(bucket_keys16_) + bytes_of(bucket_keys32_) +
-      bytes_of(bucket_keys64_) + bytes_of(scratch16_.keys) + bytes_of(scratch16_.values) + bytes_of(scratch32_.keys) +
-      bytes_of(scratch32_.values) + bytes_of(scratch64_.keys) + bytes_of(scratch64_.values) + bytes_of(sorted_ids_) +
-      bytes_of(previous_ids_) + bytes_of(rank_) + bytes_of(lanes_) + bytes_of(bucket_boxes_) + bytes_of(bvh_.nodes) +
-      bytes_of(bvh_.parent) + bytes_of(bvh_.leaf_parent) + bytes_of(bvh_.arrivals) + pairs_.memory_bytes();
+  std::uint64_t b = bytes_of(sorted_ids_) + bytes_of(previous_ids_) + bytes_of(rank_) + bytes_of(lanes_) +
+                    bytes_of(bucket_boxes_) + bytes_of(bvh_.nodes) + bytes_of(bvh_.parent) +
+                    bytes_of(bvh_.leaf_parent) + bytes_of(bvh_.arrivals) + pairs_.memory_bytes();
+  keys_.for_each([&](const auto& v) { b += bytes_of(v); });
+  bucket_keys_.for_each([&](const auto& v) { b += bytes_of(v); });
+  scratch_.for_each([&](const auto& s) { b += bytes_of(s.keys) + bytes_of(s.values); });
   return b;
 }
 
-std::vector<std::uint64_t> BucketBroadphase::sorted_codes() const {
-  const auto n = static_cast<std::ptrdiff_t>(sorted_ids_.size());
-  switch (bits_) {
-    case 16:
-      return {keys16_.begin(), keys16_.begin() + n};
-    case 32:
-      return {keys32_.begin(), keys32_.begin() + n};
-    default:
-      return {keys64_.begin(), keys64_.begin() + n};
-  }
-}
+std::vector<std::uint64_t> BucketBroadphase::sorted_codes() const { return keys_.widened(bits_, sorted_ids_.size()); }
 
 Status BucketBroadphase::run(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
                              std::span<const Filter> filters, int bits, Layout layout, int threads,
@@ -169,7 +134,7 @@ bool BucketBroadphase::sort_from_previous(std::span<const Sphere> spheres, std::
   if (previous_ids_.empty()) return false;
   rank_.assign(spheres.size(), kNone);
   for (std::size_t k = 0; k < n; ++k) rank_[active[k]] = static_cast<std::uint32_t>(k);
-  std::vector<K>& sk = scratch<K>().keys;  // the radix sort's scratch, free until a fallback
+  std::vector<K>& sk = scratch_.get<K>().keys;  // the radix sort's scratch, free until a fallback
   if (sk.size() < n) resize_with_headroom(sk, n);
   std::size_t p = 0;
   for (const std::uint32_t id : previous_ids_) {
@@ -221,7 +186,7 @@ void BucketBroadphase::sort_codes(std::span<const Sphere> spheres, std::span<con
   // key ties end up by object id, as in the insertion sort.
   for (std::size_t k = 0; k < n; ++k) sorted_ids_[k] = active[k];
   radix_sort<K>(std::span<K>(key.data(), n), std::span<std::uint32_t>(sorted_ids_.data(), n), 8 * sizeof(K), threads,
-                scratch<K>());
+                scratch_.get<K>());
 }
 
 template <class K>
@@ -230,7 +195,7 @@ void BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<con
   auto ms = [&](Stage s) -> double& { return stats.stage_ms[static_cast<std::size_t>(s)]; };
   Stopwatch sw;
   const std::size_t n = active.size();
-  std::vector<K>& key = keys<K>();
+  std::vector<K>& key = keys_.get<K>();
   if (key.size() < n) resize_with_headroom(key, n);
   resize_with_headroom(sorted_ids_, n);
 
@@ -251,16 +216,10 @@ void BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<con
   // Stage 7: the tree over buckets (Karras over each bucket's first code), then the lanes, the
   // bucket boxes and the fit.
   const std::size_t buckets = (n + kBucket - 1) / kBucket;
-  std::vector<K>* bucket_keys = nullptr;
-  if constexpr (sizeof(K) == 2)
-    bucket_keys = &bucket_keys16_;
-  else if constexpr (sizeof(K) == 4)
-    bucket_keys = &bucket_keys32_;
-  else
-    bucket_keys = &bucket_keys64_;
-  resize_with_headroom(*bucket_keys, buckets);
-  for (std::size_t b = 0; b < buckets; ++b) (*bucket_keys)[b] = key[b * kBucket];
-  build_lbvh<K>(std::span<const K>(bucket_keys->data(), buckets), bvh_, threads);
+  std::vector<K>& bucket_keys = bucket_keys_.get<K>();
+  resize_with_headroom(bucket_keys, buckets);
+  for (std::size_t b = 0; b < buckets; ++b) bucket_keys[b] = key[b * kBucket];
+  build_lbvh<K>(std::span<const K>(bucket_keys.data(), buckets), bvh_, threads);
   ms(Stage::build) = sw.lap();
   if (lanes_.size() != buckets) {
     resize_with_headroom(lanes_, buckets);
@@ -467,39 +426,35 @@ void BucketBroadphase::ray_walk(const Ray& ray, double& t_hi, Visit&& visit) con
   }
 }
 
-bool BucketBroadphase::ray_first(const Ray& ray, std::span<const std::uint32_t> ids, RayHit& best, bool found) const {
-  double t_hi = upper_t(found ? std::min(best.t, ray.max_t) : ray.max_t);
+template <class Hit>
+void BucketBroadphase::ray_hits(const Ray& ray, double& t_hi, Hit&& hit) const {
   ray_walk(ray, t_hi, [&](const RaySetup& q, std::uint32_t b) {
     const BucketLanes& ln = lanes_[b];
     const std::size_t first = std::size_t{b} * kBucket;
     for (std::uint32_t m = ray_lanes(q, ln, t_hi); m; m &= m - 1) {
       const auto l = static_cast<std::uint32_t>(std::countr_zero(m));
       float t = 0;
-      if (!ray_sphere(ray.origin, ray.dir, ray.max_t, Sphere{ln.x[l], ln.y[l], ln.z[l], ln.r[l]}, t)) continue;
-      const std::uint32_t id = sorted_ids_[first + l];
-      const std::uint32_t index = ids.empty() ? id : ids[id];
-      if (found && (t > best.t || (t == best.t && index > best.index))) continue;
-      best = {index, t};
-      found = true;
-      t_hi = upper_t(t);
+      if (ray_sphere(ray.origin, ray.dir, ray.max_t, Sphere{ln.x[l], ln.y[l], ln.z[l], ln.r[l]}, t))
+        hit(sorted_ids_[first + l], t);
     }
+  });
+}
+
+bool BucketBroadphase::ray_first(const Ray& ray, std::span<const std::uint32_t> ids, RayHit& best, bool found) const {
+  double t_hi = upper_t(found ? std::min(best.t, ray.max_t) : ray.max_t);
+  ray_hits(ray, t_hi, [&](std::uint32_t id, float t) {
+    const std::uint32_t index = ids.empty() ? id : ids[id];
+    if (found && (t > best.t || (t == best.t && index > best.index))) return;
+    best = {index, t};
+    found = true;
+    t_hi = upper_t(t);
   });
   return found;
 }
 
 void BucketBroadphase::ray_all(const Ray& ray, std::span<const std::uint32_t> ids, std::vector<RayHit>& hits) const {
   double t_hi = upper_t(ray.max_t);
-  ray_walk(ray, t_hi, [&](const RaySetup& q, std::uint32_t b) {
-    const BucketLanes& ln = lanes_[b];
-    const std::size_t first = std::size_t{b} * kBucket;
-    for (std::uint32_t m = ray_lanes(q, ln, t_hi); m; m &= m - 1) {
-      const auto l = static_cast<std::uint32_t>(std::countr_zero(m));
-      float t = 0;
-      if (!ray_sphere(ray.origin, ray.dir, ray.max_t, Sphere{ln.x[l], ln.y[l], ln.z[l], ln.r[l]}, t)) continue;
-      const std::uint32_t id = sorted_ids_[first + l];
-      hits.push_back({ids.empty() ? id : ids[id], t});
-    }
-  });
+  ray_hits(ray, t_hi, [&](std::uint32_t id, float t) { hits.push_back({ids.empty() ? id : ids[id], t}); });
 }
 
 void BucketBroadphase::overlap(const Sphere& sphere, std::span<const std::uint32_t> ids,

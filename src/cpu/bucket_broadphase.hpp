@@ -108,24 +108,20 @@ class BucketBroadphase {
                     std::vector<Pair>& pairs, FrameStats& stats);
   template <class Visit>
   void ray_walk(const Ray& ray, double& t_hi, Visit&& visit) const;
+  /// Calls hit(id, t) for each sphere the ray hits within t_hi (which the calls may lower); id is
+  /// the sphere's entry of sorted_ids_.
+  template <class Hit>
+  void ray_hits(const Ray& ray, double& t_hi, Hit&& hit) const;
   template <class K>
   void sort_codes(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, std::vector<K>& key,
                   int threads);
   template <class K>
   bool sort_from_previous(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, std::vector<K>& key);
-  template <class K>
-  std::vector<K>& keys();
-  template <class K>
-  RadixScratch<K>& scratch();
 
   MortonLayout layout_;
   int bits_ = 32;
-  std::vector<std::uint16_t> keys16_, bucket_keys16_;
-  std::vector<std::uint32_t> keys32_, bucket_keys32_;
-  std::vector<std::uint64_t> keys64_, bucket_keys64_;
-  RadixScratch<std::uint16_t> scratch16_;
-  RadixScratch<std::uint32_t> scratch32_;
-  RadixScratch<std::uint64_t> scratch64_;
+  PerWidth<KeyVector> keys_, bucket_keys_;  // each object's code; each bucket's first code
+  PerWidth<RadixScratch> scratch_;
   std::vector<std::uint32_t> sorted_ids_, previous_ids_, rank_;
   SortReport sort_report_;
   std::vector<BucketLanes> lanes_;

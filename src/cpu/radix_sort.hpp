@@ -33,6 +33,40 @@ struct RadixScratch {
   std::vector<std::array<std::uint32_t, 256>> histograms;  // per chunk
 };
 
+/// One buffer per Morton key width (16, 32, 64 bits), picked by the key type: the broadphases
+/// keep their keys and sort scratch per width, so that a change of m reuses what was grown.
+template <template <class> class Of>
+struct PerWidth {
+  Of<std::uint16_t> w16;
+  Of<std::uint32_t> w32;
+  Of<std::uint64_t> w64;
+  template <class K>
+  Of<K>& get() {
+    if constexpr (sizeof(K) == 2)
+      return w16;
+    else if constexpr (sizeof(K) == 4)
+      return w32;
+    else
+      return w64;
+  }
+  /// The first n keys of the width `bits`, widened (for tests and tools).
+  [[nodiscard]] std::vector<std::uint64_t> widened(int bits, std::size_t n) const {
+    const auto take = [n](const auto& v) {
+      return std::vector<std::uint64_t>(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(n));
+    };
+    return bits == 16 ? take(w16) : bits == 32 ? take(w32) : take(w64);
+  }
+  /// Calls f on each width's buffer.
+  template <class F>
+  void for_each(F&& f) const {
+    f(w16);
+    f(w32);
+    f(w64);
+  }
+};
+template <class K>
+using KeyVector = std::vector<K>;
+
 /// Sorts keys[0..n) ascending, carrying values along (pass an empty `values` to sort keys only). `key_bits` (<= 8 *
 /// sizeof(K)) bounds the bits that may be non-zero; passes above it are not run. Uses up to `threads` threads.
 template <class K>

@@ -355,7 +355,7 @@ GlDetector::LayoutChoice GlDetector::choose_layout(std::uint32_t objects, bool h
   detail::Stopwatch sw;
   // The default mode needs a previous frame of the same N (and pixel counts in both or neither:
   // mu exists only with them); otherwise this frame runs as sync_layout.
-  const bool use_prev = !options_.sync_layout && have_prev_ && prev_objects_ == objects && prev_camera_ == has_pixels;
+  const bool use_prev = !options_.sync_layout && have_prev_ && prev_objects_ == objects && prev_pixels_ == has_pixels;
   // `info` is the FrameInfo whose active count, bounds and diameter sum choose the layout, `mu`
   // the mean pixels that choose m: the previous frame's (default) or this frame's (sync).
   shader::FrameInfo info{};
@@ -399,7 +399,7 @@ void GlDetector::remember_frame(std::uint32_t objects, bool has_pixels, FrameSta
   prev_info_ = frame_info_;
   prev_mean_pixels_ = stats.mean_pixels;
   prev_objects_ = objects;
-  prev_camera_ = has_pixels;
+  prev_pixels_ = has_pixels;
 }
 
 Status GlDetector::id_check(const FrameInput& in) const {

@@ -126,8 +126,9 @@ class GlDetector final : public Detector {
   // visibility.cpp
   void ensure_map(int w, int h);
   void draw_gbuffer(std::uint32_t n);
-  /// Counts the ids of `ids` (w x h) into counts_[0..n) (ids above n into FrameInfo.id_check).
-  [[nodiscard]] Status count_pixels(GLuint ids, int w, int h, std::uint32_t n);
+  /// Counts the ids of `ids` (w x h) into counts_[0..n) in the given mode (ssbo: ids above n
+  /// into FrameInfo.id_check).
+  [[nodiscard]] Status count_pixels(GLuint ids, int w, int h, std::uint32_t n, GlCounter mode);
   void make_mesh();
   void set_camera_uniforms(const Program& p) const;
 
@@ -197,7 +198,7 @@ class GlDetector final : public Detector {
   shader::FrameInfo prev_info_{};   // its active count, active-centre bounds, diameter sum
   double prev_mean_pixels_ = 0.0;   // its mu
   std::uint32_t prev_objects_ = 0;  // its N
-  bool prev_camera_ = false;        // it counted pixels (a camera or the caller's map)
+  bool prev_pixels_ = false;        // it counted pixels (a camera or the caller's map)
   std::uint64_t mid_frame_waits_ = 0;
   // G-buffer.
   Texture ids_tex_, depth_tex_, normal_tex_, zbuffer_;

@@ -58,7 +58,7 @@ Status GlDetector::render_visibility(std::uint32_t objects) {
   draw_gbuffer(objects);
   stage_end(Stage::visibility);
   stage_begin(Stage::count);
-  if (Status s = count_pixels(ids_tex_.get(), map_w_, map_h_, objects); !s) return s;
+  if (Status s = count_pixels(ids_tex_.get(), map_w_, map_h_, objects, options_.counter); !s) return s;
   stage_end(Stage::count);
   return {};
 }
@@ -96,10 +96,7 @@ Status GlDetector::count_callers_map(const FrameInput& in) {
   }
   stage_begin(Stage::count);
   // Always the ssbo counter: it checks every id against N, which a caller's map needs.
-  const GlCounter mode = options_.counter;
-  options_.counter = GlCounter::ssbo;
-  const Status s = count_pixels(ids, w, h, objects);
-  options_.counter = mode;
+  const Status s = count_pixels(ids, w, h, objects, GlCounter::ssbo);
   stage_end(Stage::count);
   return s;
 }
@@ -200,14 +197,14 @@ void GlDetector::draw_gbuffer(std::uint32_t n) {
 }
 
 // Stage 2 from an id texture into counts_[0..n).
-Status GlDetector::count_pixels(GLuint ids, int w, int h, std::uint32_t n) {
+Status GlDetector::count_pixels(GLuint ids, int w, int h, std::uint32_t n, GlCounter mode) {
   counts_.reserve(4 * static_cast<GLsizeiptr>(n));
   const GLuint zero = 0;
   glClearNamedBufferSubData(counts_.get(), GL_R32UI, 0, counts_.size(), GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
   glBindTextureUnit(VISCD_UNIT_IDS, ids);
   glBindSampler(VISCD_UNIT_IDS, nearest_.get());
-  if (options_.counter == GlCounter::atomic_uint) {
+  if (mode == GlCounter::atomic_uint) {
     if (n == 0) return {};
     if (!count_atomic_ || count_atomic_n_ != n) {
       auto p = Program::graphics("fullscreen.vert", "count_atomic.frag",
@@ -299,7 +296,8 @@ Result<std::vector<std::uint32_t>> GlDetector::count_id_map(std::span<const std:
   glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
   glTextureSubImage2D(ids_tex_.get(), 0, 0, 0, width, height, GL_RED_INTEGER, GL_UNSIGNED_INT, bottom_up.data());
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
-  if (Status s = count_pixels(ids_tex_.get(), width, height, objects); !s) return R::failure(s.error());
+  if (Status s = count_pixels(ids_tex_.get(), width, height, objects, options_.counter); !s)
+    return R::failure(s.error());
   std::vector<std::uint32_t> counts(objects);
   if (objects) glGetNamedBufferSubData(counts_.get(), 0, 4 * static_cast<GLsizeiptr>(objects), counts.data());
   if (Status s = gl_errors("count_id_map()"); !s) return R::failure(s.error());

@@ -15,15 +15,10 @@
 namespace viscd {
 namespace {
 
+using test::all_of;
 using test::oracle_pairs;
 using test::random_spheres_by_half_extent;
 using test::same_pairs;
-
-std::vector<std::uint32_t> all_of(std::size_t n) {
-  std::vector<std::uint32_t> a(n);
-  std::iota(a.begin(), a.end(), 0u);
-  return a;
-}
 
 // One frame through `bp` against brute force, the tree's invariants and the sort's contract:
 // codes ascending, ties by object id, each active object once.

@@ -13,16 +13,11 @@
 namespace viscd {
 namespace {
 
+using test::all_of;
 using test::oracle_filtered_pairs;
 using test::random_filters;
 using test::random_spheres_by_half_extent;
 using test::same_pairs;
-
-std::vector<std::uint32_t> all_of(std::size_t n) {
-  std::vector<std::uint32_t> a(n);
-  std::iota(a.begin(), a.end(), 0u);
-  return a;
-}
 
 FrameResult run_filtered(Detector& d, std::span<const Sphere> s, std::span<const Filter> f,
                          const Camera* cam = nullptr) {

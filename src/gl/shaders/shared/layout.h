@@ -91,7 +91,7 @@ struct FrameInfo {
   uint total_pixels;   // sum of map pixel counts over all objects
   uint pair_count;     // pairs found by the query (may exceed the pair buffer's capacity)
   uint visible_count;  // active objects (not culled), filters aside
-  vec4 lo;  // bounds of the active centres (xyz)
+  vec4 lo;             // bounds of the active centres (xyz)
   vec4 hi;
   vec4 root_lo;  // root box of the fitted tree (xyz)
   vec4 root_hi;
