@@ -8,8 +8,8 @@
 #include "core/stopwatch.hpp"
 #include "cpu/broadphase.hpp"
 #include "cpu/grow.hpp"
-#include "cpu/lbvh_build.hpp"
 #include "cpu/parallel.hpp"
+#include "cpu/wide_tree.hpp"
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -79,10 +79,9 @@ inline std::uint32_t lanes_overlapping(const BucketLanes& b, const Aabb& box) {
 
 std::uint64_t BucketBroadphase::memory_bytes() const {
   std::uint64_t b = bytes_of(sorted_ids_) + bytes_of(previous_ids_) + bytes_of(rank_) + bytes_of(lanes_) +
-                    bytes_of(bucket_boxes_) + bytes_of(bvh_.nodes) + bytes_of(bvh_.parent) +
-                    bytes_of(bvh_.leaf_parent) + bytes_of(bvh_.arrivals) + pairs_.memory_bytes();
+                    bytes_of(bucket_boxes_) + pairs_.memory_bytes();
+  for (const auto& level : tree_.level) b += bytes_of(level);
   keys_.for_each([&](const auto& v) { b += bytes_of(v); });
-  bucket_keys_.for_each([&](const auto& v) { b += bytes_of(v); });
   scratch_.for_each([&](const auto& s) { b += bytes_of(s.keys) + bytes_of(s.values); });
   return b;
 }
@@ -213,14 +212,9 @@ void BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<con
   std::copy(sorted_ids_.begin(), sorted_ids_.end(), previous_ids_.begin());
   ms(Stage::sort) = sw.lap();
 
-  // Stage 7: the tree over buckets (Karras over each bucket's first code), then the lanes, the
-  // bucket boxes and the fit.
+  // Stage 7: build gathers the objects into bucket lanes and takes the bucket boxes; fit builds
+  // the 16-wide tree over the buckets in their order.
   const std::size_t buckets = (n + kBucket - 1) / kBucket;
-  std::vector<K>& bucket_keys = bucket_keys_.get<K>();
-  resize_with_headroom(bucket_keys, buckets);
-  for (std::size_t b = 0; b < buckets; ++b) bucket_keys[b] = key[b * kBucket];
-  build_lbvh<K>(std::span<const K>(bucket_keys.data(), buckets), bvh_, threads);
-  ms(Stage::build) = sw.lap();
   if (lanes_.size() != buckets) {
     resize_with_headroom(lanes_, buckets);
     resize_with_headroom(bucket_boxes_, buckets);
@@ -246,11 +240,12 @@ void BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<con
     }
     bucket_boxes_[b] = box;
   });
-  fit_lbvh(bucket_boxes_, bvh_, threads);
+  ms(Stage::build) = sw.lap();
+  build_wide_tree(std::span<const Aabb>(bucket_boxes_.data(), buckets), tree_, threads);
   ms(Stage::fit) = sw.lap();
 #ifdef VISCD_VALIDATE
   {
-    const std::string problem = validate_lbvh(bvh_, bucket_boxes_);
+    const std::string problem = validate_wide_tree(tree_, bucket_boxes_);
     VISCD_ASSERT(problem.empty(), problem.c_str());
   }
 #endif
@@ -282,7 +277,7 @@ Status BucketBroadphase::find_pairs(std::span<const std::uint32_t> active, bool 
       }
     }
     // Pairs with every later bucket whose box overlaps this one's.
-    for_each_overlap_after(bvh_, static_cast<std::uint32_t>(b), bucket_boxes_[b], [&](std::uint32_t qb) {
+    for_each_wide_overlap_after(tree_, static_cast<std::uint32_t>(b), bucket_boxes_[b], [&](std::uint32_t qb) {
       const BucketLanes& lq = lanes_[qb];
       const std::uint32_t qfirst = qb * kBucket;
       // Only this bucket's lanes whose boxes reach into the other bucket's box can pair.
@@ -391,38 +386,35 @@ inline double upper_t(float limit) {
 
 template <class Visit>
 void BucketBroadphase::ray_walk(const Ray& ray, double& t_hi, Visit&& visit) const {
-  const std::size_t n = sorted_ids_.size();
-  if (n == 0) return;
+  if (tree_.levels == 0) return;
   const RaySetup q(ray);
-  double te = 0;
-  if (bvh_.leaves < 2) {
-    if (ray_box(q, bucket_boxes_[0], t_hi, te)) visit(q, 0u);
-    return;
-  }
-  if (!ray_box(q, bvh_.root_box, t_hi, te)) return;
-  // Depth first, the nearer child first; an entry whose box starts beyond t_hi (which the visits
-  // may lower) is skipped. A tree of build_lbvh() is at most 96 deep: at most 97 entries wait.
+  // Depth first from the top node; a node's children that the ray meets are pushed farthest first,
+  // so the nearest is searched first, and an entry whose box starts beyond t_hi (which the visits
+  // may lower) is skipped. Level -1 entries are buckets. At most 16 entries wait per level.
   struct Entry {
-    std::uint32_t node;
+    std::int32_t level;
+    std::uint32_t index;
     double t;
   };
-  Entry stack[2 * kStackDepth];
+  Entry stack[kWide * (kWideMaxLevels + 1)];
   int sp = 0;
-  stack[sp++] = {0, te};
+  stack[sp++] = {static_cast<std::int32_t>(tree_.levels) - 1, 0, 0.0};
   while (sp > 0) {
     const Entry e = stack[--sp];
     if (e.t > t_hi) continue;
-    if (e.node & kLeafBit) {
-      visit(q, e.node & ~kLeafBit);
+    if (e.level < 0) {
+      visit(q, e.index);
       continue;
     }
-    const BvhNode& nd = bvh_.nodes[e.node];
-    double t[2];
-    const bool hit0 = ray_box(q, nd.box[0], t_hi, t[0]), hit1 = ray_box(q, nd.box[1], t_hi, t[1]);
-    const int nearer = hit0 && hit1 ? (t[1] < t[0] ? 1 : 0) : (hit0 ? 0 : 1);
-    if (hit0 && hit1) stack[sp++] = {nd.child[1 - nearer], t[1 - nearer]};
-    if (hit0 || hit1) stack[sp++] = {nd.child[nearer], t[nearer]};
-    VISCD_ASSERT(sp + 2 <= 2 * kStackDepth, "a tree of build_lbvh() is at most 96 deep");
+    const WideNode& nd = tree_.level[static_cast<std::size_t>(e.level)][e.index];
+    Entry hit[kWide];
+    int hits = 0;
+    for (std::uint32_t l = 0; l < kWide; ++l) {
+      double te = 0;
+      if (ray_box(q, nd.child(l), t_hi, te)) hit[hits++] = {e.level - 1, e.index * kWide + l, te};
+    }
+    std::sort(hit, hit + hits, [](const Entry& a, const Entry& b) { return a.t > b.t; });
+    for (int h = 0; h < hits; ++h) stack[sp++] = hit[h];
   }
 }
 
@@ -470,11 +462,7 @@ void BucketBroadphase::overlap(const Sphere& sphere, std::span<const std::uint32
       out.push_back(ids.empty() ? id : ids[id]);
     }
   };
-  if (bvh_.leaves < 2) {
-    if (overlaps(bucket_boxes_[0], box)) visit(0);
-  } else if (overlaps(bvh_.root_box, box)) {
-    for_each_overlap_in_subtree(bvh_, 0, box, [&](std::uint32_t b) { visit(b); });
-  }
+  for_each_wide_overlap(tree_, box, visit);
 }
 
 }  // namespace viscd::detail

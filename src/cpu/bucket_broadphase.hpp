@@ -1,26 +1,27 @@
 #pragma once
-// The cpu backend's broadphase (stages 4-8): the paper's LBVH with its leaves widened to buckets of
-// kBucket consecutive objects in Morton order, and a sort that starts from the last frame's order.
-// Exact: the result equals brute force over the active set for every m (tests/cpu/).
+// The cpu backend's broadphase (stages 4-8): the objects in Morton order cut into buckets of
+// kBucket consecutive objects, a 16-wide tree over the buckets, and a sort that starts from the
+// last frame's order. Exact: the result equals brute force over the active set for every m
+// (tests/cpu/).
 //
 // Why buckets (docs/benchmarks.md, "The broadphase at the limit"): with one leaf per object most of
 // the build, fit and query time goes to the bottom levels of the tree, where boxes hardly prune.
-// Cutting the tree at kBucket objects makes it kBucket times smaller (it fits in L2 at 10^5
-// objects), and the objects of two buckets whose boxes overlap are compared all against all with
-// SIMD lanes, out of contiguous arrays.
+// Cutting the tree at kBucket objects makes it kBucket times smaller, and the objects of two
+// buckets whose boxes overlap are compared all against all with SIMD lanes, out of contiguous
+// arrays. Why a 16-wide tree over them rather than the paper's Karras tree: cpu/wide_tree.hpp.
 //
 //   stage 4  layout:  extent of the active centres, Morton layout (shared with every backend)
 //   stage 5  codes:   one code per active object
 //   stage 6  sort:    the last frame's order, filtered to this frame's active set, then insertion
 //                     sort by (code, object id) while few objects move far; else an LSD radix sort.
 //                     Both give the same order: by code, ties by object id.
-//   stage 7  build:   Karras over the first code of each bucket; fit: objects gathered into
-//                     per-bucket lanes (x, y, z, r and the conservative half extent), bucket boxes,
-//                     bottom-up fit
+//   stage 7  build:   objects gathered into per-bucket lanes (x, y, z, r and the conservative half
+//                     extent) and the bucket boxes; fit: the 16-wide tree over the buckets
 //   stage 8  query:   per bucket, pairs inside it, then every later bucket whose box overlaps (the
-//                     walk up from the leaf); per object of the bucket a box test, then the exact
-//                     test against the other bucket's lanes, then the pair's filters (when there
-//                     are any: few candidates pass the exact test); pairs sorted at the end.
+//                     tree walk masks off earlier buckets); per object of the bucket a box test,
+//                     then the exact test against the other bucket's lanes, then the pair's filters
+//                     (when there are any: few candidates pass the exact test); pairs sorted at the
+//                     end.
 //
 // The tree, the lanes and the sorted ids stay until the next frame: the ray and overlap queries
 // (Detector::ray_cast, overlap) search them.
@@ -30,10 +31,10 @@
 #include <vector>
 
 #include "core/frame_rules.hpp"
-#include "core/lbvh.hpp"
 #include "core/morton.hpp"
 #include "cpu/broadphase.hpp"
 #include "cpu/radix_sort.hpp"
+#include "cpu/wide_tree.hpp"
 #include "viscd/config.hpp"
 #include "viscd/frame.hpp"
 #include "viscd/result.hpp"
@@ -88,7 +89,7 @@ class BucketBroadphase {
 
   /// Inspection for tests: the last frame's tree over buckets, the bucket boxes, the objects in
   /// sorted order, the sorted codes (widened to 64 bits) and how the sort went.
-  [[nodiscard]] const Lbvh& tree() const { return bvh_; }
+  [[nodiscard]] const WideTree& tree() const { return tree_; }
   [[nodiscard]] std::span<const Aabb> leaf_boxes() const { return bucket_boxes_; }
   [[nodiscard]] std::span<const std::uint32_t> sorted_objects() const { return sorted_ids_; }
   [[nodiscard]] std::vector<std::uint64_t> sorted_codes() const;
@@ -120,14 +121,14 @@ class BucketBroadphase {
 
   MortonLayout layout_;
   int bits_ = 32;
-  PerWidth<KeyVector> keys_, bucket_keys_;  // each object's code; each bucket's first code
+  PerWidth<KeyVector> keys_;  // each object's code
   PerWidth<RadixScratch> scratch_;
   std::vector<std::uint32_t> sorted_ids_, previous_ids_, rank_;
   SortReport sort_report_;
   std::vector<BucketLanes> lanes_;
   std::vector<Filter> sorted_filters_;  // the filters in sorted order (frames with filters)
   std::vector<Aabb> bucket_boxes_;
-  Lbvh bvh_;
+  WideTree tree_;
   PairCollector pairs_;
 };
 

@@ -40,8 +40,7 @@ void check_exact(const std::vector<Sphere>& spheres, const std::string& what) {
     EXPECT_EQ(f.stats.pairs, want.size());
     EXPECT_EQ(f.stats.bits, static_cast<int>(v.bits));
     const auto& bp = det.lbvh();
-    ASSERT_EQ(detail::validate_lbvh(bp.tree(), bp.leaf_boxes()), "") << what;
-    EXPECT_LE(detail::lbvh_depth(bp.tree()), static_cast<int>(v.bits) + 32);
+    ASSERT_EQ(detail::validate_wide_tree(bp.tree(), bp.leaf_boxes()), "") << what;
     // States: colliding iff in a pair; nothing culled without a camera.
     std::vector<char> in_pair(spheres.size(), 0);
     for (const Pair& p : want) in_pair[p.i] = in_pair[p.j] = 1;

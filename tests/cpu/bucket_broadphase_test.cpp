@@ -29,7 +29,7 @@ void check_frame(detail::BucketBroadphase& bp, const std::vector<Sphere>& s, con
   const Status st = bp.run(s, active, bits, Layout::extended, threads, 0, pairs, stats);
   ASSERT_TRUE(st.ok()) << what << ": " << st.error();
   ASSERT_TRUE(same_pairs(pairs, oracle_pairs(s, &active))) << what;
-  ASSERT_EQ(detail::validate_lbvh(bp.tree(), bp.leaf_boxes()), "") << what;
+  ASSERT_EQ(detail::validate_wide_tree(bp.tree(), bp.leaf_boxes()), "") << what;
   // Every bucket box holds its objects' conservative boxes.
   const auto ids = bp.sorted_objects();
   ASSERT_EQ(ids.size(), active.size()) << what;

@@ -1,0 +1,134 @@
+#pragma once
+// A 16-wide bounding volume hierarchy over leaves in a fixed order: the cpu broadphase's buckets,
+// consecutive in Morton order. Node j of level 0 holds the boxes of leaves 16j .. 16j + 15; node j
+// of level k + 1 holds the boxes of nodes 16j .. 16j + 15 of level k; the top level is one node.
+// No topology is stored: a child's index follows from its parent's, and the leaves under an entry
+// are a contiguous range of the order. One SIMD test checks a box against all 16 children of a
+// node, and the search for "every later leaf" masks off the children that lie before the leaf.
+//
+// Why not the Karras tree over the buckets (docs/benchmarks.md, "The broadphase at the limit"):
+// its descent tests two boxes per level with unpredictable branches, and at 10^5 dense objects
+// that walk cost most of stage 8; this tree is 4 levels deep at 10^6 objects and tests 16 boxes
+// per branch-free step.
+
+#include <bit>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "core/geometry.hpp"
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
+namespace viscd::detail {
+
+inline constexpr std::uint32_t kWide = 16;
+/// 16^8 = 2^32 leaves: more levels are never needed.
+inline constexpr std::uint32_t kWideMaxLevels = 8;
+
+/// The boxes of a node's children, by axis. An empty child is the empty box (lo = +inf,
+/// hi = -inf), which overlaps nothing and leaves a union unchanged.
+struct alignas(64) WideNode {
+  float lo_x[kWide], lo_y[kWide], lo_z[kWide], hi_x[kWide], hi_y[kWide], hi_z[kWide];
+  [[nodiscard]] Aabb child(std::uint32_t l) const { return {{lo_x[l], lo_y[l], lo_z[l]}, {hi_x[l], hi_y[l], hi_z[l]}}; }
+};
+
+struct WideTree {
+  std::vector<std::vector<WideNode>> level;  ///< level[0] over the leaves; kept between frames
+  std::uint32_t levels = 0;                  ///< levels in use; level[levels - 1] is one node
+  std::size_t leaves = 0;
+};
+
+/// Builds the levels over leaf_boxes (0 leaves: no level). Allocates only when the tree grows.
+void build_wide_tree(std::span<const Aabb> leaf_boxes, WideTree& tree, int threads);
+
+/// Checks the layout: node counts per level, leaf boxes copied exactly, empty lanes empty, every
+/// child box equal to the union of its node's children. Empty string when valid.
+[[nodiscard]] std::string validate_wide_tree(const WideTree& tree, std::span<const Aabb> leaf_boxes);
+
+/// Bit l set when child l's box overlaps `box` by overlaps() (touching counts). Branch-free.
+inline std::uint32_t wide_overlaps(const WideNode& n, const Aabb& box) {
+#if defined(__SSE2__)
+  const __m128 lox = _mm_set1_ps(box.lo.x), loy = _mm_set1_ps(box.lo.y), loz = _mm_set1_ps(box.lo.z);
+  const __m128 hix = _mm_set1_ps(box.hi.x), hiy = _mm_set1_ps(box.hi.y), hiz = _mm_set1_ps(box.hi.z);
+  std::uint32_t mask = 0;
+  for (std::uint32_t l = 0; l < kWide; l += 4) {
+    const __m128 ox =
+        _mm_and_ps(_mm_cmple_ps(_mm_load_ps(n.lo_x + l), hix), _mm_cmple_ps(lox, _mm_load_ps(n.hi_x + l)));
+    const __m128 oy =
+        _mm_and_ps(_mm_cmple_ps(_mm_load_ps(n.lo_y + l), hiy), _mm_cmple_ps(loy, _mm_load_ps(n.hi_y + l)));
+    const __m128 oz =
+        _mm_and_ps(_mm_cmple_ps(_mm_load_ps(n.lo_z + l), hiz), _mm_cmple_ps(loz, _mm_load_ps(n.hi_z + l)));
+    mask |= static_cast<std::uint32_t>(_mm_movemask_ps(_mm_and_ps(_mm_and_ps(ox, oy), oz))) << l;
+  }
+  return mask;
+#else
+  std::uint32_t mask = 0;
+  for (std::uint32_t l = 0; l < kWide; ++l) mask |= static_cast<std::uint32_t>(overlaps(n.child(l), box)) << l;
+  return mask;
+#endif
+}
+
+namespace wide_detail {
+
+// The depth-first walk shared by the searches: one frame per level (a node and the children
+// still to visit). `keep(k, node)` masks the children of node `node` of level k worth a test.
+template <class Keep, class F>
+inline void walk(const WideTree& t, const Aabb& box, Keep&& keep, F&& f) {
+  if (t.levels == 0) return;
+  struct Frame {
+    std::uint32_t node, mask;
+  };
+  Frame stack[kWideMaxLevels];
+  auto enter = [&](std::uint32_t k, std::uint32_t node) {
+    const std::uint32_t m = keep(k, node);
+    stack[k] = {node, m ? wide_overlaps(t.level[k][node], box) & m : 0u};
+  };
+  std::uint32_t k = t.levels - 1;
+  enter(k, 0);
+  for (;;) {
+    std::uint32_t& m = stack[k].mask;
+    if (m == 0) {
+      if (++k == t.levels) return;
+      continue;
+    }
+    const std::uint32_t c = stack[k].node * kWide + static_cast<std::uint32_t>(std::countr_zero(m));
+    m &= m - 1;
+    if (k == 0) {
+      f(c);
+    } else {
+      --k;
+      enter(k, c);
+    }
+  }
+}
+
+}  // namespace wide_detail
+
+/// Calls f(q) for every leaf q whose box overlaps `box`.
+template <class F>
+inline void for_each_wide_overlap(const WideTree& t, const Aabb& box, F&& f) {
+  wide_detail::walk(
+      t, box, [](std::uint32_t, std::uint32_t) { return 0xFFFFu; }, f);
+}
+
+/// Calls f(q) for every leaf q > p whose box overlaps `box`, so that each pair is found once.
+/// Child l of node j at level k is entry 16j + l of the level below, which covers the leaves
+/// [(16j + l) 16^k, (16j + l + 1) 16^k): it holds a leaf after p when 16j + l >= p >> 4k (at
+/// level 0, where the entries are leaves: 16j + l > p).
+template <class F>
+inline void for_each_wide_overlap_after(const WideTree& t, std::uint32_t p, const Aabb& box, F&& f) {
+  const auto keep = [p](std::uint32_t k, std::uint32_t node) -> std::uint32_t {
+    const std::uint64_t first = k == 0 ? std::uint64_t{p} + 1 : std::uint64_t{p} >> (4 * k);
+    const std::uint64_t base = std::uint64_t{node} * kWide;
+    if (first <= base) return 0xFFFFu;
+    if (first >= base + kWide) return 0u;
+    return (0xFFFFu << (first - base)) & 0xFFFFu;
+  };
+  wide_detail::walk(t, box, keep, f);
+}
+
+}  // namespace viscd::detail
