@@ -11,69 +11,63 @@
 #include "cpu/parallel.hpp"
 #include "cpu/wide_tree.hpp"
 
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
+#include "cpu/simd.hpp"
 
 namespace viscd::detail {
 namespace {
 
 constexpr std::uint32_t kNone = 0xFFFFFFFFu;
 
-/// Bit l set when the sphere (x, y, z, r) passes overlap_exact() with lane l of `b`: the same
-/// float operations in the same order (the test is symmetric: (a - b)^2 == (b - a)^2 exactly).
-inline std::uint32_t overlap_mask(const BucketLanes& b, float x, float y, float z, float r) {
-#if defined(__SSE2__)
-  static_assert(kBucket % 4 == 0);
-  const __m128 px = _mm_set1_ps(x), py = _mm_set1_ps(y), pz = _mm_set1_ps(z), pr = _mm_set1_ps(r);
-  std::uint32_t mask = 0;
-  for (std::uint32_t l = 0; l < kBucket; l += 4) {
-    const __m128 dx = _mm_sub_ps(px, _mm_load_ps(b.x + l));
-    const __m128 dy = _mm_sub_ps(py, _mm_load_ps(b.y + l));
-    const __m128 dz = _mm_sub_ps(pz, _mm_load_ps(b.z + l));
-    const __m128 s = _mm_add_ps(pr, _mm_load_ps(b.r + l));
-    const __m128 d2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
-    mask |= static_cast<std::uint32_t>(_mm_movemask_ps(_mm_cmple_ps(d2, _mm_mul_ps(s, s)))) << l;
+// What stage 8 searches, for search_bucket().
+struct SearchView {
+  const BucketLanes* lanes;
+  const Aabb* boxes;
+  const WideTree* tree;
+  const std::uint32_t* ids;  // sorted position -> object id
+  const Filter* filter;      // in sorted order, when filtered
+  bool filtered;
+  std::size_t n;  // objects
+};
+
+// The pairs of bucket b: inside it, then with every later bucket whose box overlaps its own (so
+// each pair is found once). Per object of b whose box reaches into the other bucket's box, the
+// exact test against all of that bucket's lanes; the filters come after the exact test (few
+// candidates pass it, and the lanes stay as they are).
+template <class Simd, class Emit>
+inline void search_bucket(const SearchView& v, std::size_t b, Emit& emit) {
+  auto pass = [&](std::uint32_t p, std::uint32_t q) {
+    return !v.filtered || pair_passes_filter(v.filter[p], v.filter[q]);
+  };
+  const BucketLanes& lb = v.lanes[b];
+  const auto first = static_cast<std::uint32_t>(b * kBucket);
+  const auto count = static_cast<std::uint32_t>(std::min<std::size_t>(kBucket, v.n - first));
+  for (std::uint32_t i = 0; i + 1 < count; ++i) {
+    std::uint32_t m = Simd::sphere_lanes(lb, lb.x[i], lb.y[i], lb.z[i], lb.r[i]) & (~0u << (i + 1));
+    for (; m; m &= m - 1) {
+      const std::uint32_t q = first + static_cast<std::uint32_t>(std::countr_zero(m));
+      if (pass(first + i, q)) emit(v.ids[first + i], v.ids[q]);
+    }
   }
-  return mask;
-#else
-  std::uint32_t mask = 0;
-  for (std::uint32_t l = 0; l < kBucket; ++l) {
-    const float dx = x - b.x[l], dy = y - b.y[l], dz = z - b.z[l];
-    const float s = r + b.r[l];
-    mask |= static_cast<std::uint32_t>(dx * dx + dy * dy + dz * dz <= s * s) << l;
-  }
-  return mask;
-#endif
+  for_each_wide_overlap_after<Simd>(*v.tree, static_cast<std::uint32_t>(b), v.boxes[b], [&](std::uint32_t qb) {
+    const BucketLanes& lq = v.lanes[qb];
+    const std::uint32_t qfirst = qb * kBucket;
+    for (std::uint32_t near = Simd::box_lanes(lb, v.boxes[qb]); near; near &= near - 1) {
+      const auto i = static_cast<std::uint32_t>(std::countr_zero(near));
+      for (std::uint32_t m = Simd::sphere_lanes(lq, lb.x[i], lb.y[i], lb.z[i], lb.r[i]); m; m &= m - 1) {
+        const std::uint32_t q = qfirst + static_cast<std::uint32_t>(std::countr_zero(m));
+        if (pass(first + i, q)) emit(v.ids[first + i], v.ids[q]);
+      }
+    }
+  });
 }
 
-/// Bit l set when lane l's conservative box (conservative_box()'s bounds, computed with the same
-/// operations) overlaps `box`. Branch-free: which lanes pass is unpredictable.
-inline std::uint32_t lanes_overlapping(const BucketLanes& b, const Aabb& box) {
-#if defined(__SSE2__)
-  const __m128 lox = _mm_set1_ps(box.lo.x), loy = _mm_set1_ps(box.lo.y), loz = _mm_set1_ps(box.lo.z);
-  const __m128 hix = _mm_set1_ps(box.hi.x), hiy = _mm_set1_ps(box.hi.y), hiz = _mm_set1_ps(box.hi.z);
-  std::uint32_t mask = 0;
-  for (std::uint32_t l = 0; l < kBucket; l += 4) {
-    const __m128 h = _mm_load_ps(b.h + l);
-    const __m128 x = _mm_load_ps(b.x + l), y = _mm_load_ps(b.y + l), z = _mm_load_ps(b.z + l);
-    const __m128 ox = _mm_and_ps(_mm_cmple_ps(_mm_sub_ps(x, h), hix), _mm_cmple_ps(lox, _mm_add_ps(x, h)));
-    const __m128 oy = _mm_and_ps(_mm_cmple_ps(_mm_sub_ps(y, h), hiy), _mm_cmple_ps(loy, _mm_add_ps(y, h)));
-    const __m128 oz = _mm_and_ps(_mm_cmple_ps(_mm_sub_ps(z, h), hiz), _mm_cmple_ps(loz, _mm_add_ps(z, h)));
-    mask |= static_cast<std::uint32_t>(_mm_movemask_ps(_mm_and_ps(_mm_and_ps(ox, oy), oz))) << l;
-  }
-  return mask;
-#else
-  std::uint32_t mask = 0;
-  for (std::uint32_t l = 0; l < kBucket; ++l) {
-    const float h = b.h[l];
-    const bool o = (b.x[l] - h <= box.hi.x) & (box.lo.x <= b.x[l] + h) & (b.y[l] - h <= box.hi.y) &
-                   (box.lo.y <= b.y[l] + h) & (b.z[l] - h <= box.hi.z) & (box.lo.z <= b.z[l] + h);
-    mask |= static_cast<std::uint32_t>(o) << l;
-  }
-  return mask;
-#endif
+#if VISCD_HAVE_AVX512
+// search_bucket() with every call inlined into code compiled for AVX-512 (cpu/simd.hpp).
+template <class Emit>
+VISCD_AVX512_FLATTEN void search_bucket_avx512(const SearchView& v, std::size_t b, Emit& emit) {
+  search_bucket<SimdAvx512>(v, b, emit);
 }
+#endif
 
 }  // namespace
 
@@ -260,35 +254,22 @@ Status BucketBroadphase::find_pairs(std::span<const std::uint32_t> active, bool 
   const std::size_t buckets = (n + kBucket - 1) / kBucket;
   const std::size_t chunks = threads_for(n, threads) == 1 ? 1 : std::min<std::size_t>(buckets, 8 * threads);
   const std::uint32_t objects = n ? active.back() + 1 : 0;  // active is ascending
-  const std::uint32_t* ids = sorted_ids_.data();
-  const Filter* filter = sorted_filters_.data();
-  // The filters come after the exact test: few candidates pass it, and the lanes stay as they are.
-  auto pass = [&](std::uint32_t p, std::uint32_t q) { return !filtered || pair_passes_filter(filter[p], filter[q]); };
+  const SearchView view{
+      lanes_.data(), bucket_boxes_.data(), &tree_, sorted_ids_.data(), sorted_filters_.data(), filtered, n};
+  const SimdLevel simd = simd_level();
   const Status found = pairs_.collect(buckets, chunks, pair_memory_cap, objects, pairs, [&](std::size_t b, auto& emit) {
-    const BucketLanes& lb = lanes_[b];
-    const auto first = static_cast<std::uint32_t>(b * kBucket);
-    const auto count = static_cast<std::uint32_t>(std::min<std::size_t>(kBucket, n - first));
-    // Pairs inside the bucket: lane i against the lanes after it.
-    for (std::uint32_t i = 0; i + 1 < count; ++i) {
-      std::uint32_t m = overlap_mask(lb, lb.x[i], lb.y[i], lb.z[i], lb.r[i]) & (~0u << (i + 1));
-      for (; m; m &= m - 1) {
-        const std::uint32_t q = first + static_cast<std::uint32_t>(std::countr_zero(m));
-        if (pass(first + i, q)) emit(ids[first + i], ids[q]);
-      }
+    switch (simd) {
+#if VISCD_HAVE_AVX512
+      case SimdLevel::avx512:
+        return search_bucket_avx512(view, b, emit);
+#endif
+#if defined(__SSE2__)
+      case SimdLevel::sse2:
+        return search_bucket<SimdSse2>(view, b, emit);
+#endif
+      default:
+        return search_bucket<SimdScalar>(view, b, emit);
     }
-    // Pairs with every later bucket whose box overlaps this one's.
-    for_each_wide_overlap_after(tree_, static_cast<std::uint32_t>(b), bucket_boxes_[b], [&](std::uint32_t qb) {
-      const BucketLanes& lq = lanes_[qb];
-      const std::uint32_t qfirst = qb * kBucket;
-      // Only this bucket's lanes whose boxes reach into the other bucket's box can pair.
-      for (std::uint32_t near = lanes_overlapping(lb, bucket_boxes_[qb]); near; near &= near - 1) {
-        const auto i = static_cast<std::uint32_t>(std::countr_zero(near));
-        for (std::uint32_t m = overlap_mask(lq, lb.x[i], lb.y[i], lb.z[i], lb.r[i]); m; m &= m - 1) {
-          const std::uint32_t q = qfirst + static_cast<std::uint32_t>(std::countr_zero(m));
-          if (pass(first + i, q)) emit(ids[first + i], ids[q]);
-        }
-      }
-    });
   });
   if (!found) return found;
   stats.pairs = pairs.size();
@@ -457,7 +438,8 @@ void BucketBroadphase::overlap(const Sphere& sphere, std::span<const std::uint32
   const Aabb box = conservative_box(sphere);
   auto visit = [&](std::uint32_t b) {
     // Padding lanes hold NaN centres: overlap_mask() never sets their bits.
-    for (std::uint32_t m = overlap_mask(lanes_[b], sphere.x, sphere.y, sphere.z, sphere.r); m; m &= m - 1) {
+    for (std::uint32_t m = SimdBaseline::sphere_lanes(lanes_[b], sphere.x, sphere.y, sphere.z, sphere.r); m;
+         m &= m - 1) {
       const std::uint32_t id = sorted_ids_[std::size_t{b} * kBucket + static_cast<std::uint32_t>(std::countr_zero(m))];
       out.push_back(ids.empty() ? id : ids[id]);
     }

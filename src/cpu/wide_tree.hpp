@@ -18,10 +18,7 @@
 #include <vector>
 
 #include "core/geometry.hpp"
-
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
+#include "cpu/simd.hpp"
 
 namespace viscd::detail {
 
@@ -49,34 +46,12 @@ void build_wide_tree(std::span<const Aabb> leaf_boxes, WideTree& tree, int threa
 /// child box equal to the union of its node's children. Empty string when valid.
 [[nodiscard]] std::string validate_wide_tree(const WideTree& tree, std::span<const Aabb> leaf_boxes);
 
-/// Bit l set when child l's box overlaps `box` by overlaps() (touching counts). Branch-free.
-inline std::uint32_t wide_overlaps(const WideNode& n, const Aabb& box) {
-#if defined(__SSE2__)
-  const __m128 lox = _mm_set1_ps(box.lo.x), loy = _mm_set1_ps(box.lo.y), loz = _mm_set1_ps(box.lo.z);
-  const __m128 hix = _mm_set1_ps(box.hi.x), hiy = _mm_set1_ps(box.hi.y), hiz = _mm_set1_ps(box.hi.z);
-  std::uint32_t mask = 0;
-  for (std::uint32_t l = 0; l < kWide; l += 4) {
-    const __m128 ox =
-        _mm_and_ps(_mm_cmple_ps(_mm_load_ps(n.lo_x + l), hix), _mm_cmple_ps(lox, _mm_load_ps(n.hi_x + l)));
-    const __m128 oy =
-        _mm_and_ps(_mm_cmple_ps(_mm_load_ps(n.lo_y + l), hiy), _mm_cmple_ps(loy, _mm_load_ps(n.hi_y + l)));
-    const __m128 oz =
-        _mm_and_ps(_mm_cmple_ps(_mm_load_ps(n.lo_z + l), hiz), _mm_cmple_ps(loz, _mm_load_ps(n.hi_z + l)));
-    mask |= static_cast<std::uint32_t>(_mm_movemask_ps(_mm_and_ps(_mm_and_ps(ox, oy), oz))) << l;
-  }
-  return mask;
-#else
-  std::uint32_t mask = 0;
-  for (std::uint32_t l = 0; l < kWide; ++l) mask |= static_cast<std::uint32_t>(overlaps(n.child(l), box)) << l;
-  return mask;
-#endif
-}
-
 namespace wide_detail {
 
 // The depth-first walk shared by the searches: one frame per level (a node and the children
-// still to visit). `keep(k, node)` masks the children of node `node` of level k worth a test.
-template <class Keep, class F>
+// still to visit). `keep(k, node)` masks the children of node `node` of level k worth a test;
+// Simd (cpu/simd.hpp) tests them.
+template <class Simd, class Keep, class F>
 inline void walk(const WideTree& t, const Aabb& box, Keep&& keep, F&& f) {
   if (t.levels == 0) return;
   struct Frame {
@@ -85,7 +60,7 @@ inline void walk(const WideTree& t, const Aabb& box, Keep&& keep, F&& f) {
   Frame stack[kWideMaxLevels];
   auto enter = [&](std::uint32_t k, std::uint32_t node) {
     const std::uint32_t m = keep(k, node);
-    stack[k] = {node, m ? wide_overlaps(t.level[k][node], box) & m : 0u};
+    stack[k] = {node, m ? Simd::node_children(t.level[k][node], box) & m : 0u};
   };
   std::uint32_t k = t.levels - 1;
   enter(k, 0);
@@ -109,17 +84,17 @@ inline void walk(const WideTree& t, const Aabb& box, Keep&& keep, F&& f) {
 }  // namespace wide_detail
 
 /// Calls f(q) for every leaf q whose box overlaps `box`.
-template <class F>
+template <class Simd = SimdBaseline, class F>
 inline void for_each_wide_overlap(const WideTree& t, const Aabb& box, F&& f) {
-  wide_detail::walk(
-      t, box, [](std::uint32_t, std::uint32_t) { return 0xFFFFu; }, f);
+  const auto keep = [](std::uint32_t, std::uint32_t) -> std::uint32_t { return 0xFFFFu; };
+  wide_detail::walk<Simd>(t, box, keep, f);
 }
 
 /// Calls f(q) for every leaf q > p whose box overlaps `box`, so that each pair is found once.
 /// Child l of node j at level k is entry 16j + l of the level below, which covers the leaves
 /// [(16j + l) 16^k, (16j + l + 1) 16^k): it holds a leaf after p when 16j + l >= p >> 4k (at
 /// level 0, where the entries are leaves: 16j + l > p).
-template <class F>
+template <class Simd = SimdBaseline, class F>
 inline void for_each_wide_overlap_after(const WideTree& t, std::uint32_t p, const Aabb& box, F&& f) {
   const auto keep = [p](std::uint32_t k, std::uint32_t node) -> std::uint32_t {
     const std::uint64_t first = k == 0 ? std::uint64_t{p} + 1 : std::uint64_t{p} >> (4 * k);
@@ -128,7 +103,7 @@ inline void for_each_wide_overlap_after(const WideTree& t, std::uint32_t p, cons
     if (first >= base + kWide) return 0u;
     return (0xFFFFu << (first - base)) & 0xFFFFu;
   };
-  wide_detail::walk(t, box, keep, f);
+  wide_detail::walk<Simd>(t, box, keep, f);
 }
 
 }  // namespace viscd::detail

@@ -5,11 +5,13 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <numeric>
 #include <random>
 
 #include "cpu/broadphase.hpp"
 #include "cpu/bucket_broadphase.hpp"
+#include "cpu/simd.hpp"
 #include "test_util.hpp"
 
 namespace viscd {
@@ -44,29 +46,49 @@ void check_frame(detail::BucketBroadphase& bp, const std::vector<Sphere>& s, con
   ASSERT_EQ(sorted_ids, active) << what << ": not a permutation of the active set";
 }
 
-TEST(BucketBroadphase, CountsAroundBucketMultiples) {
-  for (std::size_t n : {0u, 1u, 2u, 3u, 15u, 16u, 17u, 31u, 32u, 33u, 47u, 48u, 49u, 255u, 256u, 257u}) {
-    const auto s = random_spheres_by_half_extent(n, n + 1, 2.0f + 0.1f * static_cast<float>(n));
-    for (int bits : {16, 32, 64}) {
-      detail::BucketBroadphase bp;
-      check_frame(bp, s, all_of(n), bits, "n = " + std::to_string(n) + ", m = " + std::to_string(bits));
-    }
+// Runs f(name) with stage 8 on each instruction set this CPU has (cpu/simd.hpp), then restores it.
+template <class F>
+void for_each_simd_level(F&& f) {
+  const detail::SimdLevel before = detail::simd_level();
+  for (detail::SimdLevel l : {detail::SimdLevel::scalar, detail::SimdLevel::sse2, detail::SimdLevel::avx512}) {
+    if (detail::set_simd_level(l) != l) continue;  // not on this CPU
+    f(std::string(detail::simd_name(l)));
   }
+  detail::set_simd_level(before);
+}
+
+TEST(BucketBroadphase, CountsAroundBucketMultiples) {
+  for_each_simd_level([](const std::string& simd) {
+    // 16^2 and 16^3 buckets are where the tree over the buckets gains a level.
+    for (std::size_t n :
+         {0u, 1u, 2u, 3u, 15u, 16u, 17u, 31u, 32u, 33u, 47u, 48u, 49u, 255u, 256u, 257u, 4095u, 4096u, 4097u, 65537u}) {
+      const auto s = random_spheres_by_half_extent(n, n + 1, 2.0f + 0.1f * std::cbrt(static_cast<float>(n)) * 4.0f);
+      for (int bits : {16, 32, 64}) {
+        // 65537 objects, 4097 buckets, once: the brute-force oracle is O(n^2).
+        if (n > 5000 && (bits != 32 || simd != detail::simd_name(detail::best_simd_level()))) continue;
+        detail::BucketBroadphase bp;
+        check_frame(bp, s, all_of(n), bits, simd + ", n = " + std::to_string(n) + ", m = " + std::to_string(bits));
+      }
+    }
+  });
 }
 
 TEST(BucketBroadphase, DenseAndDegenerateSets) {
-  detail::BucketBroadphase bp;
-  // Everything overlaps everything: one bucket's all-pairs path and the cross path at once.
-  check_frame(bp, std::vector<Sphere>(70, Sphere{1, 2, 3, 0.5f}), all_of(70), 32, "identical");
-  check_frame(bp, std::vector<Sphere>(70, Sphere{1, 2, 3, 0}), all_of(70), 16, "identical points");
-  // Touching on a line, one radius that covers all, tiny radii.
-  std::vector<Sphere> line;
-  for (int k = 0; k < 100; ++k) line.push_back({static_cast<float>(k), 0, 0, 0.5f});
-  check_frame(bp, line, all_of(line.size()), 32, "touching line");
-  auto huge = random_spheres_by_half_extent(300, 9, 50.0f, 0.01f, 0.2f);
-  huge[137].r = 1e4f;
-  check_frame(bp, huge, all_of(huge.size()), 64, "one huge among tiny");
-  check_frame(bp, test::float_boundary_pairs(200, 4), all_of(400), 32, "pairs at the float boundary");
+  for_each_simd_level([](const std::string& simd) {
+    SCOPED_TRACE(simd);
+    detail::BucketBroadphase bp;
+    // Everything overlaps everything: one bucket's all-pairs path and the cross path at once.
+    check_frame(bp, std::vector<Sphere>(70, Sphere{1, 2, 3, 0.5f}), all_of(70), 32, "identical");
+    check_frame(bp, std::vector<Sphere>(70, Sphere{1, 2, 3, 0}), all_of(70), 16, "identical points");
+    // Touching on a line, one radius that covers all, tiny radii.
+    std::vector<Sphere> line;
+    for (int k = 0; k < 100; ++k) line.push_back({static_cast<float>(k), 0, 0, 0.5f});
+    check_frame(bp, line, all_of(line.size()), 32, "touching line");
+    auto huge = random_spheres_by_half_extent(300, 9, 50.0f, 0.01f, 0.2f);
+    huge[137].r = 1e4f;
+    check_frame(bp, huge, all_of(huge.size()), 64, "one huge among tiny");
+    check_frame(bp, test::float_boundary_pairs(200, 4), all_of(400), 32, "pairs at the float boundary");
+  });
 }
 
 TEST(BucketBroadphase, SubsetsOfActiveObjects) {

@@ -1,0 +1,175 @@
+#pragma once
+// The branch-free 16-lane tests of the cpu broadphase's stage 8, for two instruction sets chosen
+// at run time: SSE2 (every x86-64; 4 steps of 4 lanes) and AVX-512 (1 step of 16 lanes). Other
+// machines get the scalar loops. Each kernel is a static member of an instruction-set struct; code
+// that runs the AVX-512 kernels is instantiated with that struct inside a function compiled for
+// AVX-512 (VISCD_AVX512_FLATTEN: everything it calls is inlined into it), and is only entered
+// when simd_level() says the CPU has it. Nothing is compiled for AVX-512 outside such functions.
+//
+// Exactness: sphere_lanes() performs overlap_exact()'s float operations in its order (sub, mul,
+// add, no FMA: the library is compiled with -ffp-contract=off), and every comparison is an
+// ordered <=, false on NaN, as in C++. So each level gives the same bits as the scalar test.
+
+#include <cstdint>
+
+#include "core/geometry.hpp"
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define VISCD_HAVE_AVX512 1
+#include <immintrin.h>
+#define VISCD_AVX512_TARGET __attribute__((target("avx512f")))
+#define VISCD_AVX512_FLATTEN __attribute__((target("avx512f"), flatten))
+#else
+#define VISCD_HAVE_AVX512 0
+#endif
+
+namespace viscd::detail {
+
+enum class SimdLevel { scalar, sse2, avx512 };
+
+/// The level stage 8 uses: the best this CPU has, unless set_simd_level() lowered it.
+[[nodiscard]] SimdLevel simd_level();
+/// The best level this CPU (and build) has.
+[[nodiscard]] SimdLevel best_simd_level();
+/// Uses `wanted`, or the best this CPU has when that is lower; returns the level now in use. For
+/// tests and benchmarks (VISCD_SIMD=scalar|sse2|avx512 in the environment does the same at start).
+SimdLevel set_simd_level(SimdLevel wanted);
+[[nodiscard]] const char* simd_name(SimdLevel level);
+
+/// 16 lanes of spheres (x, y, z, r) and their conservative half extents h, as arrays of 16.
+/// Lanes with NaN centres (and h) pass no test.
+template <class L>
+concept Lanes16 = requires(const L& l) {
+  l.x[15];
+  l.y[15];
+  l.z[15];
+  l.r[15];
+  l.h[15];
+};
+
+struct SimdScalar {
+  /// Bit l set when the sphere (x, y, z, r) passes overlap_exact() with lane l.
+  template <Lanes16 L>
+  static std::uint32_t sphere_lanes(const L& b, float x, float y, float z, float r) {
+    std::uint32_t mask = 0;
+    for (std::uint32_t l = 0; l < 16; ++l) {
+      const float dx = x - b.x[l], dy = y - b.y[l], dz = z - b.z[l];
+      const float s = r + b.r[l];
+      mask |= static_cast<std::uint32_t>(dx * dx + dy * dy + dz * dz <= s * s) << l;
+    }
+    return mask;
+  }
+  /// Bit l set when lane l's conservative box (centre -/+ h) overlaps `box`.
+  template <Lanes16 L>
+  static std::uint32_t box_lanes(const L& b, const Aabb& box) {
+    std::uint32_t mask = 0;
+    for (std::uint32_t l = 0; l < 16; ++l) {
+      const float h = b.h[l];
+      const bool o = (b.x[l] - h <= box.hi.x) & (box.lo.x <= b.x[l] + h) & (b.y[l] - h <= box.hi.y) &
+                     (box.lo.y <= b.y[l] + h) & (b.z[l] - h <= box.hi.z) & (box.lo.z <= b.z[l] + h);
+      mask |= static_cast<std::uint32_t>(o) << l;
+    }
+    return mask;
+  }
+  /// Bit l set when the box (lo_x[l] .. hi_z[l]) overlaps `box` by overlaps().
+  template <class N>
+  static std::uint32_t node_children(const N& n, const Aabb& box) {
+    std::uint32_t mask = 0;
+    for (std::uint32_t l = 0; l < 16; ++l) {
+      const bool o = (n.lo_x[l] <= box.hi.x) & (box.lo.x <= n.hi_x[l]) & (n.lo_y[l] <= box.hi.y) &
+                     (box.lo.y <= n.hi_y[l]) & (n.lo_z[l] <= box.hi.z) & (box.lo.z <= n.hi_z[l]);
+      mask |= static_cast<std::uint32_t>(o) << l;
+    }
+    return mask;
+  }
+};
+
+#if defined(__SSE2__)
+struct SimdSse2 {
+  template <Lanes16 L>
+  static std::uint32_t sphere_lanes(const L& b, float x, float y, float z, float r) {
+    const __m128 px = _mm_set1_ps(x), py = _mm_set1_ps(y), pz = _mm_set1_ps(z), pr = _mm_set1_ps(r);
+    std::uint32_t mask = 0;
+    for (std::uint32_t l = 0; l < 16; l += 4) {
+      const __m128 dx = _mm_sub_ps(px, _mm_loadu_ps(b.x + l));
+      const __m128 dy = _mm_sub_ps(py, _mm_loadu_ps(b.y + l));
+      const __m128 dz = _mm_sub_ps(pz, _mm_loadu_ps(b.z + l));
+      const __m128 s = _mm_add_ps(pr, _mm_loadu_ps(b.r + l));
+      const __m128 d2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
+      mask |= static_cast<std::uint32_t>(_mm_movemask_ps(_mm_cmple_ps(d2, _mm_mul_ps(s, s)))) << l;
+    }
+    return mask;
+  }
+  template <Lanes16 L>
+  static std::uint32_t box_lanes(const L& b, const Aabb& box) {
+    const __m128 lox = _mm_set1_ps(box.lo.x), loy = _mm_set1_ps(box.lo.y), loz = _mm_set1_ps(box.lo.z);
+    const __m128 hix = _mm_set1_ps(box.hi.x), hiy = _mm_set1_ps(box.hi.y), hiz = _mm_set1_ps(box.hi.z);
+    std::uint32_t mask = 0;
+    for (std::uint32_t l = 0; l < 16; l += 4) {
+      const __m128 h = _mm_loadu_ps(b.h + l);
+      const __m128 x = _mm_loadu_ps(b.x + l), y = _mm_loadu_ps(b.y + l), z = _mm_loadu_ps(b.z + l);
+      const __m128 ox = _mm_and_ps(_mm_cmple_ps(_mm_sub_ps(x, h), hix), _mm_cmple_ps(lox, _mm_add_ps(x, h)));
+      const __m128 oy = _mm_and_ps(_mm_cmple_ps(_mm_sub_ps(y, h), hiy), _mm_cmple_ps(loy, _mm_add_ps(y, h)));
+      const __m128 oz = _mm_and_ps(_mm_cmple_ps(_mm_sub_ps(z, h), hiz), _mm_cmple_ps(loz, _mm_add_ps(z, h)));
+      mask |= static_cast<std::uint32_t>(_mm_movemask_ps(_mm_and_ps(_mm_and_ps(ox, oy), oz))) << l;
+    }
+    return mask;
+  }
+  template <class N>
+  static std::uint32_t node_children(const N& n, const Aabb& box) {
+    const __m128 lox = _mm_set1_ps(box.lo.x), loy = _mm_set1_ps(box.lo.y), loz = _mm_set1_ps(box.lo.z);
+    const __m128 hix = _mm_set1_ps(box.hi.x), hiy = _mm_set1_ps(box.hi.y), hiz = _mm_set1_ps(box.hi.z);
+    std::uint32_t mask = 0;
+    for (std::uint32_t l = 0; l < 16; l += 4) {
+      const __m128 ox =
+          _mm_and_ps(_mm_cmple_ps(_mm_loadu_ps(n.lo_x + l), hix), _mm_cmple_ps(lox, _mm_loadu_ps(n.hi_x + l)));
+      const __m128 oy =
+          _mm_and_ps(_mm_cmple_ps(_mm_loadu_ps(n.lo_y + l), hiy), _mm_cmple_ps(loy, _mm_loadu_ps(n.hi_y + l)));
+      const __m128 oz =
+          _mm_and_ps(_mm_cmple_ps(_mm_loadu_ps(n.lo_z + l), hiz), _mm_cmple_ps(loz, _mm_loadu_ps(n.hi_z + l)));
+      mask |= static_cast<std::uint32_t>(_mm_movemask_ps(_mm_and_ps(_mm_and_ps(ox, oy), oz))) << l;
+    }
+    return mask;
+  }
+};
+/// The kernels code uses when it is not dispatched (queries, and the build of the default path).
+using SimdBaseline = SimdSse2;
+#else
+using SimdBaseline = SimdScalar;
+#endif
+
+#if VISCD_HAVE_AVX512
+struct SimdAvx512 {
+  template <Lanes16 L>
+  VISCD_AVX512_TARGET static std::uint32_t sphere_lanes(const L& b, float x, float y, float z, float r) {
+    const __m512 dx = _mm512_sub_ps(_mm512_set1_ps(x), _mm512_loadu_ps(b.x));
+    const __m512 dy = _mm512_sub_ps(_mm512_set1_ps(y), _mm512_loadu_ps(b.y));
+    const __m512 dz = _mm512_sub_ps(_mm512_set1_ps(z), _mm512_loadu_ps(b.z));
+    const __m512 s = _mm512_add_ps(_mm512_set1_ps(r), _mm512_loadu_ps(b.r));
+    const __m512 d2 = _mm512_add_ps(_mm512_add_ps(_mm512_mul_ps(dx, dx), _mm512_mul_ps(dy, dy)), _mm512_mul_ps(dz, dz));
+    return _mm512_cmp_ps_mask(d2, _mm512_mul_ps(s, s), _CMP_LE_OQ);
+  }
+  template <Lanes16 L>
+  VISCD_AVX512_TARGET static std::uint32_t box_lanes(const L& b, const Aabb& box) {
+    const __m512 h = _mm512_loadu_ps(b.h);
+    const __m512 x = _mm512_loadu_ps(b.x), y = _mm512_loadu_ps(b.y), z = _mm512_loadu_ps(b.z);
+    __mmask16 m = _mm512_cmp_ps_mask(_mm512_sub_ps(x, h), _mm512_set1_ps(box.hi.x), _CMP_LE_OQ);
+    m = _mm512_mask_cmp_ps_mask(m, _mm512_set1_ps(box.lo.x), _mm512_add_ps(x, h), _CMP_LE_OQ);
+    m = _mm512_mask_cmp_ps_mask(m, _mm512_sub_ps(y, h), _mm512_set1_ps(box.hi.y), _CMP_LE_OQ);
+    m = _mm512_mask_cmp_ps_mask(m, _mm512_set1_ps(box.lo.y), _mm512_add_ps(y, h), _CMP_LE_OQ);
+    m = _mm512_mask_cmp_ps_mask(m, _mm512_sub_ps(z, h), _mm512_set1_ps(box.hi.z), _CMP_LE_OQ);
+    return _mm512_mask_cmp_ps_mask(m, _mm512_set1_ps(box.lo.z), _mm512_add_ps(z, h), _CMP_LE_OQ);
+  }
+  template <class N>
+  VISCD_AVX512_TARGET static std::uint32_t node_children(const N& n, const Aabb& box) {
+    __mmask16 m = _mm512_cmp_ps_mask(_mm512_loadu_ps(n.lo_x), _mm512_set1_ps(box.hi.x), _CMP_LE_OQ);
+    m = _mm512_mask_cmp_ps_mask(m, _mm512_set1_ps(box.lo.x), _mm512_loadu_ps(n.hi_x), _CMP_LE_OQ);
+    m = _mm512_mask_cmp_ps_mask(m, _mm512_loadu_ps(n.lo_y), _mm512_set1_ps(box.hi.y), _CMP_LE_OQ);
+    m = _mm512_mask_cmp_ps_mask(m, _mm512_set1_ps(box.lo.y), _mm512_loadu_ps(n.hi_y), _CMP_LE_OQ);
+    m = _mm512_mask_cmp_ps_mask(m, _mm512_loadu_ps(n.lo_z), _mm512_set1_ps(box.hi.z), _CMP_LE_OQ);
+    return _mm512_mask_cmp_ps_mask(m, _mm512_set1_ps(box.lo.z), _mm512_loadu_ps(n.hi_z), _CMP_LE_OQ);
+  }
+};
+#endif
+
+}  // namespace viscd::detail
