@@ -358,6 +358,42 @@ inline std::uint32_t ray_lanes(const RaySetup& q, const BucketLanes& b, double t
   return mask;
 }
 
+// The children of a wide node whose boxes the segment t in [0, t_hi] meets, widened as ray_box();
+// t_enter[l] is where it enters child l's box (set for every lane). Empty children fail.
+inline std::uint32_t ray_children(const RaySetup& q, const WideNode& n, double t_hi, double* t_enter) {
+  std::uint32_t mask = 0;
+#if defined(__SSE2__)
+  const float* lo_axis[3] = {n.lo_x, n.lo_y, n.lo_z};
+  const float* hi_axis[3] = {n.hi_x, n.hi_y, n.hi_z};
+  auto two = [](const float* f) {
+    return _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(f))));
+  };
+  for (std::uint32_t l = 0; l < kWide; l += 2) {
+    __m128d t0 = _mm_setzero_pd(), t1 = _mm_set1_pd(t_hi);
+    __m128d inside = _mm_castsi128_pd(_mm_set1_epi32(-1));
+    for (int k = 0; k < 3; ++k) {
+      const __m128d lo = two(lo_axis[k] + l), hi = two(hi_axis[k] + l);
+      if (q.flat[k]) {
+        inside = _mm_and_pd(inside, _mm_and_pd(_mm_cmple_pd(lo, _mm_set1_pd(q.lo_shift[k])),
+                                               _mm_cmpge_pd(hi, _mm_set1_pd(q.hi_shift[k]))));
+        continue;
+      }
+      const __m128d inv = _mm_set1_pd(q.inv[k]);
+      const __m128d a = _mm_mul_pd(_mm_sub_pd(lo, _mm_set1_pd(q.lo_shift[k])), inv);
+      const __m128d e = _mm_mul_pd(_mm_sub_pd(hi, _mm_set1_pd(q.hi_shift[k])), inv);
+      t0 = _mm_max_pd(t0, q.negative[k] ? e : a);
+      t1 = _mm_min_pd(t1, q.negative[k] ? a : e);
+    }
+    _mm_storeu_pd(t_enter + l, t0);
+    mask |= static_cast<std::uint32_t>(_mm_movemask_pd(_mm_and_pd(inside, _mm_cmple_pd(t0, t1)))) << l;
+  }
+#else
+  for (std::uint32_t l = 0; l < kWide; ++l)
+    if (ray_box(q, n.child(l), t_hi, t_enter[l])) mask |= 1u << l;
+#endif
+  return mask;
+}
+
 // Every t whose float rounding is at most `limit` is at most this.
 inline double upper_t(float limit) {
   return static_cast<double>(std::nextafter(limit, std::numeric_limits<float>::infinity()));
@@ -388,13 +424,17 @@ void BucketBroadphase::ray_walk(const Ray& ray, double& t_hi, Visit&& visit) con
       continue;
     }
     const WideNode& nd = tree_.level[static_cast<std::size_t>(e.level)][e.index];
+    double t_enter[kWide];
     Entry hit[kWide];
     int hits = 0;
-    for (std::uint32_t l = 0; l < kWide; ++l) {
-      double te = 0;
-      if (ray_box(q, nd.child(l), t_hi, te)) hit[hits++] = {e.level - 1, e.index * kWide + l, te};
+    for (std::uint32_t m = ray_children(q, nd, t_hi, t_enter); m; m &= m - 1) {
+      const auto l = static_cast<std::uint32_t>(std::countr_zero(m));
+      // Insertion by t, farthest first.
+      const Entry x{e.level - 1, e.index * kWide + l, t_enter[l]};
+      int h = hits++;
+      for (; h > 0 && hit[h - 1].t < x.t; --h) hit[h] = hit[h - 1];
+      hit[h] = x;
     }
-    std::sort(hit, hit + hits, [](const Entry& a, const Entry& b) { return a.t > b.t; });
     for (int h = 0; h < hits; ++h) stack[sp++] = hit[h];
   }
 }
