@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstring>
 #include <limits>
 
 #include "core/stopwatch.hpp"
@@ -15,8 +16,6 @@
 
 namespace viscd::detail {
 namespace {
-
-constexpr std::uint32_t kNone = 0xFFFFFFFFu;
 
 // What stage 8 searches, for search_bucket().
 struct SearchView {
@@ -73,7 +72,8 @@ VISCD_AVX512_FLATTEN void search_bucket_avx512(const SearchView& v, std::size_t 
 
 std::uint64_t BucketBroadphase::memory_bytes() const {
   std::uint64_t b = bytes_of(sorted_ids_) + bytes_of(previous_ids_) + bytes_of(rank_) + bytes_of(lanes_) +
-                    bytes_of(bucket_boxes_) + pairs_.memory_bytes();
+                    bytes_of(bucket_boxes_) + bytes_of(gathered_) + bytes_of(entries_) + bytes_of(merged_) +
+                    bytes_of(far_) + pairs_.memory_bytes();
   for (const auto& level : tree_.level) b += bytes_of(level);
   keys_.for_each([&](const auto& v) { b += bytes_of(v); });
   scratch_.for_each([&](const auto& s) { b += bytes_of(s.keys) + bytes_of(s.values); });
@@ -116,70 +116,30 @@ void BucketBroadphase::build_tree(std::span<const Sphere> spheres, std::span<con
   }
 }
 
-// Stage 6 from the last frame's order: the objects still active keep their last order, new ones
-// follow by index, and an insertion sort by (code, object id) finishes. Gives up (false) when the
-// shifts exceed 16 per entry done so far, so a frame where much moved far costs little more than a
-// sort from scratch. On success key[0..n) and sorted_ids_ hold the sorted codes and objects.
-template <class K>
-bool BucketBroadphase::sort_from_previous(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
-                                          std::vector<K>& key) {
+// The objects still active in the last frame's order, then the new ones by index, into
+// sorted_ids_[0..n). When every object is active and the last frame had the same ones (the steady
+// state without culling), that is the last order as it stands.
+void BucketBroadphase::last_order(std::size_t objects, std::span<const std::uint32_t> active) {
   const std::size_t n = active.size();
-  if (previous_ids_.empty()) return false;
-  rank_.assign(spheres.size(), kNone);
-  for (std::size_t k = 0; k < n; ++k) rank_[active[k]] = static_cast<std::uint32_t>(k);
-  std::vector<K>& sk = scratch_.get<K>().keys;  // the radix sort's scratch, free until a fallback
-  if (sk.size() < n) resize_with_headroom(sk, n);
+  if (n == objects && previous_ids_.size() == n) {
+    // active is 0..n-1 (ascending, distinct), and the last order holds n distinct ids: when all
+    // are below n it is a permutation of them.
+    if (std::all_of(previous_ids_.begin(), previous_ids_.end(), [n](std::uint32_t id) { return id < n; })) {
+      std::copy(previous_ids_.begin(), previous_ids_.end(), sorted_ids_.begin());
+      return;
+    }
+  }
+  rank_.assign(objects, 0);  // 1: active and not yet placed
+  for (const std::uint32_t id : active) rank_[id] = 1;
   std::size_t p = 0;
   for (const std::uint32_t id : previous_ids_) {
-    if (id >= rank_.size() || rank_[id] == kNone) continue;
-    sk[p] = key[rank_[id]];
+    if (id >= objects || rank_[id] == 0) continue;
     sorted_ids_[p++] = id;
-    rank_[id] = kNone;
+    rank_[id] = 0;
   }
-  for (std::size_t k = 0; k < n; ++k) {
-    if (rank_[active[k]] == kNone) continue;
-    sk[p] = key[k];
-    sorted_ids_[p++] = active[k];
-  }
+  for (const std::uint32_t id : active)
+    if (rank_[id]) sorted_ids_[p++] = id;
   VISCD_ASSERT(p == n, "every active object is placed once");
-  // Shifts cost about 1/25 of a radix sort's work per key (measured at 10^5 keys), so up to 16
-  // shifts per key pay. The budget grows with the entries done, so a frame where much moved far
-  // gives up early rather than after 16 n shifts.
-  std::uint64_t moves = 0;
-  std::uint32_t* ids = sorted_ids_.data();
-  for (std::size_t i = 1; i < n; ++i) {
-    const K kk = sk[i];
-    const std::uint32_t id = ids[i];
-    std::size_t j = i;
-    while (j > 0 && (sk[j - 1] > kk || (sk[j - 1] == kk && ids[j - 1] > id))) {
-      sk[j] = sk[j - 1];
-      ids[j] = ids[j - 1];
-      --j;
-    }
-    sk[j] = kk;
-    ids[j] = id;
-    moves += i - j;
-    if (moves > 16 * static_cast<std::uint64_t>(i) + 4096) {
-      sort_report_ = {false, moves};
-      return false;
-    }
-  }
-  std::copy(sk.begin(), sk.begin() + static_cast<std::ptrdiff_t>(n), key.begin());
-  sort_report_ = {true, moves};
-  return true;
-}
-
-template <class K>
-void BucketBroadphase::sort_codes(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
-                                  std::vector<K>& key, int threads) {
-  const std::size_t n = active.size();
-  sort_report_ = {};
-  if (n > 1 && sort_from_previous<K>(spheres, active, key)) return;
-  // From scratch: values start as the active ids in ascending order, and the sort is stable, so
-  // key ties end up by object id, as in the insertion sort.
-  for (std::size_t k = 0; k < n; ++k) sorted_ids_[k] = active[k];
-  radix_sort<K>(std::span<K>(key.data(), n), std::span<std::uint32_t>(sorted_ids_.data(), n), 8 * sizeof(K), threads,
-                scratch_.get<K>());
 }
 
 template <class K>
@@ -191,17 +151,63 @@ void BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<con
   std::vector<K>& key = keys_.get<K>();
   if (key.size() < n) resize_with_headroom(key, n);
   resize_with_headroom(sorted_ids_, n);
-
-  // Stage 5: codes, in active order.
   const MortonEncoder encoder(layout_, bounds);
-  parallel_for(n, threads, [&](std::size_t k) {
-    const Sphere& s = spheres[active[k]];
-    key[k] = static_cast<K>(encoder.encode(s.x, s.y, s.z));
-  });
-  ms(Stage::codes) = sw.lap();
+  auto code_of = [&](const Sphere& s) { return static_cast<K>(encoder.encode(s.x, s.y, s.z)); };
+  // (code, id) in one entry: packed into `key` when the code has at most 32 bits, so that one
+  // comparison orders by code and ties by id; else code and id compared in turn.
+  auto entry_of = [](K code, std::uint32_t id, std::uint32_t at) {
+    if constexpr (sizeof(K) <= 4)
+      return SortEntry{std::uint64_t{code} << 32 | id, id, at};
+    else
+      return SortEntry{code, id, at};
+  };
+  auto less = [](const SortEntry& a, const SortEntry& b) {
+    if constexpr (sizeof(K) <= 4)
+      return a.key < b.key;
+    else
+      return a.key < b.key || (a.key == b.key && a.id < b.id);
+  };
+  auto code_in = [](const SortEntry& e) { return static_cast<K>(sizeof(K) <= 4 ? e.key >> 32 : e.key); };
 
-  // Stage 6: sort, then remember the order for the next frame.
-  sort_codes<K>(spheres, active, key, threads);
+  // Stages 5 and 6 from the last frame's order: the spheres are read once, in that order, into
+  // gathered_ (the one pass that reads them out of the caller's order); their codes are taken on
+  // the way; the sort moves (code, id, place) entries; and the lanes of stage 7 read gathered_
+  // in nearly the order it was written.
+  sort_report_ = {};
+  bool reused = false;
+  if (n > 1 && !previous_ids_.empty()) {
+    last_order(spheres.size(), active);
+    resize_with_headroom(gathered_, n);
+    resize_with_headroom(entries_, n);
+    // The reads are scattered over the caller's array: prefetched kAhead entries ahead, so that
+    // many are in flight at once (at 10^6 objects each would otherwise wait on memory).
+    constexpr std::size_t kAhead = 16;
+    for_chunks(n, static_cast<std::size_t>(threads_for(n, threads)), [&](std::size_t b, std::size_t e, std::size_t) {
+      for (std::size_t p = b; p < e; ++p) {
+        if (p + kAhead < e) __builtin_prefetch(&spheres[sorted_ids_[p + kAhead]]);
+        const Sphere& s = spheres[sorted_ids_[p]];
+        gathered_[p] = s;
+        entries_[p] = entry_of(code_of(s), sorted_ids_[p], static_cast<std::uint32_t>(p));
+      }
+    });
+    ms(Stage::codes) = sw.lap();
+    reused = sort_nearly_sorted(n, less);
+    if (reused) {
+      parallel_for(n, threads, [&](std::size_t k) {
+        key[k] = code_in(entries_[k]);
+        sorted_ids_[k] = entries_[k].id;
+      });
+    }
+  }
+  if (!reused) {
+    // From scratch: codes in active order, then the radix sort. Values start as the active ids in
+    // ascending order and the sort is stable, so ties end up by object id, as above.
+    parallel_for(n, threads, [&](std::size_t k) { key[k] = code_of(spheres[active[k]]); });
+    if (previous_ids_.empty() || n <= 1) ms(Stage::codes) = sw.lap();
+    for (std::size_t k = 0; k < n; ++k) sorted_ids_[k] = active[k];
+    radix_sort<K>(std::span<K>(key.data(), n), std::span<std::uint32_t>(sorted_ids_.data(), n), 8 * sizeof(K), threads,
+                  scratch_.get<K>());
+  }
   resize_with_headroom(previous_ids_, n);
   std::copy(sorted_ids_.begin(), sorted_ids_.end(), previous_ids_.begin());
   ms(Stage::sort) = sw.lap();
@@ -214,26 +220,35 @@ void BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<con
     resize_with_headroom(bucket_boxes_, buckets);
   }
   resize_with_headroom(sorted_filters_, filters.empty() ? 0 : n);
-  constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
-  parallel_for(buckets, threads, [&](std::size_t b) {
-    BucketLanes& ln = lanes_[b];
-    Aabb box;
-    const std::size_t first = b * kBucket;
-    for (std::uint32_t l = 0; l < kBucket; ++l) {
-      if (first + l < n) {
-        const Sphere& s = spheres[sorted_ids_[first + l]];
-        const float e = conservative_half_extent(s);  // conservative_box() is s -/+ e
-        box.grow(Aabb{{s.x - e, s.y - e, s.z - e}, {s.x + e, s.y + e, s.z + e}});
-        ln.x[l] = s.x, ln.y[l] = s.y, ln.z[l] = s.z, ln.r[l] = s.r, ln.h[l] = e;
-        if (!filters.empty()) sorted_filters_[first + l] = filters[sorted_ids_[first + l]];
-      } else {
-        ln.x[l] = ln.y[l] = ln.z[l] = kNan;
-        ln.r[l] = 0;
-        ln.h[l] = kNan;
+  auto fill_lanes = [&](auto&& sphere_at) {
+    constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
+    parallel_for(buckets, threads, [&](std::size_t b) {
+      BucketLanes& ln = lanes_[b];
+      Aabb box;
+      const std::size_t first = b * kBucket;
+      for (std::uint32_t l = 0; l < kBucket; ++l) {
+        if (first + l < n) {
+          const Sphere& s = sphere_at(first + l);
+          const float e = conservative_half_extent(s);  // conservative_box() is s -/+ e
+          box.grow(Aabb{{s.x - e, s.y - e, s.z - e}, {s.x + e, s.y + e, s.z + e}});
+          ln.x[l] = s.x, ln.y[l] = s.y, ln.z[l] = s.z, ln.r[l] = s.r, ln.h[l] = e;
+          if (!filters.empty()) sorted_filters_[first + l] = filters[sorted_ids_[first + l]];
+        } else {
+          ln.x[l] = ln.y[l] = ln.z[l] = kNan;
+          ln.r[l] = 0;
+          ln.h[l] = kNan;
+        }
       }
-    }
-    bucket_boxes_[b] = box;
-  });
+      bucket_boxes_[b] = box;
+    });
+  };
+  if (reused)
+    fill_lanes([&](std::size_t k) -> const Sphere& { return gathered_[entries_[k].at]; });
+  else
+    fill_lanes([&](std::size_t k) -> const Sphere& {
+      if (k + 16 < n) __builtin_prefetch(&spheres[sorted_ids_[k + 16]]);  // scattered reads, as in stage 5
+      return spheres[sorted_ids_[k]];
+    });
   ms(Stage::build) = sw.lap();
   build_wide_tree(std::span<const Aabb>(bucket_boxes_.data(), buckets), tree_, threads);
   ms(Stage::fit) = sw.lap();
@@ -243,6 +258,57 @@ void BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<con
     VISCD_ASSERT(problem.empty(), problem.c_str());
   }
 #endif
+}
+
+// Sorts entries_[0..n), nearly sorted already, by `less` (no two entries equal). An entry that
+// belongs at most kReach places before where it stands is inserted there (a binary search and one
+// memmove); one that belongs farther (an object that crossed a large Morton cell) is set aside, and
+// those are sorted and merged in at the end. Gives up (false) when more than a quarter of the
+// entries were set aside: then the last order says little, and the radix sort costs less.
+template <class Less>
+bool BucketBroadphase::sort_nearly_sorted(std::size_t n, Less less) {
+  constexpr std::size_t kReach = 32;
+  const std::size_t far_limit = n / 4 + 64;
+  if (far_.capacity() < far_limit) far_.reserve(far_limit + far_limit / 2);
+  far_.clear();
+  SortEntry* e = entries_.data();
+  std::size_t m = 0;  // e[0..m) holds the entries kept so far, sorted
+  std::uint64_t moved = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const SortEntry x = e[i];
+    if (m == 0 || less(e[m - 1], x)) {
+      e[m++] = x;
+      continue;
+    }
+    const std::size_t lo = m > kReach ? m - kReach : 0;
+    if (lo > 0 && less(x, e[lo])) {
+      if (far_.size() == far_limit) {
+        sort_report_ = {false, moved, far_.size()};
+        return false;
+      }
+      far_.push_back(x);
+      continue;
+    }
+    std::size_t j = lo, hi = m - 1;  // the first entry above x is in [lo, m - 1]
+    while (j < hi) {
+      const std::size_t mid = j + (hi - j) / 2;
+      if (less(x, e[mid]))
+        hi = mid;
+      else
+        j = mid + 1;
+    }
+    std::memmove(e + j + 1, e + j, (m - j) * sizeof(SortEntry));
+    e[j] = x;
+    moved += m - j;
+    ++m;
+  }
+  sort_report_ = {true, moved, far_.size()};
+  if (far_.empty()) return true;
+  std::sort(far_.begin(), far_.end(), less);
+  resize_with_headroom(merged_, n);
+  std::merge(e, e + m, far_.begin(), far_.end(), merged_.begin(), less);
+  std::swap(entries_, merged_);
+  return true;
 }
 
 Status BucketBroadphase::find_pairs(std::span<const std::uint32_t> active, bool filtered, int threads,

@@ -11,10 +11,12 @@
 // arrays. Why a 16-wide tree over them rather than the paper's Karras tree: cpu/wide_tree.hpp.
 //
 //   stage 4  layout:  extent of the active centres, Morton layout (shared with every backend)
-//   stage 5  codes:   one code per active object
-//   stage 6  sort:    the last frame's order, filtered to this frame's active set, then insertion
-//                     sort by (code, object id) while few objects move far; else an LSD radix sort.
-//                     Both give the same order: by code, ties by object id.
+//   stage 5  codes:   one code per active object; with a last order, the spheres are gathered in
+//                     it (the one read of the caller's array out of its order) and coded there
+//   stage 6  sort:    the last frame's order, filtered to this frame's active set, finished by
+//                     insertion within 32 places, the objects that moved farther sorted apart and
+//                     merged in; an LSD radix sort when there is no last order or a quarter of the
+//                     objects moved far. Both give the same order: by code, ties by object id.
 //   stage 7  build:   objects gathered into per-bucket lanes (x, y, z, r and the conservative half
 //                     extent) and the bucket boxes; fit: the 16-wide tree over the buckets
 //   stage 8  query:   per bucket, pairs inside it, then every later bucket whose box overlaps (the
@@ -53,8 +55,16 @@ struct alignas(32) BucketLanes {
 
 /// How the last frame's stage 6 went (for tests and the bench).
 struct SortReport {
-  bool reused = false;      ///< insertion sort from the last frame's order
-  std::uint64_t moves = 0;  ///< element shifts the insertion sort made (also when it gave up)
+  bool reused = false;      ///< sorted from the last frame's order (else by the radix sort)
+  std::uint64_t moves = 0;  ///< entries shifted by insertions within reach (also when it gave up)
+  std::uint64_t far = 0;    ///< entries set aside, sorted and merged in
+};
+
+/// An entry of the sort from the last order: the code (packed with the id, when the code has at
+/// most 32 bits), the object id, and its place in the last order (in the gathered spheres).
+struct SortEntry {
+  std::uint64_t key;
+  std::uint32_t id, at;
 };
 
 class BucketBroadphase {
@@ -113,17 +123,18 @@ class BucketBroadphase {
   /// the sphere's entry of sorted_ids_.
   template <class Hit>
   void ray_hits(const Ray& ray, double& t_hi, Hit&& hit) const;
-  template <class K>
-  void sort_codes(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, std::vector<K>& key,
-                  int threads);
-  template <class K>
-  bool sort_from_previous(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, std::vector<K>& key);
+  void last_order(std::size_t objects, std::span<const std::uint32_t> active);
+  template <class Less>
+  bool sort_nearly_sorted(std::size_t n, Less less);
 
   MortonLayout layout_;
   int bits_ = 32;
   PerWidth<KeyVector> keys_;  // each object's code
   PerWidth<RadixScratch> scratch_;
-  std::vector<std::uint32_t> sorted_ids_, previous_ids_, rank_;
+  std::vector<std::uint32_t> sorted_ids_, previous_ids_;
+  std::vector<std::uint8_t> rank_;  // per object: active and not yet placed (last_order)
+  std::vector<Sphere> gathered_;    // the active spheres in the last frame's order
+  std::vector<SortEntry> entries_, merged_, far_;
   SortReport sort_report_;
   std::vector<BucketLanes> lanes_;
   std::vector<Filter> sorted_filters_;  // the filters in sorted order (frames with filters)

@@ -123,6 +123,9 @@ TEST(BucketBroadphase, MovingSequencesStayExact) {
   // Teleports: a few objects jump anywhere; then every object does.
   for (int k = 0; k < 30; ++k) s[rng() % s.size()] = Sphere{far(rng), far(rng), far(rng), 0.4f};
   check_frame(bp, s, all_of(s.size()), 32, "a few teleports");
+  // The teleported objects land far from their last place: set aside and merged in.
+  EXPECT_TRUE(bp.sort_report().reused);
+  EXPECT_GT(bp.sort_report().far, 0u);
   for (Sphere& x : s) x = Sphere{far(rng), far(rng), far(rng), x.r};
   check_frame(bp, s, all_of(s.size()), 32, "everything teleports");
   EXPECT_FALSE(bp.sort_report().reused) << "a shuffled frame should exceed the insertion sort's budget";
@@ -142,6 +145,20 @@ TEST(BucketBroadphase, MovingSequencesStayExact) {
 
   // The Morton width changes: the last order is dropped, the result stays exact.
   for (int bits : {16, 64, 32, 16}) check_frame(bp, s, all_of(s.size()), bits, "m = " + std::to_string(bits));
+
+  // Small motion and a few teleports at 16 and 64 bits (64-bit codes do not pack with the id).
+  for (int bits : {16, 64}) {
+    for (int frame = 0; frame < 4; ++frame) {
+      for (Sphere& x : s) x.x += step(rng), x.y += step(rng), x.z += step(rng);
+      if (frame == 2) {
+        for (int k = 0; k < 30; ++k) s[rng() % s.size()] = Sphere{far(rng), far(rng), far(rng), 0.4f};
+      }
+      check_frame(bp, s, all_of(s.size()), bits, "m = " + std::to_string(bits) + ", frame " + std::to_string(frame));
+      if (frame > 0) {
+        EXPECT_TRUE(bp.sort_report().reused) << "m = " << bits << ", frame " << frame;
+      }
+    }
+  }
 }
 
 TEST(BucketBroadphase, SortFromScratchGivesTheSameResult) {
