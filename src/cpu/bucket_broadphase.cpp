@@ -289,15 +289,11 @@ bool BucketBroadphase::sort_nearly_sorted(std::size_t n, Less less) {
       far_.push_back(x);
       continue;
     }
-    std::size_t j = lo, hi = m - 1;  // the first entry above x is in [lo, m - 1]
-    while (j < hi) {
-      const std::size_t mid = j + (hi - j) / 2;
-      if (less(x, e[mid]))
-        hi = mid;
-      else
-        j = mid + 1;
-    }
-    std::memmove(e + j + 1, e + j, (m - j) * sizeof(SortEntry));
+    std::size_t j = m;  // shift up the entries above x (e[m - 1] is)
+    do {
+      e[j] = e[j - 1];
+      --j;
+    } while (j > lo && less(x, e[j - 1]));
     e[j] = x;
     moved += m - j;
     ++m;
