@@ -27,10 +27,12 @@ namespace viscd::detail {
                                          int threads);
 
 /// Writes the pairs of per-chunk lists (keys i << 32 | j, i < j < objects) into `out` sorted by
-/// (i, j): a counting sort by i, then each object's few partners by j. O(pairs + objects);
-/// `offsets` is scratch (objects + 1 entries), kept between frames.
+/// (i, j), with up to `threads` threads: O(pairs + objects / 1024 per list). `offsets` and
+/// `scratch` are kept between frames: (lists + 1) (objects / 1024 + 1) + 1 offsets, and per thread
+/// the pairs of the fullest block of 1024 first indices, at most 65536.
 void sort_chunk_pairs(std::span<const std::vector<std::uint64_t>> lists, std::uint32_t objects,
-                      std::vector<std::uint32_t>& offsets, std::vector<Pair>& out);
+                      std::vector<std::uint32_t>& offsets, std::vector<Pair>& scratch, std::vector<Pair>& out,
+                      int threads);
 
 /// Stage 8's pair lists, shared by the broadphases. The items searched (leaves or buckets) are cut
 /// into chunks, several per thread because the work per item varies, and each chunk keeps its own
@@ -41,9 +43,10 @@ class PairCollector {
  public:
   /// Runs each(item, emit) for every item in [0, items), over `chunks` contiguous chunks; emit(a, b)
   /// records the pair of object ids a != b (either order). Then writes the pairs into `out` sorted
-  /// by (i, j); `objects` bounds the ids. Fails only when the pairs exceed pair_memory_cap bytes.
+  /// by (i, j) with up to `threads` threads; `objects` bounds the ids. Fails only when the pairs exceed pair_memory_cap
+  /// bytes.
   template <class Each>
-  Status collect(std::size_t items, std::size_t chunks, std::size_t pair_memory_cap, std::uint32_t objects,
+  Status collect(std::size_t items, std::size_t chunks, int threads, std::size_t pair_memory_cap, std::uint32_t objects,
                  std::vector<Pair>& out, Each&& each) {
     constexpr std::size_t kPublish = 4096;
     const std::size_t allowed = pairs_within_cap(pair_memory_cap);
@@ -80,13 +83,13 @@ class PairCollector {
     for (std::size_t c = 0; c < chunks; ++c)
       if (3 * lists_[c].size() > 2 * lists_[c].capacity() || lists_[c].capacity() < kMinRoom)
         lists_[c].reserve(std::max(2 * lists_[c].size(), kMinRoom));
-    sort_chunk_pairs(std::span(lists_.data(), chunks), objects, offsets_, out);
+    sort_chunk_pairs(std::span(lists_.data(), chunks), objects, offsets_, scratch_, out, threads);
     return {};
   }
 
   /// Bytes of the lists and the sort's scratch (capacities).
   [[nodiscard]] std::uint64_t memory_bytes() const {
-    std::uint64_t b = bytes_of(offsets_);
+    std::uint64_t b = bytes_of(offsets_) + bytes_of(scratch_);
     for (const auto& l : lists_) b += bytes_of(l);
     return b;
   }
@@ -94,6 +97,7 @@ class PairCollector {
  private:
   std::vector<std::vector<std::uint64_t>> lists_;
   std::vector<std::uint32_t> offsets_;
+  std::vector<Pair> scratch_;
 };
 
 /// The LBVH broadphase. Keeps every buffer between frames: after the first frame of a given size,

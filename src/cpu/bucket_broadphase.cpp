@@ -319,20 +319,21 @@ Status BucketBroadphase::find_pairs(std::span<const std::uint32_t> active, bool 
   const SearchView view{
       lanes_.data(), bucket_boxes_.data(), &tree_, sorted_ids_.data(), sorted_filters_.data(), filtered, n};
   const SimdLevel simd = simd_level();
-  const Status found = pairs_.collect(buckets, chunks, pair_memory_cap, objects, pairs, [&](std::size_t b, auto& emit) {
-    switch (simd) {
+  const Status found =
+      pairs_.collect(buckets, chunks, threads, pair_memory_cap, objects, pairs, [&](std::size_t b, auto& emit) {
+        switch (simd) {
 #if VISCD_HAVE_AVX512
-      case SimdLevel::avx512:
-        return search_bucket_avx512(view, b, emit);
+          case SimdLevel::avx512:
+            return search_bucket_avx512(view, b, emit);
 #endif
 #if defined(__SSE2__)
-      case SimdLevel::sse2:
-        return search_bucket<SimdSse2>(view, b, emit);
+          case SimdLevel::sse2:
+            return search_bucket<SimdSse2>(view, b, emit);
 #endif
-      default:
-        return search_bucket<SimdScalar>(view, b, emit);
-    }
-  });
+          default:
+            return search_bucket<SimdScalar>(view, b, emit);
+        }
+      });
   if (!found) return found;
   stats.pairs = pairs.size();
   stats.stage_ms[static_cast<std::size_t>(Stage::query)] = sw.lap();

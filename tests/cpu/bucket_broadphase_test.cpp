@@ -193,10 +193,19 @@ TEST(BucketBroadphase, PairCapIsEnforcedWhileSearching) {
 
 TEST(SortChunkPairs, EqualsAFullSort) {
   std::mt19937 rng(2);
-  for (std::uint32_t objects : {1u, 2u, 50u, 1000u}) {
+  // Object counts around the 1024-id blocks; pair counts around the parallel threshold; one object
+  // with many partners (a block much fuller than the others).
+  for (std::uint32_t objects : {1u, 2u, 50u, 1000u, 1023u, 1024u, 1025u, 5000u, 70000u}) {
     std::vector<std::vector<std::uint64_t>> lists(5);
     std::vector<Pair> want;
-    for (int k = 0; k < 3000 && objects > 1; ++k) {
+    const int count = objects > 2000 ? 9000 : 3000;
+    for (int k = 0; k < count && objects > 1; ++k) {
+      if (k % 7 == 0 && objects > 1025) {  // object 1024 pairs with many
+        const auto j = 1025 + static_cast<std::uint32_t>(rng() % (objects - 1025));
+        lists[rng() % lists.size()].push_back(std::uint64_t{1024} << 32 | j);
+        want.push_back({1024, j});
+        continue;
+      }
       auto i = static_cast<std::uint32_t>(rng() % objects), j = static_cast<std::uint32_t>(rng() % objects);
       if (i == j) continue;
       if (i > j) std::swap(i, j);
@@ -205,9 +214,11 @@ TEST(SortChunkPairs, EqualsAFullSort) {
     }
     std::sort(want.begin(), want.end(), [](Pair a, Pair b) { return a.i < b.i || (a.i == b.i && a.j < b.j); });
     std::vector<std::uint32_t> offsets;
-    std::vector<Pair> got;
-    detail::sort_chunk_pairs(lists, objects, offsets, got);
-    EXPECT_TRUE(same_pairs(got, want)) << objects << " objects";
+    std::vector<Pair> scratch, got;
+    for (int threads : {1, 2}) {
+      detail::sort_chunk_pairs(lists, objects, offsets, scratch, got, threads);
+      EXPECT_TRUE(same_pairs(got, want)) << objects << " objects, " << threads << " threads";
+    }
   }
 }
 
