@@ -1,6 +1,7 @@
 #include "cpu/bucket_broadphase.hpp"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -73,7 +74,8 @@ VISCD_AVX512_FLATTEN void search_bucket_avx512(const SearchView& v, std::size_t 
 std::uint64_t BucketBroadphase::memory_bytes() const {
   std::uint64_t b = bytes_of(sorted_ids_) + bytes_of(previous_ids_) + bytes_of(rank_) + bytes_of(lanes_) +
                     bytes_of(bucket_boxes_) + bytes_of(gathered_) + bytes_of(entries_) + bytes_of(merged_) +
-                    bytes_of(far_) + pairs_.memory_bytes();
+                    pairs_.memory_bytes();
+  for (const auto& f : far_) b += bytes_of(f);
   for (const auto& level : tree_.level) b += bytes_of(level);
   keys_.for_each([&](const auto& v) { b += bytes_of(v); });
   scratch_.for_each([&](const auto& s) { b += bytes_of(s.keys) + bytes_of(s.values); });
@@ -191,7 +193,7 @@ void BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<con
       }
     });
     ms(Stage::codes) = sw.lap();
-    reused = sort_nearly_sorted(n, less);
+    reused = sort_nearly_sorted(n, threads, less);
     if (reused) {
       parallel_for(n, threads, [&](std::size_t k) {
         key[k] = code_in(entries_[k]);
@@ -260,33 +262,30 @@ void BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<con
 #endif
 }
 
-// Sorts entries_[0..n), nearly sorted already, by `less` (no two entries equal). An entry that
-// belongs at most kReach places before where it stands is inserted there (a binary search and one
-// memmove); one that belongs farther (an object that crossed a large Morton cell) is set aside, and
-// those are sorted and merged in at the end. Gives up (false) when more than a quarter of the
-// entries were set aside: then the last order says little, and the radix sort costs less.
+namespace {
+
+// One run of the sort from the last order: sorts e[0..len) in place into e[0..kept) and sets the
+// entries that moved far aside into `far` (unsorted). An entry that belongs at most kReach places
+// back is shifted in. False when more than far_limit are set aside.
 template <class Less>
-bool BucketBroadphase::sort_nearly_sorted(std::size_t n, Less less) {
+bool insert_within_reach(SortEntry* e, std::size_t len, std::size_t far_limit, std::vector<SortEntry>& far,
+                         std::size_t& kept, std::uint64_t& moved, Less less) {
   constexpr std::size_t kReach = 32;
-  const std::size_t far_limit = n / 4 + 64;
-  if (far_.capacity() < far_limit) far_.reserve(far_limit + far_limit / 2);
-  far_.clear();
-  SortEntry* e = entries_.data();
   std::size_t m = 0;  // e[0..m) holds the entries kept so far, sorted
-  std::uint64_t moved = 0;
-  for (std::size_t i = 0; i < n; ++i) {
+  for (std::size_t i = 0; i < len; ++i) {
     const SortEntry x = e[i];
-    if (m == 0 || less(e[m - 1], x)) {
+    // Set aside: an entry above the one kReach ahead (it moved far forward: kept, it would stay
+    // on top while everything after it had to be shifted past it), or one that belongs more
+    // than kReach places back.
+    const bool above_ahead = i + kReach < len && less(e[i + kReach], x);
+    if ((m == 0 || less(e[m - 1], x)) && !above_ahead) {
       e[m++] = x;
       continue;
     }
     const std::size_t lo = m > kReach ? m - kReach : 0;
-    if (lo > 0 && less(x, e[lo])) {
-      if (far_.size() == far_limit) {
-        sort_report_ = {false, moved, far_.size()};
-        return false;
-      }
-      far_.push_back(x);
+    if (above_ahead || (lo > 0 && less(x, e[lo]))) {
+      if (far.size() == far_limit) return false;
+      far.push_back(x);
       continue;
     }
     std::size_t j = m;  // shift up the entries above x (e[m - 1] is)
@@ -298,11 +297,82 @@ bool BucketBroadphase::sort_nearly_sorted(std::size_t n, Less less) {
     moved += m - j;
     ++m;
   }
-  sort_report_ = {true, moved, far_.size()};
-  if (far_.empty()) return true;
-  std::sort(far_.begin(), far_.end(), less);
+  kept = m;
+  return true;
+}
+
+}  // namespace
+
+// Sorts entries_[0..n), nearly sorted already, by `less` (no two entries equal). The entries are
+// cut into one run per thread; each run is finished by insert_within_reach(), which sets aside the
+// entries that belong far back (objects that crossed a large Morton cell). Then the runs and the
+// set-aside entries (sorted: they are few) are merged, in parallel over parts of the output cut at
+// the first key of each run. Gives up (false) when a run sets aside more than a quarter of its
+// entries: then the last order says little, and the radix sort costs less.
+template <class Less>
+bool BucketBroadphase::sort_nearly_sorted(std::size_t n, int threads, Less less) {
+  const std::size_t runs = std::min<std::size_t>(kMaxSortRuns, static_cast<std::size_t>(threads_for(n, threads)));
+  std::array<std::size_t, kMaxSortRuns> begin{}, kept{};
+  std::array<std::uint64_t, kMaxSortRuns> moved{};
+  std::array<bool, kMaxSortRuns> ok{};
+  for_chunks(n, runs, [&](std::size_t b, std::size_t e, std::size_t r) {
+    std::vector<SortEntry>& far = far_[r];
+    const std::size_t far_limit = (e - b) / 4 + 64;
+    if (far.capacity() < far_limit) far.reserve(far_limit + far_limit / 2);
+    far.clear();
+    begin[r] = b;
+    ok[r] = insert_within_reach(entries_.data() + b, e - b, far_limit, far, kept[r], moved[r], less);
+  });
+  std::uint64_t moves = 0, set_aside = 0;
+  for (std::size_t r = 0; r < runs; ++r) moves += moved[r], set_aside += far_[r].size();
+  sort_report_ = {std::all_of(ok.begin(), ok.begin() + static_cast<std::ptrdiff_t>(runs), [](bool b) { return b; }),
+                  moves, set_aside};
+  if (!sort_report_.reused) return false;
+  if (runs == 1 && set_aside == 0) return true;
+
+  // The inputs of the merge: each run, and all set-aside entries in one sorted list.
+  std::vector<SortEntry>& far = far_[kMaxSortRuns];
+  if (far.capacity() < set_aside) far.reserve(set_aside + set_aside / 2);
+  far.clear();
+  for (std::size_t r = 0; r < runs; ++r) far.insert(far.end(), far_[r].begin(), far_[r].end());
+  std::sort(far.begin(), far.end(), less);
+  struct Input {
+    const SortEntry* data;
+    std::size_t size;
+  };
+  std::array<Input, kMaxSortRuns + 1> in{};
+  for (std::size_t r = 0; r < runs; ++r) in[r] = {entries_.data() + begin[r], kept[r]};
+  in[runs] = {far.data(), far.size()};
+  const std::size_t inputs = runs + 1;
+  // Part p of the output holds the entries from the first key of run p (raised to the previous
+  // part's when runs overlap, so parts follow each other) up to part p + 1's.
+  std::array<std::array<std::size_t, kMaxSortRuns + 1>, kMaxSortRuns + 1> cut{};  // [part][input]
+  std::array<std::size_t, kMaxSortRuns + 1> out_at{};
+  const SortEntry* splitter = nullptr;
+  for (std::size_t p = 0; p <= runs; ++p) {
+    if (p == 0 || p == runs) {
+      for (std::size_t k = 0; k < inputs; ++k) cut[p][k] = p == 0 ? 0 : in[k].size;
+    } else {
+      if (in[p].size > 0 && (splitter == nullptr || less(*splitter, in[p].data[0]))) splitter = in[p].data;
+      for (std::size_t k = 0; k < inputs; ++k)
+        cut[p][k] = splitter ? static_cast<std::size_t>(
+                                   std::lower_bound(in[k].data, in[k].data + in[k].size, *splitter, less) - in[k].data)
+                             : 0;
+    }
+    out_at[p] = 0;
+    for (std::size_t k = 0; k < inputs; ++k) out_at[p] += cut[p][k];
+  }
   resize_with_headroom(merged_, n);
-  std::merge(e, e + m, far_.begin(), far_.end(), merged_.begin(), less);
+  run_tasks(static_cast<std::uint32_t>(runs), [&](std::uint32_t p) {
+    std::array<std::size_t, kMaxSortRuns + 1> at{};
+    for (std::size_t k = 0; k < inputs; ++k) at[k] = cut[p][k];
+    for (std::size_t o = out_at[p]; o < out_at[p + 1]; ++o) {
+      std::size_t best = inputs;
+      for (std::size_t k = 0; k < inputs; ++k)
+        if (at[k] < cut[p + 1][k] && (best == inputs || less(in[k].data[at[k]], in[best].data[at[best]]))) best = k;
+      merged_[o] = in[best].data[at[best]++];
+    }
+  });
   std::swap(entries_, merged_);
   return true;
 }

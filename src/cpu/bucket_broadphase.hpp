@@ -28,6 +28,7 @@
 // The tree, the lanes and the sorted ids stay until the next frame: the ray and overlap queries
 // (Detector::ray_cast, overlap) search them.
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -125,7 +126,7 @@ class BucketBroadphase {
   void ray_hits(const Ray& ray, double& t_hi, Hit&& hit) const;
   void last_order(std::size_t objects, std::span<const std::uint32_t> active);
   template <class Less>
-  bool sort_nearly_sorted(std::size_t n, Less less);
+  bool sort_nearly_sorted(std::size_t n, int threads, Less less);
 
   MortonLayout layout_;
   int bits_ = 32;
@@ -134,7 +135,9 @@ class BucketBroadphase {
   std::vector<std::uint32_t> sorted_ids_, previous_ids_;
   std::vector<std::uint8_t> rank_;  // per object: active and not yet placed (last_order)
   std::vector<Sphere> gathered_;    // the active spheres in the last frame's order
-  std::vector<SortEntry> entries_, merged_, far_;
+  std::vector<SortEntry> entries_, merged_;
+  static constexpr std::size_t kMaxSortRuns = 8;
+  std::array<std::vector<SortEntry>, kMaxSortRuns + 1> far_;  // set aside per run; all, sorted
   SortReport sort_report_;
   std::vector<BucketLanes> lanes_;
   std::vector<Filter> sorted_filters_;  // the filters in sorted order (frames with filters)

@@ -161,6 +161,38 @@ TEST(BucketBroadphase, MovingSequencesStayExact) {
   }
 }
 
+// The sort from the last order cut into runs (one per thread, here up to 8 on any machine):
+// small motion, then teleports (entries set aside and merged across runs), then a shuffle. Two
+// spheres that never move fix the extent, so the Morton grid stays put and only what moves moves
+// in the order (a changing extent shifts every code).
+TEST(BucketBroadphase, SortRunsMergeExactly) {
+  for (int threads : {1, 2, 3, 8}) {
+    auto s = random_spheres_by_half_extent(6000, 40 + static_cast<std::uint64_t>(threads), 17.0f, 0.2f, 0.6f);
+    s[0] = Sphere{-18, -18, -18, 0.3f};
+    s[1] = Sphere{18, 18, 18, 0.3f};
+    std::mt19937 rng(static_cast<unsigned>(threads));
+    std::uniform_real_distribution<float> step(-0.0005f, 0.0005f), far(-17.0f, 17.0f);
+    detail::BucketBroadphase bp;
+    const std::string t = std::to_string(threads) + " threads, ";
+    for (int frame = 0; frame < 6; ++frame) {
+      for (std::size_t k = 2; k < s.size(); ++k) s[k].x += step(rng), s[k].y += step(rng), s[k].z += step(rng);
+      if (frame == 3) {
+        for (int k = 0; k < 200; ++k) s[2 + rng() % (s.size() - 2)] = Sphere{far(rng), far(rng), far(rng), 0.4f};
+      }
+      check_frame(bp, s, all_of(s.size()), 32, t + "frame " + std::to_string(frame), threads);
+      if (frame > 0) {
+        EXPECT_TRUE(bp.sort_report().reused) << t << "frame " << frame;
+      }
+      if (frame == 3) {
+        EXPECT_GT(bp.sort_report().far, 0u) << t << "teleports should be set aside";
+      }
+    }
+    for (std::size_t k = 2; k < s.size(); ++k) s[k] = Sphere{far(rng), far(rng), far(rng), s[k].r};
+    check_frame(bp, s, all_of(s.size()), 32, t + "shuffled", threads);
+    EXPECT_FALSE(bp.sort_report().reused) << t << "a shuffled frame should give up";
+  }
+}
+
 TEST(BucketBroadphase, SortFromScratchGivesTheSameResult) {
   // The same frame through a broadphase that has seen the last frame and one that has not.
   auto s = random_spheres_by_half_extent(5000, 21, 20.0f);
