@@ -41,6 +41,29 @@ void sort_chunk_pairs(std::span<const std::vector<std::uint64_t>> lists, std::ui
 /// allocation failure inside a task is carried out of it. Lists keep their memory between frames.
 class PairCollector {
  public:
+  /// What `each` gets: emit(a, b) records a pair; stopped() says the frame is over the cap (items
+  /// that find many pairs check it between their parts).
+  class Emitter {
+   public:
+    Emitter(std::vector<std::uint64_t>& local, std::atomic<std::size_t>& published, std::atomic<bool>& stop,
+            std::size_t allowed)
+        : local_(local), published_(published), stop_(stop), allowed_(allowed) {}
+    void operator()(std::uint32_t a, std::uint32_t b) {
+      constexpr std::size_t kPublish = 4096;
+      local_.push_back(a < b ? (std::uint64_t{a} << 32 | b) : (std::uint64_t{b} << 32 | a));
+      if (local_.size() % kPublish == 0 &&
+          published_.fetch_add(kPublish, std::memory_order_relaxed) + kPublish > allowed_)
+        stop_.store(true, std::memory_order_relaxed);
+    }
+    [[nodiscard]] bool stopped() const { return stop_.load(std::memory_order_relaxed); }
+
+   private:
+    std::vector<std::uint64_t>& local_;
+    std::atomic<std::size_t>& published_;
+    std::atomic<bool>& stop_;
+    std::size_t allowed_;
+  };
+
   /// Runs each(item, emit) for every item in [0, items), over `chunks` contiguous chunks; emit(a, b)
   /// records the pair of object ids a != b (either order). Then writes the pairs into `out` sorted
   /// by (i, j) with up to `threads` threads; `objects` bounds the ids. Fails only when the pairs exceed pair_memory_cap
@@ -48,7 +71,6 @@ class PairCollector {
   template <class Each>
   Status collect(std::size_t items, std::size_t chunks, int threads, std::size_t pair_memory_cap, std::uint32_t objects,
                  std::vector<Pair>& out, Each&& each) {
-    constexpr std::size_t kPublish = 4096;
     const std::size_t allowed = pairs_within_cap(pair_memory_cap);
     std::atomic<std::size_t> published{0};
     std::atomic<bool> stop{false}, out_of_memory{false};
@@ -56,13 +78,7 @@ class PairCollector {
     if (lists_.size() < chunks) lists_.resize(chunks);
     for (std::size_t c = 0; c < chunks; ++c) lists_[c].clear();  // also when no chunk runs
     for_chunks(items, chunks, [&](std::size_t begin, std::size_t end, std::size_t c) {
-      auto& local = lists_[c];
-      auto emit = [&](std::uint32_t a, std::uint32_t b) {
-        local.push_back(a < b ? (std::uint64_t{a} << 32 | b) : (std::uint64_t{b} << 32 | a));
-        if (local.size() % kPublish == 0 &&
-            published.fetch_add(kPublish, std::memory_order_relaxed) + kPublish > allowed)
-          stop.store(true, std::memory_order_relaxed);
-      };
+      Emitter emit{lists_[c], published, stop, allowed};
       try {
         for (std::size_t item = begin; item < end && !stop.load(std::memory_order_relaxed); ++item) each(item, emit);
       } catch (const std::bad_alloc&) {

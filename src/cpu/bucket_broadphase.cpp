@@ -18,7 +18,7 @@
 namespace viscd::detail {
 namespace {
 
-// What stage 8 searches, for search_bucket().
+// What stage 8 searches, for search_group().
 struct SearchView {
   const BucketLanes* lanes;
   const Aabb* boxes;
@@ -29,15 +29,27 @@ struct SearchView {
   std::size_t n;  // objects
 };
 
-// The pairs of bucket b: inside it, then with every later bucket whose box overlaps its own (so
-// each pair is found once). Per object of b whose box reaches into the other bucket's box, the
-// exact test against all of that bucket's lanes; the filters come after the exact test (few
-// candidates pass it, and the lanes stay as they are).
+// The pairs of bucket b with the later bucket qb (whose box overlaps b's): per object of b whose box
+// reaches into qb's box, the exact test against all of qb's lanes; the filters come after the exact
+// test (few candidates pass it, and the lanes stay as they are).
 template <class Simd, class Emit>
-inline void search_bucket(const SearchView& v, std::size_t b, Emit& emit) {
-  auto pass = [&](std::uint32_t p, std::uint32_t q) {
-    return !v.filtered || pair_passes_filter(v.filter[p], v.filter[q]);
-  };
+inline void bucket_pairs(const SearchView& v, std::size_t b, std::uint32_t qb, Emit& emit) {
+  const BucketLanes& lb = v.lanes[b];
+  const BucketLanes& lq = v.lanes[qb];
+  const auto first = static_cast<std::uint32_t>(b * kBucket);
+  const std::uint32_t qfirst = qb * kBucket;
+  for (std::uint32_t near = Simd::box_lanes(lb, v.boxes[qb]); near; near &= near - 1) {
+    const auto i = static_cast<std::uint32_t>(std::countr_zero(near));
+    for (std::uint32_t m = Simd::sphere_lanes(lq, lb.x[i], lb.y[i], lb.z[i], lb.r[i]); m; m &= m - 1) {
+      const std::uint32_t q = qfirst + static_cast<std::uint32_t>(std::countr_zero(m));
+      if (!v.filtered || pair_passes_filter(v.filter[first + i], v.filter[q])) emit(v.ids[first + i], v.ids[q]);
+    }
+  }
+}
+
+// The pairs inside bucket b: lane i against the lanes after it.
+template <class Simd, class Emit>
+inline void pairs_inside(const SearchView& v, std::size_t b, Emit& emit) {
   const BucketLanes& lb = v.lanes[b];
   const auto first = static_cast<std::uint32_t>(b * kBucket);
   const auto count = static_cast<std::uint32_t>(std::min<std::size_t>(kBucket, v.n - first));
@@ -45,27 +57,77 @@ inline void search_bucket(const SearchView& v, std::size_t b, Emit& emit) {
     std::uint32_t m = Simd::sphere_lanes(lb, lb.x[i], lb.y[i], lb.z[i], lb.r[i]) & (~0u << (i + 1));
     for (; m; m &= m - 1) {
       const std::uint32_t q = first + static_cast<std::uint32_t>(std::countr_zero(m));
-      if (pass(first + i, q)) emit(v.ids[first + i], v.ids[q]);
+      if (!v.filtered || pair_passes_filter(v.filter[first + i], v.filter[q])) emit(v.ids[first + i], v.ids[q]);
     }
   }
-  for_each_wide_overlap_after<Simd>(*v.tree, static_cast<std::uint32_t>(b), v.boxes[b], [&](std::uint32_t qb) {
-    const BucketLanes& lq = v.lanes[qb];
-    const std::uint32_t qfirst = qb * kBucket;
-    for (std::uint32_t near = Simd::box_lanes(lb, v.boxes[qb]); near; near &= near - 1) {
-      const auto i = static_cast<std::uint32_t>(std::countr_zero(near));
-      for (std::uint32_t m = Simd::sphere_lanes(lq, lb.x[i], lb.y[i], lb.z[i], lb.r[i]); m; m &= m - 1) {
-        const std::uint32_t q = qfirst + static_cast<std::uint32_t>(std::countr_zero(m));
-        if (pass(first + i, q)) emit(v.ids[first + i], v.ids[q]);
-      }
+}
+
+// The pairs of the buckets of group g (the 16 buckets under node g of the tree's lowest level):
+// inside each bucket, then with every later bucket whose box overlaps its own, so each pair is
+// found once. One tree walk per group, with the group's box, collects the later buckets that can
+// meet any of its buckets (in increasing order); then each bucket tests its box against those
+// candidates, 16 at a time. A walk per bucket would repeat most of the same walk 16 times. When
+// more than kMaxCandidates turn up (a huge sphere), each bucket walks the tree itself.
+template <class Simd, class Emit>
+inline void search_group(const SearchView& v, std::size_t g, Emit& emit) {
+  constexpr std::uint32_t kMaxCandidates = 512;
+  const std::size_t buckets = (v.n + kBucket - 1) / kBucket;
+  const std::size_t b0 = g * kWide, b1 = std::min(buckets, b0 + kWide);
+  const WideNode& node = v.tree->level[0][g];
+  Aabb group_box;
+  for (std::uint32_t l = 0; l < kWide; ++l) group_box.grow(node.child(l));
+  WideNode box[kMaxCandidates / kWide];  // the candidates' boxes, 16 to a block
+  std::uint32_t index[kMaxCandidates];
+  std::uint32_t count = 0;
+  bool overflow = false;
+  auto collect = [&](std::uint32_t q) {
+    if (count == kMaxCandidates) {
+      overflow = true;
+      return;
     }
-  });
+    const Aabb& bq = v.boxes[q];
+    WideNode& blk = box[count / kWide];
+    const std::uint32_t l = count % kWide;
+    blk.lo_x[l] = bq.lo.x, blk.lo_y[l] = bq.lo.y, blk.lo_z[l] = bq.lo.z;
+    blk.hi_x[l] = bq.hi.x, blk.hi_y[l] = bq.hi.y, blk.hi_z[l] = bq.hi.z;
+    index[count++] = q;
+  };
+  if (g == 0)
+    for_each_wide_overlap<Simd>(*v.tree, group_box, collect);
+  else
+    for_each_wide_overlap_after<Simd>(*v.tree, static_cast<std::uint32_t>(b0 - 1), group_box, collect);
+  if (overflow) {
+    for (std::size_t b = b0; b < b1 && !emit.stopped(); ++b) {
+      pairs_inside<Simd>(v, b, emit);
+      for_each_wide_overlap_after<Simd>(*v.tree, static_cast<std::uint32_t>(b), v.boxes[b],
+                                        [&](std::uint32_t qb) { bucket_pairs<Simd>(v, b, qb, emit); });
+    }
+    return;
+  }
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  for (std::uint32_t l = count % kWide; l != 0 && l < kWide; ++l) {  // empty lanes after the last
+    WideNode& blk = box[count / kWide];
+    blk.lo_x[l] = blk.lo_y[l] = blk.lo_z[l] = kInf;
+    blk.hi_x[l] = blk.hi_y[l] = blk.hi_z[l] = -kInf;
+  }
+  std::uint32_t cut = 0;  // index[0..cut) <= b
+  for (std::size_t b = b0; b < b1 && !emit.stopped(); ++b) {
+    pairs_inside<Simd>(v, b, emit);
+    while (cut < count && index[cut] <= b) ++cut;
+    for (std::uint32_t k = cut / kWide; k * kWide < count; ++k) {
+      std::uint32_t m = Simd::node_children(box[k], v.boxes[b]);
+      if (k == cut / kWide) m &= (0xFFFFu << (cut % kWide)) & 0xFFFFu;
+      for (; m; m &= m - 1)
+        bucket_pairs<Simd>(v, b, index[k * kWide + static_cast<std::uint32_t>(std::countr_zero(m))], emit);
+    }
+  }
 }
 
 #if VISCD_HAVE_AVX512
-// search_bucket() with every call inlined into code compiled for AVX-512 (cpu/simd.hpp).
+// search_group() with every call inlined into code compiled for AVX-512 (cpu/simd.hpp).
 template <class Emit>
-VISCD_AVX512_FLATTEN void search_bucket_avx512(const SearchView& v, std::size_t b, Emit& emit) {
-  search_bucket<SimdAvx512>(v, b, emit);
+VISCD_AVX512_FLATTEN void search_group_avx512(const SearchView& v, std::size_t g, Emit& emit) {
+  search_group<SimdAvx512>(v, g, emit);
 }
 #endif
 
@@ -380,28 +442,28 @@ bool BucketBroadphase::sort_nearly_sorted(std::size_t n, int threads, Less less)
 Status BucketBroadphase::find_pairs(std::span<const std::uint32_t> active, bool filtered, int threads,
                                     std::size_t pair_memory_cap, std::vector<Pair>& pairs, FrameStats& stats) {
   Stopwatch sw;
-  // Stage 8: per bucket, the pairs inside it, then those with every later bucket whose box
-  // overlaps its own, so each pair is found once.
+  // Stage 8: per group of 16 buckets, search_group().
   const std::size_t n = sorted_ids_.size();
   const std::size_t buckets = (n + kBucket - 1) / kBucket;
-  const std::size_t chunks = threads_for(n, threads) == 1 ? 1 : std::min<std::size_t>(buckets, 8 * threads);
+  const std::size_t groups = (buckets + kWide - 1) / kWide;
+  const std::size_t chunks = threads_for(n, threads) == 1 ? 1 : std::min<std::size_t>(groups, 8 * threads);
   const std::uint32_t objects = n ? active.back() + 1 : 0;  // active is ascending
   const SearchView view{
       lanes_.data(), bucket_boxes_.data(), &tree_, sorted_ids_.data(), sorted_filters_.data(), filtered, n};
   const SimdLevel simd = simd_level();
   const Status found =
-      pairs_.collect(buckets, chunks, threads, pair_memory_cap, objects, pairs, [&](std::size_t b, auto& emit) {
+      pairs_.collect(groups, chunks, threads, pair_memory_cap, objects, pairs, [&](std::size_t g, auto& emit) {
         switch (simd) {
 #if VISCD_HAVE_AVX512
           case SimdLevel::avx512:
-            return search_bucket_avx512(view, b, emit);
+            return search_group_avx512(view, g, emit);
 #endif
 #if defined(__SSE2__)
           case SimdLevel::sse2:
-            return search_bucket<SimdSse2>(view, b, emit);
+            return search_group<SimdSse2>(view, g, emit);
 #endif
           default:
-            return search_bucket<SimdScalar>(view, b, emit);
+            return search_group<SimdScalar>(view, g, emit);
         }
       });
   if (!found) return found;
