@@ -127,9 +127,12 @@ MortonEncoder::MortonEncoder(const MortonLayout& layout, const Aabb& bounds) {
   lo_ = g.lo;
   scale_ = g.scale;
   max_cell_ = g.max_cell;
+  int most = 0;
   for (int axis = 0; axis < 3; ++axis) {
     const int nb = layout.axis_bits[axis];
-    for (int byte = 0; byte < 4; ++byte) {
+    most = std::max(most, nb);
+    // Bytes at or above an axis's bits stay zero (table_ starts zeroed): quantize() never sets them.
+    for (int byte = 0; byte < 4 && 8 * byte < nb; ++byte) {
       for (int v = 0; v < 256; ++v) {
         std::uint64_t code = 0;
         for (int bit = 0; bit < 8; ++bit) {
@@ -140,6 +143,7 @@ MortonEncoder::MortonEncoder(const MortonLayout& layout, const Aabb& bounds) {
       }
     }
   }
+  two_bytes_ = most <= 16;
 }
 
 }  // namespace viscd::detail

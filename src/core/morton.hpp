@@ -82,11 +82,13 @@ class MortonEncoder {
   }
   [[nodiscard]] std::uint64_t scatter(int axis, std::uint32_t q) const {
     const auto& t = table_[axis];
+    if (two_bytes_) return t[0][q & 0xFF] | t[1][(q >> 8) & 0xFF];  // every axis has at most 16 bits
     return t[0][q & 0xFF] | t[1][(q >> 8) & 0xFF] | t[2][(q >> 16) & 0xFF] | t[3][q >> 24];
   }
 
   std::array<double, 3> lo_{}, scale_{}, max_cell_{};  // morton_grid()
   std::array<std::array<std::array<std::uint64_t, 256>, 4>, 3> table_{};
+  bool two_bytes_ = false;  // no axis has more than 16 bits: quantize() stays below 2^16
 };
 
 }  // namespace viscd::detail
