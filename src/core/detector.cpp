@@ -204,6 +204,14 @@ void Detector::query_overlap(const Sphere& sphere, std::vector<std::uint32_t>& i
 Status validate_spheres(std::span<const Sphere> spheres) {
   if (spheres.size() > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
     return Status::failure("too many spheres: " + std::to_string(spheres.size()) + " (at most 2^31 - 1)");
+  // A pass without branches first (every frame pays it): |v| <= 1e18 is false for NaN and
+  // infinities too. Only a failing set is searched for its first bad sphere.
+  bool all_valid = true;
+  for (const Sphere& s : spheres) {
+    all_valid &= (std::fabs(s.x) <= kMaxCoordinate) & (std::fabs(s.y) <= kMaxCoordinate) &
+                 (std::fabs(s.z) <= kMaxCoordinate) & (std::fabs(s.r) <= kMaxCoordinate) & (s.r >= 0);
+  }
+  if (all_valid) return {};
   for (std::size_t k = 0; k < spheres.size(); ++k) {
     const Sphere& s = spheres[k];
     const float v[4] = {s.x, s.y, s.z, s.r};
