@@ -1,6 +1,7 @@
 #include "cpu/pipeline.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <new>
 #include <optional>
 
@@ -82,7 +83,7 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     map_ = VisibilityMap{};
     out.pixels.clear();
     active_.resize(n);
-    for (std::size_t k = 0; k < n; ++k) active_[k] = static_cast<std::uint32_t>(k);
+    parallel_for(n, threads, [&](std::size_t k) { active_[k] = static_cast<std::uint32_t>(k); });
     stats.active = static_cast<std::uint32_t>(n);
     bits = choose_bits(config_, false, 0.0);
   }
@@ -100,9 +101,20 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
   stats.pairs = out.pairs.size();
 
   sw.lap();
-  out.state.assign(n, ObjectState::culled);
-  for (std::uint32_t k : active_) out.state[k] = ObjectState::free;
-  for (const Pair& p : out.pairs) out.state[p.i] = out.state[p.j] = ObjectState::colliding;
+  // States: culled, free when active, colliding when in a pair. The pairs' writes may meet at an
+  // object from two threads (the same value), so they are relaxed atomic stores.
+  out.state.resize(n);
+  if (active_.size() == n) {
+    parallel_for(n, threads, [&](std::size_t k) { out.state[k] = ObjectState::free; });
+  } else {
+    std::fill(out.state.begin(), out.state.end(), ObjectState::culled);
+    for (std::uint32_t k : active_) out.state[k] = ObjectState::free;
+  }
+  parallel_for(out.pairs.size(), threads, [&](std::size_t k) {
+    const Pair& p = out.pairs[k];
+    std::atomic_ref<ObjectState>(out.state[p.i]).store(ObjectState::colliding, std::memory_order_relaxed);
+    std::atomic_ref<ObjectState>(out.state[p.j]).store(ObjectState::colliding, std::memory_order_relaxed);
+  });
   ms(Stage::query) += sw.lap();
 
   if (camera && config_.shade) {
