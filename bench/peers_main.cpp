@@ -32,6 +32,7 @@
 #include "cpu/broadphase.hpp"
 #include "cpu/parallel.hpp"
 #include "cpu/radix_sort.hpp"
+#include "cpu/simd.hpp"
 #include "peers.hpp"
 #include "viscd/scene.hpp"
 #include "viscd/viscd.hpp"
@@ -203,6 +204,8 @@ int run_peers(const Options& opt) {
       "turns per block; viscd threads %d; %d core(s) held busy by spinning processes\n",
       opt.scene.c_str(), opt.warmup, opt.repeats, opt.frames, detail::resolve_threads(opt.threads), opt.busy);
   std::printf("# ms per frame = update + query + exact sphere test (viscd: detect(), pairs sorted)\n");
+  std::printf("# viscd's stage 8 kernels: %s (VISCD_SIMD=sse2 or scalar lowers them)\n",
+              detail::simd_name(detail::simd_level()));
   std::printf("# this machine now: an independent loop runs %.2fx faster on %d threads than on 1\n",
               parallel_probe(detail::resolve_threads(opt.threads)), detail::resolve_threads(opt.threads));
 
@@ -313,6 +316,8 @@ int run_stages(const Options& opt) {
       "repeat(s) after %d warm-up\n",
       opt.scene.c_str(), threads, opt.frames, opt.repeats, opt.warmup);
   std::printf("# wall = detect() incl. input validation; query includes the pair sort and object states\n");
+  std::printf("# stage 8 kernels: %s (VISCD_SIMD=sse2 or scalar lowers them)\n",
+              detail::simd_name(detail::simd_level()));
   std::printf("# this machine now: an independent loop runs %.2fx faster on %d threads than on 1\n",
               parallel_probe(detail::hardware_threads()), detail::hardware_threads());
   std::printf("%9s %4s", "objects", "bits");
