@@ -512,33 +512,42 @@ inline bool ray_box(const RaySetup& q, const Aabb& b, double t_hi, double& t_ent
   return t0 <= t1;
 }
 
+#if defined(__SSE2__)
+// One axis of the slab test of ray_box() on two boxes at once ([lo, hi] per lane, in double):
+// narrows [t0, t1], or along an axis the ray does not move, clears `inside` where the origin
+// lies outside the widened slab.
+inline void slab2(const RaySetup& q, int k, __m128d lo, __m128d hi, __m128d& t0, __m128d& t1, __m128d& inside) {
+  if (q.flat[k]) {
+    inside = _mm_and_pd(
+        inside, _mm_and_pd(_mm_cmple_pd(lo, _mm_set1_pd(q.lo_shift[k])), _mm_cmpge_pd(hi, _mm_set1_pd(q.hi_shift[k]))));
+    return;
+  }
+  const __m128d inv = _mm_set1_pd(q.inv[k]);
+  const __m128d a = _mm_mul_pd(_mm_sub_pd(lo, _mm_set1_pd(q.lo_shift[k])), inv);
+  const __m128d e = _mm_mul_pd(_mm_sub_pd(hi, _mm_set1_pd(q.hi_shift[k])), inv);
+  t0 = _mm_max_pd(t0, q.negative[k] ? e : a);
+  t1 = _mm_min_pd(t1, q.negative[k] ? a : e);
+}
+
+// Two floats into two doubles (the 64-bit load reads through a may_alias type).
+inline __m128d two_doubles(const float* f) {
+  return _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(f))));
+}
+#endif
+
 // The lanes of a bucket whose conservative boxes (centre -/+ h, in double) the segment t in
 // [0, t_hi] meets, widened as ray_box(): only those need the exact test. Padding lanes (NaN) fail.
 inline std::uint32_t ray_lanes(const RaySetup& q, const BucketLanes& b, double t_hi) {
   std::uint32_t mask = 0;
 #if defined(__SSE2__)
   const float* axis[3] = {b.x, b.y, b.z};
-  // Two floats into two doubles (the 64-bit load reads through a may_alias type).
-  auto two = [](const float* f) {
-    return _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(f))));
-  };
   for (std::uint32_t l = 0; l < kBucket; l += 2) {
-    const __m128d h = two(b.h + l);
+    const __m128d h = two_doubles(b.h + l);
     __m128d t0 = _mm_setzero_pd(), t1 = _mm_set1_pd(t_hi);
     __m128d inside = _mm_cmpeq_pd(h, h);  // all set, but NaN lanes clear
     for (int k = 0; k < 3; ++k) {
-      const __m128d c = two(axis[k] + l);
-      const __m128d lo = _mm_sub_pd(c, h), hi = _mm_add_pd(c, h);
-      if (q.flat[k]) {
-        inside = _mm_and_pd(inside, _mm_and_pd(_mm_cmple_pd(lo, _mm_set1_pd(q.lo_shift[k])),
-                                               _mm_cmpge_pd(hi, _mm_set1_pd(q.hi_shift[k]))));
-        continue;
-      }
-      const __m128d inv = _mm_set1_pd(q.inv[k]);
-      const __m128d a = _mm_mul_pd(_mm_sub_pd(lo, _mm_set1_pd(q.lo_shift[k])), inv);
-      const __m128d e = _mm_mul_pd(_mm_sub_pd(hi, _mm_set1_pd(q.hi_shift[k])), inv);
-      t0 = _mm_max_pd(t0, q.negative[k] ? e : a);
-      t1 = _mm_min_pd(t1, q.negative[k] ? a : e);
+      const __m128d c = two_doubles(axis[k] + l);
+      slab2(q, k, _mm_sub_pd(c, h), _mm_add_pd(c, h), t0, t1, inside);
     }
     mask |= static_cast<std::uint32_t>(_mm_movemask_pd(_mm_and_pd(inside, _mm_cmple_pd(t0, t1)))) << l;
   }
@@ -560,25 +569,10 @@ inline std::uint32_t ray_children(const RaySetup& q, const WideNode& n, double t
 #if defined(__SSE2__)
   const float* lo_axis[3] = {n.lo_x, n.lo_y, n.lo_z};
   const float* hi_axis[3] = {n.hi_x, n.hi_y, n.hi_z};
-  auto two = [](const float* f) {
-    return _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(f))));
-  };
   for (std::uint32_t l = 0; l < kWide; l += 2) {
     __m128d t0 = _mm_setzero_pd(), t1 = _mm_set1_pd(t_hi);
     __m128d inside = _mm_castsi128_pd(_mm_set1_epi32(-1));
-    for (int k = 0; k < 3; ++k) {
-      const __m128d lo = two(lo_axis[k] + l), hi = two(hi_axis[k] + l);
-      if (q.flat[k]) {
-        inside = _mm_and_pd(inside, _mm_and_pd(_mm_cmple_pd(lo, _mm_set1_pd(q.lo_shift[k])),
-                                               _mm_cmpge_pd(hi, _mm_set1_pd(q.hi_shift[k]))));
-        continue;
-      }
-      const __m128d inv = _mm_set1_pd(q.inv[k]);
-      const __m128d a = _mm_mul_pd(_mm_sub_pd(lo, _mm_set1_pd(q.lo_shift[k])), inv);
-      const __m128d e = _mm_mul_pd(_mm_sub_pd(hi, _mm_set1_pd(q.hi_shift[k])), inv);
-      t0 = _mm_max_pd(t0, q.negative[k] ? e : a);
-      t1 = _mm_min_pd(t1, q.negative[k] ? a : e);
-    }
+    for (int k = 0; k < 3; ++k) slab2(q, k, two_doubles(lo_axis[k] + l), two_doubles(hi_axis[k] + l), t0, t1, inside);
     _mm_storeu_pd(t_enter + l, t0);
     mask |= static_cast<std::uint32_t>(_mm_movemask_pd(_mm_and_pd(inside, _mm_cmple_pd(t0, t1)))) << l;
   }

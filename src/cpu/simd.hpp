@@ -102,34 +102,33 @@ struct SimdSse2 {
   }
   template <Lanes16 L>
   static std::uint32_t box_lanes(const L& b, const Aabb& box) {
-    const __m128 lox = _mm_set1_ps(box.lo.x), loy = _mm_set1_ps(box.lo.y), loz = _mm_set1_ps(box.lo.z);
-    const __m128 hix = _mm_set1_ps(box.hi.x), hiy = _mm_set1_ps(box.hi.y), hiz = _mm_set1_ps(box.hi.z);
     std::uint32_t mask = 0;
     for (std::uint32_t l = 0; l < 16; l += 4) {
       const __m128 h = _mm_loadu_ps(b.h + l);
       const __m128 x = _mm_loadu_ps(b.x + l), y = _mm_loadu_ps(b.y + l), z = _mm_loadu_ps(b.z + l);
-      const __m128 ox = _mm_and_ps(_mm_cmple_ps(_mm_sub_ps(x, h), hix), _mm_cmple_ps(lox, _mm_add_ps(x, h)));
-      const __m128 oy = _mm_and_ps(_mm_cmple_ps(_mm_sub_ps(y, h), hiy), _mm_cmple_ps(loy, _mm_add_ps(y, h)));
-      const __m128 oz = _mm_and_ps(_mm_cmple_ps(_mm_sub_ps(z, h), hiz), _mm_cmple_ps(loz, _mm_add_ps(z, h)));
-      mask |= static_cast<std::uint32_t>(_mm_movemask_ps(_mm_and_ps(_mm_and_ps(ox, oy), oz))) << l;
+      mask |= boxes4(_mm_sub_ps(x, h), _mm_sub_ps(y, h), _mm_sub_ps(z, h), _mm_add_ps(x, h), _mm_add_ps(y, h),
+                     _mm_add_ps(z, h), box)
+              << l;
     }
     return mask;
   }
   template <class N>
   static std::uint32_t node_children(const N& n, const Aabb& box) {
-    const __m128 lox = _mm_set1_ps(box.lo.x), loy = _mm_set1_ps(box.lo.y), loz = _mm_set1_ps(box.lo.z);
-    const __m128 hix = _mm_set1_ps(box.hi.x), hiy = _mm_set1_ps(box.hi.y), hiz = _mm_set1_ps(box.hi.z);
     std::uint32_t mask = 0;
-    for (std::uint32_t l = 0; l < 16; l += 4) {
-      const __m128 ox =
-          _mm_and_ps(_mm_cmple_ps(_mm_loadu_ps(n.lo_x + l), hix), _mm_cmple_ps(lox, _mm_loadu_ps(n.hi_x + l)));
-      const __m128 oy =
-          _mm_and_ps(_mm_cmple_ps(_mm_loadu_ps(n.lo_y + l), hiy), _mm_cmple_ps(loy, _mm_loadu_ps(n.hi_y + l)));
-      const __m128 oz =
-          _mm_and_ps(_mm_cmple_ps(_mm_loadu_ps(n.lo_z + l), hiz), _mm_cmple_ps(loz, _mm_loadu_ps(n.hi_z + l)));
-      mask |= static_cast<std::uint32_t>(_mm_movemask_ps(_mm_and_ps(_mm_and_ps(ox, oy), oz))) << l;
-    }
+    for (std::uint32_t l = 0; l < 16; l += 4)
+      mask |= boxes4(_mm_loadu_ps(n.lo_x + l), _mm_loadu_ps(n.lo_y + l), _mm_loadu_ps(n.lo_z + l),
+                     _mm_loadu_ps(n.hi_x + l), _mm_loadu_ps(n.hi_y + l), _mm_loadu_ps(n.hi_z + l), box)
+              << l;
     return mask;
+  }
+
+ private:
+  // Bit l set when box l of four overlaps `box` (overlaps(): closed intervals).
+  static std::uint32_t boxes4(__m128 lx, __m128 ly, __m128 lz, __m128 hx, __m128 hy, __m128 hz, const Aabb& box) {
+    const __m128 ox = _mm_and_ps(_mm_cmple_ps(lx, _mm_set1_ps(box.hi.x)), _mm_cmple_ps(_mm_set1_ps(box.lo.x), hx));
+    const __m128 oy = _mm_and_ps(_mm_cmple_ps(ly, _mm_set1_ps(box.hi.y)), _mm_cmple_ps(_mm_set1_ps(box.lo.y), hy));
+    const __m128 oz = _mm_and_ps(_mm_cmple_ps(lz, _mm_set1_ps(box.hi.z)), _mm_cmple_ps(_mm_set1_ps(box.lo.z), hz));
+    return static_cast<std::uint32_t>(_mm_movemask_ps(_mm_and_ps(_mm_and_ps(ox, oy), oz)));
   }
 };
 /// The kernels code uses when it is not dispatched (queries, and the build of the default path).
@@ -153,21 +152,25 @@ struct SimdAvx512 {
   VISCD_AVX512_TARGET static std::uint32_t box_lanes(const L& b, const Aabb& box) {
     const __m512 h = _mm512_loadu_ps(b.h);
     const __m512 x = _mm512_loadu_ps(b.x), y = _mm512_loadu_ps(b.y), z = _mm512_loadu_ps(b.z);
-    __mmask16 m = _mm512_cmp_ps_mask(_mm512_sub_ps(x, h), _mm512_set1_ps(box.hi.x), _CMP_LE_OQ);
-    m = _mm512_mask_cmp_ps_mask(m, _mm512_set1_ps(box.lo.x), _mm512_add_ps(x, h), _CMP_LE_OQ);
-    m = _mm512_mask_cmp_ps_mask(m, _mm512_sub_ps(y, h), _mm512_set1_ps(box.hi.y), _CMP_LE_OQ);
-    m = _mm512_mask_cmp_ps_mask(m, _mm512_set1_ps(box.lo.y), _mm512_add_ps(y, h), _CMP_LE_OQ);
-    m = _mm512_mask_cmp_ps_mask(m, _mm512_sub_ps(z, h), _mm512_set1_ps(box.hi.z), _CMP_LE_OQ);
-    return _mm512_mask_cmp_ps_mask(m, _mm512_set1_ps(box.lo.z), _mm512_add_ps(z, h), _CMP_LE_OQ);
+    return boxes16(_mm512_sub_ps(x, h), _mm512_sub_ps(y, h), _mm512_sub_ps(z, h), _mm512_add_ps(x, h),
+                   _mm512_add_ps(y, h), _mm512_add_ps(z, h), box);
   }
   template <class N>
   VISCD_AVX512_TARGET static std::uint32_t node_children(const N& n, const Aabb& box) {
-    __mmask16 m = _mm512_cmp_ps_mask(_mm512_loadu_ps(n.lo_x), _mm512_set1_ps(box.hi.x), _CMP_LE_OQ);
-    m = _mm512_mask_cmp_ps_mask(m, _mm512_set1_ps(box.lo.x), _mm512_loadu_ps(n.hi_x), _CMP_LE_OQ);
-    m = _mm512_mask_cmp_ps_mask(m, _mm512_loadu_ps(n.lo_y), _mm512_set1_ps(box.hi.y), _CMP_LE_OQ);
-    m = _mm512_mask_cmp_ps_mask(m, _mm512_set1_ps(box.lo.y), _mm512_loadu_ps(n.hi_y), _CMP_LE_OQ);
-    m = _mm512_mask_cmp_ps_mask(m, _mm512_loadu_ps(n.lo_z), _mm512_set1_ps(box.hi.z), _CMP_LE_OQ);
-    return _mm512_mask_cmp_ps_mask(m, _mm512_set1_ps(box.lo.z), _mm512_loadu_ps(n.hi_z), _CMP_LE_OQ);
+    return boxes16(_mm512_loadu_ps(n.lo_x), _mm512_loadu_ps(n.lo_y), _mm512_loadu_ps(n.lo_z), _mm512_loadu_ps(n.hi_x),
+                   _mm512_loadu_ps(n.hi_y), _mm512_loadu_ps(n.hi_z), box);
+  }
+
+ private:
+  // Bit l set when box l overlaps `box` (overlaps(): closed intervals).
+  VISCD_AVX512_TARGET static std::uint32_t boxes16(__m512 lx, __m512 ly, __m512 lz, __m512 hx, __m512 hy, __m512 hz,
+                                                   const Aabb& box) {
+    __mmask16 m = _mm512_cmp_ps_mask(lx, _mm512_set1_ps(box.hi.x), _CMP_LE_OQ);
+    m = _mm512_mask_cmp_ps_mask(m, _mm512_set1_ps(box.lo.x), hx, _CMP_LE_OQ);
+    m = _mm512_mask_cmp_ps_mask(m, ly, _mm512_set1_ps(box.hi.y), _CMP_LE_OQ);
+    m = _mm512_mask_cmp_ps_mask(m, _mm512_set1_ps(box.lo.y), hy, _CMP_LE_OQ);
+    m = _mm512_mask_cmp_ps_mask(m, lz, _mm512_set1_ps(box.hi.z), _CMP_LE_OQ);
+    return _mm512_mask_cmp_ps_mask(m, _mm512_set1_ps(box.lo.z), hz, _CMP_LE_OQ);
   }
 };
 #endif
