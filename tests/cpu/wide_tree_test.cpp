@@ -3,6 +3,7 @@
 // overlap_exact() and overlaps(), on random, touching, NaN and empty lanes.
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <limits>
 #include <random>
 #include <vector>
