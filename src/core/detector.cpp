@@ -208,8 +208,9 @@ Status validate_spheres(std::span<const Sphere> spheres) {
   // infinities too. Only a failing set is searched for its first bad sphere.
   bool all_valid = true;
   for (const Sphere& s : spheres) {
-    all_valid &= (std::fabs(s.x) <= kMaxCoordinate) & (std::fabs(s.y) <= kMaxCoordinate) &
-                 (std::fabs(s.z) <= kMaxCoordinate) & (std::fabs(s.r) <= kMaxCoordinate) & (s.r >= 0);
+    const float ax = std::fabs(s.x), ay = std::fabs(s.y), az = std::fabs(s.z), ar = std::fabs(s.r);
+    all_valid &=
+        (ax <= kMaxCoordinate) & (ay <= kMaxCoordinate) & (az <= kMaxCoordinate) & (ar <= kMaxCoordinate) & (s.r >= 0);
   }
   if (all_valid) return {};
   for (std::size_t k = 0; k < spheres.size(); ++k) {
