@@ -496,7 +496,8 @@ struct RaySetup {
 };
 
 // Where the segment t in [0, t_hi] enters the widened box; false when it misses it.
-inline bool ray_box(const RaySetup& q, const Aabb& b, double t_hi, double& t_enter) {
+// (Used by the builds without SSE2; the SSE2 ones test two boxes at a time with slab2().)
+[[maybe_unused]] inline bool ray_box(const RaySetup& q, const Aabb& b, double t_hi, double& t_enter) {
   const float lo[3] = {b.lo.x, b.lo.y, b.lo.z}, hi[3] = {b.hi.x, b.hi.y, b.hi.z};
   double t0 = 0, t1 = t_hi;
   for (int k = 0; k < 3; ++k) {
