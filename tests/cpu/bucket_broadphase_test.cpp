@@ -88,11 +88,11 @@ TEST(BucketBroadphase, DenseAndDegenerateSets) {
     huge[137].r = 1e4f;
     check_frame(bp, huge, all_of(huge.size()), 64, "one huge among tiny");
     check_frame(bp, test::float_boundary_pairs(200, 4), all_of(400), 32, "pairs at the float boundary");
-  // A huge sphere in the first group: more later buckets meet that group's box than its
-  // candidate list holds (512), so its buckets walk the tree one by one.
-  auto many = random_spheres_by_half_extent(12000, 10, 60.0f, 0.01f, 0.3f);
-  many[5] = Sphere{-60, -60, -60, 150};
-  check_frame(bp, many, all_of(many.size()), 32, "a huge sphere among 12000");
+    // A huge sphere in the first group: more later buckets meet that group's box than its
+    // candidate list holds (512), so its buckets walk the tree one by one.
+    auto many = random_spheres_by_half_extent(12000, 10, 60.0f, 0.01f, 0.3f);
+    many[5] = Sphere{-60, -60, -60, 150};
+    check_frame(bp, many, all_of(many.size()), 32, "a huge sphere among 12000");
   });
 }
 
