@@ -23,6 +23,24 @@ inline long allocations_during(const std::function<void()>& f) {
   g_counting = false;
   return g_allocations.load();
 }
+
+/// A detector's steady state: frame() three times to warm up (the first frames size every buffer;
+/// pair counts vary a little as objects move), then the allocations of four more. `status` is the
+/// first failing frame's (then `allocations` counts only what ran), else ok.
+template <class Frame>
+auto steady_state_allocations(Frame&& frame) {
+  struct Result {
+    long allocations = 0;
+    decltype(frame()) status;
+  };
+  Result r;
+  for (int k = 0; k < 3; ++k)
+    if (!(r.status = frame()).ok()) return r;
+  r.allocations = allocations_during([&] {
+    for (int k = 0; k < 4 && r.status.ok(); ++k) r.status = frame();
+  });
+  return r;
+}
 }  // namespace viscd::test
 
 void* operator new(std::size_t size) {

@@ -24,6 +24,18 @@ inline void PrintTo(const Pair& p, std::ostream* os) { *os << "(" << p.i << "," 
 
 namespace viscd::test {
 
+/// A frame from the caller's id map: w x h ids (0 background, k + 1 object k).
+inline FrameInput id_map_input(std::span<const Sphere> spheres, const Camera* camera,
+                               std::span<const std::uint32_t> ids, int w, int h) {
+  FrameInput in;
+  in.spheres = spheres;
+  in.camera = camera;
+  in.id_map = ids;
+  in.id_map_width = w;
+  in.id_map_height = h;
+  return in;
+}
+
 /// The indices 0 .. n-1: every object active.
 inline std::vector<std::uint32_t> all_of(std::size_t n) {
   std::vector<std::uint32_t> a(n);

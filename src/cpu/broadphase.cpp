@@ -76,7 +76,8 @@ void sort_chunk_pairs(std::span<const std::vector<std::uint64_t>> lists, std::ui
   for (std::size_t b = 0; b < blocks; ++b) largest = std::max(largest, start[b + 1] - start[b]);
   const std::uint32_t room = std::min(largest, kMaxScratch);
   resize_with_headroom(scratch, tasks * room);
-  auto by_ij = [](const Pair& a, const Pair& b) { return a.i < b.i || (a.i == b.i && a.j < b.j); };
+  auto key = [](const Pair& q) { return std::uint64_t{q.i} << 32 | q.j; };  // (i, j) in one comparison
+  auto by_ij = [&](const Pair& a, const Pair& b) { return key(a) < key(b); };
   for_chunks(blocks, tasks, [&](std::size_t b0, std::size_t b1, std::size_t t) {
     Pair* tmp = scratch.data() + t * room;
     std::uint32_t at[kDigits + 1];
@@ -98,7 +99,6 @@ void sort_chunk_pairs(std::span<const std::vector<std::uint64_t>> lists, std::ui
       // overlaps hundreds) exceed the budget, and std::sort finishes.
       std::uint64_t moves = 0;
       const std::uint64_t budget = 16 * std::uint64_t{last - first} + 1024;
-      auto key = [](const Pair& q) { return std::uint64_t{q.i} << 32 | q.j; };  // one comparison
       for (std::uint32_t a = first + 1; a < last && moves <= budget; ++a) {
         const Pair p = out[a];
         const std::uint64_t kp = key(p);

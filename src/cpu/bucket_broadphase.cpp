@@ -27,7 +27,17 @@ struct SearchView {
   const Filter* filter;      // in sorted order, when filtered
   bool filtered;
   std::size_t n;  // objects
+
+  // Emits the pair of sorted positions p and q when it passes the filters (when there are any).
+  template <class Emit>
+  void pair(std::uint32_t p, std::uint32_t q, Emit& emit) const {
+    if (!filtered || pair_passes_filter(filter[p], filter[q])) emit(ids[p], ids[q]);
+  }
 };
+
+// Reads scattered over the caller's sphere array are prefetched this many entries ahead, so that
+// many are in flight at once (at 10^6 objects each would otherwise wait on memory).
+constexpr std::size_t kPrefetchAhead = 16;
 
 // The pairs of bucket b with the later bucket qb (whose box overlaps b's): per object of b whose box
 // reaches into qb's box, the exact test against all of qb's lanes; the filters come after the exact
@@ -40,10 +50,8 @@ inline void bucket_pairs(const SearchView& v, std::size_t b, std::uint32_t qb, E
   const std::uint32_t qfirst = qb * kBucket;
   for (std::uint32_t near = Simd::box_lanes(lb, v.boxes[qb]); near; near &= near - 1) {
     const auto i = static_cast<std::uint32_t>(std::countr_zero(near));
-    for (std::uint32_t m = Simd::sphere_lanes(lq, lb.x[i], lb.y[i], lb.z[i], lb.r[i]); m; m &= m - 1) {
-      const std::uint32_t q = qfirst + static_cast<std::uint32_t>(std::countr_zero(m));
-      if (!v.filtered || pair_passes_filter(v.filter[first + i], v.filter[q])) emit(v.ids[first + i], v.ids[q]);
-    }
+    for (std::uint32_t m = Simd::sphere_lanes(lq, lb.x[i], lb.y[i], lb.z[i], lb.r[i]); m; m &= m - 1)
+      v.pair(first + i, qfirst + static_cast<std::uint32_t>(std::countr_zero(m)), emit);
   }
 }
 
@@ -55,10 +63,7 @@ inline void pairs_inside(const SearchView& v, std::size_t b, Emit& emit) {
   const auto count = static_cast<std::uint32_t>(std::min<std::size_t>(kBucket, v.n - first));
   for (std::uint32_t i = 0; i + 1 < count; ++i) {
     std::uint32_t m = Simd::sphere_lanes(lb, lb.x[i], lb.y[i], lb.z[i], lb.r[i]) & (~0u << (i + 1));
-    for (; m; m &= m - 1) {
-      const std::uint32_t q = first + static_cast<std::uint32_t>(std::countr_zero(m));
-      if (!v.filtered || pair_passes_filter(v.filter[first + i], v.filter[q])) emit(v.ids[first + i], v.ids[q]);
-    }
+    for (; m; m &= m - 1) v.pair(first + i, first + static_cast<std::uint32_t>(std::countr_zero(m)), emit);
   }
 }
 
@@ -73,9 +78,7 @@ inline void search_group(const SearchView& v, std::size_t g, Emit& emit) {
   constexpr std::uint32_t kMaxCandidates = 512;
   const std::size_t buckets = (v.n + kBucket - 1) / kBucket;
   const std::size_t b0 = g * kWide, b1 = std::min(buckets, b0 + kWide);
-  const WideNode& node = v.tree->level[0][g];
-  Aabb group_box;
-  for (std::uint32_t l = 0; l < kWide; ++l) group_box.grow(node.child(l));
+  const Aabb group_box = v.tree->level[0][g].box();
   WideNode box[kMaxCandidates / kWide];  // the candidates' boxes, 16 to a block
   std::uint32_t index[kMaxCandidates];
   std::uint32_t count = 0;
@@ -85,11 +88,7 @@ inline void search_group(const SearchView& v, std::size_t g, Emit& emit) {
       overflow = true;
       return;
     }
-    const Aabb& bq = v.boxes[q];
-    WideNode& blk = box[count / kWide];
-    const std::uint32_t l = count % kWide;
-    blk.lo_x[l] = bq.lo.x, blk.lo_y[l] = bq.lo.y, blk.lo_z[l] = bq.lo.z;
-    blk.hi_x[l] = bq.hi.x, blk.hi_y[l] = bq.hi.y, blk.hi_z[l] = bq.hi.z;
+    box[count / kWide].set_child(count % kWide, v.boxes[q]);
     index[count++] = q;
   };
   if (g == 0)
@@ -104,12 +103,8 @@ inline void search_group(const SearchView& v, std::size_t g, Emit& emit) {
     }
     return;
   }
-  constexpr float kInf = std::numeric_limits<float>::infinity();
-  for (std::uint32_t l = count % kWide; l != 0 && l < kWide; ++l) {  // empty lanes after the last
-    WideNode& blk = box[count / kWide];
-    blk.lo_x[l] = blk.lo_y[l] = blk.lo_z[l] = kInf;
-    blk.hi_x[l] = blk.hi_y[l] = blk.hi_z[l] = -kInf;
-  }
+  for (std::uint32_t l = count % kWide; l != 0 && l < kWide; ++l)  // empty lanes after the last
+    box[count / kWide].set_child(l, Aabb{});
   std::uint32_t cut = 0;  // index[0..cut) <= b
   for (std::size_t b = b0; b < b1 && !emit.stopped(); ++b) {
     pairs_inside<Simd>(v, b, emit);
@@ -238,17 +233,15 @@ void BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<con
   // the way; the sort moves (code, id, place) entries; and the lanes of stage 7 read gathered_
   // in nearly the order it was written.
   sort_report_ = {};
+  const bool from_last = n > 1 && !previous_ids_.empty();
   bool reused = false;
-  if (n > 1 && !previous_ids_.empty()) {
+  if (from_last) {
     last_order(spheres.size(), active);
     resize_with_headroom(gathered_, n);
     resize_with_headroom(entries_, n);
-    // The reads are scattered over the caller's array: prefetched kAhead entries ahead, so that
-    // many are in flight at once (at 10^6 objects each would otherwise wait on memory).
-    constexpr std::size_t kAhead = 16;
     for_chunks(n, static_cast<std::size_t>(threads_for(n, threads)), [&](std::size_t b, std::size_t e, std::size_t) {
       for (std::size_t p = b; p < e; ++p) {
-        if (p + kAhead < e) __builtin_prefetch(&spheres[sorted_ids_[p + kAhead]]);
+        if (p + kPrefetchAhead < e) __builtin_prefetch(&spheres[sorted_ids_[p + kPrefetchAhead]]);
         const Sphere& s = spheres[sorted_ids_[p]];
         gathered_[p] = s;
         entries_[p] = entry_of(code_of(s), sorted_ids_[p], static_cast<std::uint32_t>(p));
@@ -267,7 +260,7 @@ void BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<con
     // From scratch: codes in active order, then the radix sort. Values start as the active ids in
     // ascending order and the sort is stable, so ties end up by object id, as above.
     parallel_for(n, threads, [&](std::size_t k) { key[k] = code_of(spheres[active[k]]); });
-    if (previous_ids_.empty() || n <= 1) ms(Stage::codes) = sw.lap();
+    if (!from_last) ms(Stage::codes) = sw.lap();  // else the failed attempt's codes are timed
     for (std::size_t k = 0; k < n; ++k) sorted_ids_[k] = active[k];
     radix_sort<K>(std::span<K>(key.data(), n), std::span<std::uint32_t>(sorted_ids_.data(), n), 8 * sizeof(K), threads,
                   scratch_.get<K>());
@@ -310,7 +303,7 @@ void BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<con
     fill_lanes([&](std::size_t k) -> const Sphere& { return gathered_[entries_[k].at]; });
   else
     fill_lanes([&](std::size_t k) -> const Sphere& {
-      if (k + 16 < n) __builtin_prefetch(&spheres[sorted_ids_[k + 16]]);  // scattered reads, as in stage 5
+      if (k + kPrefetchAhead < n) __builtin_prefetch(&spheres[sorted_ids_[k + kPrefetchAhead]]);
       return spheres[sorted_ids_[k]];
     });
   ms(Stage::build) = sw.lap();
@@ -367,7 +360,7 @@ bool insert_within_reach(SortEntry* e, std::size_t len, std::size_t far_limit, s
 
 // Sorts entries_[0..n), nearly sorted already, by `less` (no two entries equal). The entries are
 // cut into one run per thread; each run is finished by insert_within_reach(), which sets aside the
-// entries that belong far back (objects that crossed a large Morton cell). Then the runs and the
+// entries that moved far (objects that crossed a large Morton cell). Then the runs and the
 // set-aside entries (sorted: they are few) are merged, in parallel over parts of the output cut at
 // the first key of each run. Gives up (false) when a run sets aside more than a quarter of its
 // entries: then the last order says little, and the radix sort costs less.

@@ -47,6 +47,7 @@ namespace viscd::detail {
 
 /// Objects per leaf bucket: 16 beat 4 and 8 (docs/benchmarks.md, "The broadphase at the limit").
 inline constexpr std::uint32_t kBucket = 16;  // the SIMD kernels (cpu/simd.hpp) are 16 lanes wide
+static_assert(kBucket == 16, "the SIMD kernels (cpu/simd.hpp) test 16 lanes");
 
 /// The objects of one bucket in lanes; unused lanes hold NaN centres, which overlap nothing.
 struct alignas(32) BucketLanes {

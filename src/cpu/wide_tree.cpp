@@ -8,18 +8,6 @@
 namespace viscd::detail {
 namespace {
 
-void set_child(WideNode& n, std::uint32_t l, const Aabb& b) {
-  n.lo_x[l] = b.lo.x, n.lo_y[l] = b.lo.y, n.lo_z[l] = b.lo.z;
-  n.hi_x[l] = b.hi.x, n.hi_y[l] = b.hi.y, n.hi_z[l] = b.hi.z;
-}
-
-// The union of a node's children (empty children are empty boxes and change nothing).
-Aabb node_box(const WideNode& n) {
-  Aabb b;
-  for (std::uint32_t l = 0; l < kWide; ++l) b.grow(n.child(l));
-  return b;
-}
-
 // Node counts level by level over `leaves`: ceil(count / 16) until one node is left.
 std::uint32_t level_count(std::size_t leaves) {
   if (leaves == 0) return 0;
@@ -44,10 +32,7 @@ void build_wide_tree(std::span<const Aabb> leaf_boxes, WideTree& tree, int threa
       WideNode& n = level[j];
       for (std::uint32_t l = 0; l < kWide; ++l) {
         const std::size_t c = j * kWide + l;
-        if (c >= entries)
-          set_child(n, l, Aabb{});
-        else
-          set_child(n, l, below ? node_box((*below)[c]) : leaf_boxes[c]);
+        n.set_child(l, c >= entries ? Aabb{} : below ? (*below)[c].box() : leaf_boxes[c]);
       }
     });
     entries = nodes;
@@ -70,7 +55,7 @@ std::string validate_wide_tree(const WideTree& tree, std::span<const Aabb> leaf_
     for (std::size_t j = 0; j < nodes; ++j)
       for (std::uint32_t l = 0; l < kWide; ++l) {
         const std::size_t c = j * kWide + l;
-        const Aabb want = c >= entries ? Aabb{} : k == 0 ? leaf_boxes[c] : node_box(tree.level[k - 1][c]);
+        const Aabb want = c >= entries ? Aabb{} : k == 0 ? leaf_boxes[c] : tree.level[k - 1][c].box();
         if (!same(tree.level[k][j].child(l), want))
           return "level " + std::to_string(k) + " node " + std::to_string(j) + " child " + std::to_string(l) +
                  (c >= entries ? " is not empty" : " is not the box of what it covers");

@@ -31,6 +31,16 @@ inline constexpr std::uint32_t kWideMaxLevels = 8;
 struct alignas(64) WideNode {
   float lo_x[kWide], lo_y[kWide], lo_z[kWide], hi_x[kWide], hi_y[kWide], hi_z[kWide];
   [[nodiscard]] Aabb child(std::uint32_t l) const { return {{lo_x[l], lo_y[l], lo_z[l]}, {hi_x[l], hi_y[l], hi_z[l]}}; }
+  void set_child(std::uint32_t l, const Aabb& b) {
+    lo_x[l] = b.lo.x, lo_y[l] = b.lo.y, lo_z[l] = b.lo.z;
+    hi_x[l] = b.hi.x, hi_y[l] = b.hi.y, hi_z[l] = b.hi.z;
+  }
+  /// The union of the children (empty children change nothing).
+  [[nodiscard]] Aabb box() const {
+    Aabb b;
+    for (std::uint32_t l = 0; l < kWide; ++l) b.grow(child(l));
+    return b;
+  }
 };
 
 struct WideTree {

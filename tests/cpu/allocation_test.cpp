@@ -11,10 +11,11 @@ namespace viscd {
 namespace {
 
 using test::allocations_during;
+using test::steady_state_allocations;
 
 TEST(Allocation, SteadyStateFramesAllocateNothing) {
 #ifdef VISCD_VALIDATE
-  GTEST_SKIP() << "VISCD_VALIDATE runs validate_lbvh every frame, which allocates by design";
+  GTEST_SKIP() << "VISCD_VALIDATE checks the tree every frame, whose diagnostics may allocate";
 #endif
   Scene scene = Scene::make({.objects = 20000});
   const Camera cam = camera_preset("zoom-out", scene, 640, 360).value();
@@ -28,18 +29,10 @@ TEST(Allocation, SteadyStateFramesAllocateNothing) {
       if (bits == Bits::b16) c.executor = &serial;
       auto det = make_cpu_detector(c);
       FrameResult f;
-      // Warm up: the first frames size every buffer (pair counts vary a little as objects move).
-      for (int k = 0; k < 3; ++k) {
+      // Each counted frame sorts from the last frame's order (the broadphase's steady path).
+      const auto [n, st] = steady_state_allocations([&] {
         scene.step(1.0f / 60.0f);
-        ASSERT_TRUE(det->detect(scene.spheres(), with_camera ? &cam : nullptr, f).ok());
-      }
-      // Several frames: each sorts from the last frame's order (the broadphase's steady path).
-      Status st;
-      const long n = allocations_during([&] {
-        for (int k = 0; k < 4 && st.ok(); ++k) {
-          scene.step(1.0f / 60.0f);
-          st = det->detect(scene.spheres(), with_camera ? &cam : nullptr, f);
-        }
+        return det->detect(scene.spheres(), with_camera ? &cam : nullptr, f);
       });
       ASSERT_TRUE(st.ok()) << st.error();
       EXPECT_EQ(n, 0) << "allocations in a steady-state frame, camera " << with_camera << ", m "
@@ -50,7 +43,7 @@ TEST(Allocation, SteadyStateFramesAllocateNothing) {
 
 TEST(Allocation, SteadyStateFramesWithFiltersAndEventsAllocateNothing) {
 #ifdef VISCD_VALIDATE
-  GTEST_SKIP() << "VISCD_VALIDATE runs validate_lbvh every frame, which allocates by design";
+  GTEST_SKIP() << "VISCD_VALIDATE checks the tree every frame, whose diagnostics may allocate";
 #endif
   Scene scene = Scene::make({.objects = 20000});
   const Camera cam = camera_preset("zoom-out", scene, 640, 360).value();
@@ -71,11 +64,7 @@ TEST(Allocation, SteadyStateFramesWithFiltersAndEventsAllocateNothing) {
       in.filters = filters;
       return det->detect(in, f);
     };
-    for (int k = 0; k < 3; ++k) ASSERT_TRUE(frame().ok());
-    Status st;
-    const long n = allocations_during([&] {
-      for (int k = 0; k < 4 && st.ok(); ++k) st = frame();
-    });
+    const auto [n, st] = steady_state_allocations(frame);
     ASSERT_TRUE(st.ok()) << st.error();
     EXPECT_EQ(n, 0) << "allocations in a steady-state frame with filters and events, camera " << with_camera;
     if (!with_camera) {
@@ -86,7 +75,7 @@ TEST(Allocation, SteadyStateFramesWithFiltersAndEventsAllocateNothing) {
 
 TEST(Allocation, SteadyStateFramesFromTheCallersIdMapAllocateNothing) {
 #ifdef VISCD_VALIDATE
-  GTEST_SKIP() << "VISCD_VALIDATE runs validate_lbvh every frame, which allocates by design";
+  GTEST_SKIP() << "VISCD_VALIDATE checks the tree every frame, whose diagnostics may allocate";
 #endif
   Scene scene = Scene::make({.objects = 20000});
   const Camera cam = camera_preset("zoom-out", scene, 640, 360).value();
@@ -101,20 +90,9 @@ TEST(Allocation, SteadyStateFramesFromTheCallersIdMapAllocateNothing) {
   c.lambda = 5;
   c.contact_events = true;
   auto det = make_cpu_detector(c);
-  auto frame = [&] {
+  const auto [n, st] = steady_state_allocations([&] {
     scene.step(1.0f / 60.0f);
-    FrameInput in;
-    in.spheres = scene.spheres();
-    in.camera = &cam;
-    in.id_map = map;
-    in.id_map_width = 640;
-    in.id_map_height = 360;
-    return det->detect(in, f);
-  };
-  for (int k = 0; k < 3; ++k) ASSERT_TRUE(frame().ok());
-  Status st;
-  const long n = allocations_during([&] {
-    for (int k = 0; k < 4 && st.ok(); ++k) st = frame();
+    return det->detect(test::id_map_input(scene.spheres(), &cam, map, 640, 360), f);
   });
   ASSERT_TRUE(st.ok()) << st.error();
   EXPECT_EQ(n, 0) << "allocations in a steady-state frame from the caller's id map";

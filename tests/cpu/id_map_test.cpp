@@ -75,14 +75,8 @@ TEST(CountIds, IdsBeyondTheObjectsAreCountedApart) {
 
 FrameResult detect_map(Detector& d, std::span<const Sphere> s, std::span<const std::uint32_t> map, int w, int h,
                        const Camera* cam = nullptr, Status* status = nullptr) {
-  FrameInput in;
-  in.spheres = s;
-  in.camera = cam;
-  in.id_map = map;
-  in.id_map_width = w;
-  in.id_map_height = h;
   FrameResult out;
-  const Status st = d.detect(in, out);
+  const Status st = d.detect(test::id_map_input(s, cam, map, w, h), out);
   if (status)
     *status = st;
   else

@@ -8,6 +8,7 @@
 
 #include "cpu/broadphase.hpp"
 #include "gl_test_util.hpp"
+#include "test_util.hpp"
 
 namespace viscd::test {
 namespace {
@@ -37,22 +38,8 @@ GLuint make_id_texture(const std::vector<std::uint32_t>& ids, int w, int h, GLen
 }
 
 FrameInput texture_input(std::span<const Sphere> s, const Camera* cam, GLuint tex, int w, int h) {
-  FrameInput in;
-  in.spheres = s;
-  in.camera = cam;
-  in.id_map_width = w;
-  in.id_map_height = h;
+  FrameInput in = test::id_map_input(s, cam, {}, w, h);
   in.gl_id_texture = tex;
-  return in;
-}
-
-FrameInput array_input(std::span<const Sphere> s, const Camera* cam, std::span<const std::uint32_t> ids, int w, int h) {
-  FrameInput in;
-  in.spheres = s;
-  in.camera = cam;
-  in.id_map = ids;
-  in.id_map_width = w;
-  in.id_map_height = h;
   return in;
 }
 
@@ -64,7 +51,7 @@ void expect_same_as_reference(gl::GlDetector& gl, GLuint tex, const std::vector<
   FrameResult a;
   const Status s = gl.detect(in, a);
   ASSERT_TRUE(s.ok()) << s.error();
-  const FrameInput ref_in = array_input(spheres, cam, ids, w, h);
+  const FrameInput ref_in = id_map_input(spheres, cam, ids, w, h);
   auto ref = make_reference_detector(cfg);
   FrameResult b;
   ASSERT_TRUE(ref->detect(ref_in, b).ok());
@@ -138,7 +125,7 @@ TEST(GlCallersMap, TextureErrors) {
   EXPECT_NE(st.error().find("texel (7, 2) and 2 more hold ids above the frame's 50 objects"), std::string::npos)
       << st.error();
   // The same map as an array names the first bad pixel too.
-  st = gl->detect(array_input(s, nullptr, ids, 40, 30), out);
+  st = gl->detect(id_map_input(s, nullptr, ids, 40, 30), out);
   ASSERT_FALSE(st.ok());
   EXPECT_NE(st.error().find("pixel (7, 2) holds id 51"), std::string::npos) << st.error();
   // And the detector goes on: a good frame after the errors.
