@@ -68,6 +68,7 @@ struct FrameStats {
   int bits = 0;                                ///< Morton width m used this frame: 16, 32 or 64
   std::string layout;                          ///< e.g. "x(7)→z(6)→y(3)"
   std::uint64_t pairs = 0;                     ///< number of colliding pairs
+  bool order_kept = false;                     ///< cpu: the last frame's object order was kept (no stages 4-6)
   std::array<double, kStageCount> stage_ms{};  ///< wall (cpu) or GPU (gl) milliseconds per stage
   [[nodiscard]] double total_ms() const;
 };

@@ -95,7 +95,7 @@ class PairCollector {
     // is more than two-thirds full it gets room for twice its count, so frames whose counts
     // wander by up to half do not allocate. At least kMinRoom each: a chunk with almost no pairs
     // (sparse scenes, filters) would otherwise allocate whenever its few pairs become more.
-    constexpr std::size_t kMinRoom = 256;
+    constexpr std::size_t kMinRoom = 1024;  // 8 KiB
     for (std::size_t c = 0; c < chunks; ++c)
       if (3 * lists_[c].size() > 2 * lists_[c].capacity() || lists_[c].capacity() < kMinRoom)
         lists_[c].reserve(std::max(2 * lists_[c].size(), kMinRoom));

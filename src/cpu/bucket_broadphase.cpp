@@ -2,10 +2,13 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <bit>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
+#include <numeric>
 
 #include "core/stopwatch.hpp"
 #include "cpu/broadphase.hpp"
@@ -26,7 +29,8 @@ struct SearchView {
   const std::uint32_t* ids;  // sorted position -> object id
   const Filter* filter;      // in sorted order, when filtered
   bool filtered;
-  std::size_t n;  // objects
+  std::size_t n;        // objects
+  std::uint64_t* work;  // bucket pairs whose boxes overlap, summed over the groups (atomically)
 
   // Emits the pair of sorted positions p and q when it passes the filters (when there are any).
   template <class Emit>
@@ -83,6 +87,7 @@ inline void search_group(const SearchView& v, std::size_t g, Emit& emit) {
   std::uint32_t index[kMaxCandidates];
   std::uint32_t count = 0;
   bool overflow = false;
+  std::uint64_t tested = 0;  // bucket pairs whose boxes overlap
   auto collect = [&](std::uint32_t q) {
     if (count == kMaxCandidates) {
       overflow = true;
@@ -98,9 +103,12 @@ inline void search_group(const SearchView& v, std::size_t g, Emit& emit) {
   if (overflow) {
     for (std::size_t b = b0; b < b1 && !emit.stopped(); ++b) {
       pairs_inside<Simd>(v, b, emit);
-      for_each_wide_overlap_after<Simd>(*v.tree, static_cast<std::uint32_t>(b), v.boxes[b],
-                                        [&](std::uint32_t qb) { bucket_pairs<Simd>(v, b, qb, emit); });
+      for_each_wide_overlap_after<Simd>(*v.tree, static_cast<std::uint32_t>(b), v.boxes[b], [&](std::uint32_t qb) {
+        ++tested;
+        bucket_pairs<Simd>(v, b, qb, emit);
+      });
     }
+    std::atomic_ref<std::uint64_t>(*v.work).fetch_add(tested, std::memory_order_relaxed);
     return;
   }
   for (std::uint32_t l = count % kWide; l != 0 && l < kWide; ++l)  // empty lanes after the last
@@ -112,10 +120,12 @@ inline void search_group(const SearchView& v, std::size_t g, Emit& emit) {
     for (std::uint32_t k = cut / kWide; k * kWide < count; ++k) {
       std::uint32_t m = Simd::node_children(box[k], v.boxes[b]);
       if (k == cut / kWide) m &= (0xFFFFu << (cut % kWide)) & 0xFFFFu;
+      tested += static_cast<std::uint64_t>(std::popcount(m));
       for (; m; m &= m - 1)
         bucket_pairs<Simd>(v, b, index[k * kWide + static_cast<std::uint32_t>(std::countr_zero(m))], emit);
     }
   }
+  std::atomic_ref<std::uint64_t>(*v.work).fetch_add(tested, std::memory_order_relaxed);
 }
 
 #if VISCD_HAVE_AVX512
@@ -128,10 +138,15 @@ VISCD_AVX512_FLATTEN void search_group_avx512(const SearchView& v, std::size_t g
 
 }  // namespace
 
+bool keep_order_default() {
+  const char* v = std::getenv("VISCD_KEEP_ORDER");
+  return v == nullptr || std::strcmp(v, "0") != 0;
+}
+
 std::uint64_t BucketBroadphase::memory_bytes() const {
   std::uint64_t b = bytes_of(sorted_ids_) + bytes_of(previous_ids_) + bytes_of(rank_) + bytes_of(lanes_) +
                     bytes_of(bucket_boxes_) + bytes_of(gathered_) + bytes_of(entries_) + bytes_of(merged_) +
-                    pairs_.memory_bytes();
+                    bytes_of(previous_active_) + bytes_of(bucket_size_) + pairs_.memory_bytes();
   for (const auto& f : far_) b += bytes_of(f);
   for (const auto& level : tree_.level) b += bytes_of(level);
   keys_.for_each([&](const auto& v) { b += bytes_of(v); });
@@ -157,6 +172,7 @@ void BucketBroadphase::build_tree(std::span<const Sphere> spheres, std::span<con
                                   std::span<const Filter> filters, int bits, Layout layout, int threads,
                                   FrameStats& stats) {
   VISCD_ASSERT(bits == 16 || bits == 32 || bits == 64, "Morton width must be 16, 32 or 64");
+  if (keep_last_order(spheres, active, filters, bits, layout, threads, stats)) return;
   Stopwatch sw;
   const ActiveExtent extent = active_extent(spheres, active, threads);
   layout_ = make_layout(layout, bits, extent.bounds, extent.mean_diameter());
@@ -165,14 +181,108 @@ void BucketBroadphase::build_tree(std::span<const Sphere> spheres, std::span<con
   stats.bits = bits;
   layout_.write(stats.layout);
   stats.stage_ms[static_cast<std::size_t>(Stage::layout)] = sw.lap();
+  double box_sum = 0;
   switch (bits) {
     case 16:
-      return build_keys<std::uint16_t>(spheres, active, filters, extent.bounds, threads, stats);
+      box_sum = build_keys<std::uint16_t>(spheres, active, filters, extent.bounds, threads, stats);
+      break;
     case 32:
-      return build_keys<std::uint32_t>(spheres, active, filters, extent.bounds, threads, stats);
+      box_sum = build_keys<std::uint32_t>(spheres, active, filters, extent.bounds, threads, stats);
+      break;
     default:
-      return build_keys<std::uint64_t>(spheres, active, filters, extent.bounds, threads, stats);
+      box_sum = build_keys<std::uint64_t>(spheres, active, filters, extent.bounds, threads, stats);
   }
+  Stopwatch fit;
+  const std::size_t buckets = (active.size() + kBucket - 1) / kBucket;
+  build_wide_tree(std::span<const Aabb>(bucket_boxes_.data(), buckets), tree_, threads);
+  stats.stage_ms[static_cast<std::size_t>(Stage::fit)] = fit.lap();
+  remember_sorted(spheres, active, layout, box_sum);
+#ifdef VISCD_VALIDATE
+  {
+    const std::string problem = validate_wide_tree(tree_, bucket_boxes_);
+    VISCD_ASSERT(problem.empty(), problem.c_str());
+  }
+#endif
+}
+
+bool BucketBroadphase::keep_last_order(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                                       std::span<const Filter> filters, int bits, Layout layout, int threads,
+                                       FrameStats& stats) {
+  sort_report_ = {};
+  const std::size_t n = active.size();
+  // The same active set as the last sorted frame (and every frame since): all objects of as many,
+  // or the same ids. active is ascending and distinct, so n == spheres.size() means all of them.
+  const bool all = n == spheres.size();
+  if (!keep_order_ || sort_next_ || bits != bits_ || layout != previous_layout_ || n < 2 || previous_ids_.size() != n ||
+      !std::isfinite(sorted_box_sum_) ||
+      (all ? !(previous_all_ && previous_objects_ == n)
+           : (previous_all_ ||
+              !std::equal(active.begin(), active.end(), previous_active_.begin(), previous_active_.end()))))
+    return false;
+  Stopwatch sw;
+  stats.bits = bits;
+  layout_.write(stats.layout);  // the layout of the codes that ordered the objects
+  // sorted_ids_ holds the last order (the stage 6 of the last sorted frame wrote it).
+  const double box_sum = fill_lanes(n, filters, threads, [&](std::size_t k) -> const Sphere& {
+    if (k + kPrefetchAhead < n) __builtin_prefetch(&spheres[sorted_ids_[k + kPrefetchAhead]]);
+    return spheres[sorted_ids_[k]];
+  });
+  if (!(box_sum <= (1 + kStaleness) * sorted_box_sum_)) return false;  // moved too much: sort
+  stats.stage_ms[static_cast<std::size_t>(Stage::build)] = sw.lap();
+  build_wide_tree(std::span<const Aabb>(bucket_boxes_.data(), (n + kBucket - 1) / kBucket), tree_, threads);
+  stats.stage_ms[static_cast<std::size_t>(Stage::fit)] = sw.lap();
+  sort_report_.kept = stats.order_kept = true;
+  return true;
+}
+
+void BucketBroadphase::remember_sorted(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                                       Layout layout, double box_sum) {
+  previous_all_ = active.size() == spheres.size();
+  previous_objects_ = spheres.size();
+  previous_layout_ = layout;
+  if (previous_all_) {
+    previous_active_.clear();
+  } else {
+    resize_with_headroom(previous_active_, active.size());
+    std::copy(active.begin(), active.end(), previous_active_.begin());
+  }
+  sorted_box_sum_ = box_sum;
+  sorted_work_ = 0;  // until this frame's query counts it
+  sort_next_ = false;
+}
+
+template <class SphereAt>
+double BucketBroadphase::fill_lanes(std::size_t n, std::span<const Filter> filters, int threads, SphereAt&& sphere_at) {
+  constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
+  const std::size_t buckets = (n + kBucket - 1) / kBucket;
+  if (lanes_.size() != buckets) {
+    resize_with_headroom(lanes_, buckets);
+    resize_with_headroom(bucket_boxes_, buckets);
+    resize_with_headroom(bucket_size_, buckets);
+  }
+  resize_with_headroom(sorted_filters_, filters.empty() ? 0 : n);
+  parallel_for(buckets, threads, [&](std::size_t b) {
+    BucketLanes& ln = lanes_[b];
+    Aabb box;
+    const std::size_t first = b * kBucket;
+    for (std::uint32_t l = 0; l < kBucket; ++l) {
+      if (first + l < n) {
+        const Sphere& s = sphere_at(first + l);
+        const float e = conservative_half_extent(s);  // conservative_box() is s -/+ e
+        box.grow(Aabb{{s.x - e, s.y - e, s.z - e}, {s.x + e, s.y + e, s.z + e}});
+        ln.x[l] = s.x, ln.y[l] = s.y, ln.z[l] = s.z, ln.r[l] = s.r, ln.h[l] = e;
+        if (!filters.empty()) sorted_filters_[first + l] = filters[sorted_ids_[first + l]];
+      } else {
+        ln.x[l] = ln.y[l] = ln.z[l] = kNan;
+        ln.r[l] = 0;
+        ln.h[l] = kNan;
+      }
+    }
+    bucket_boxes_[b] = box;
+    bucket_size_[b] = (box.hi.x - box.lo.x) + (box.hi.y - box.lo.y) + (box.hi.z - box.lo.z);
+  });
+  // Summed in bucket order, so the decisions that use it do not depend on the thread count.
+  return std::accumulate(bucket_size_.begin(), bucket_size_.end(), 0.0);
 }
 
 // The objects still active in the last frame's order, then the new ones by index, into
@@ -202,8 +312,9 @@ void BucketBroadphase::last_order(std::size_t objects, std::span<const std::uint
 }
 
 template <class K>
-void BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
-                                  std::span<const Filter> filters, const Aabb& bounds, int threads, FrameStats& stats) {
+double BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                                    std::span<const Filter> filters, const Aabb& bounds, int threads,
+                                    FrameStats& stats) {
   auto ms = [&](Stage s) -> double& { return stats.stage_ms[static_cast<std::size_t>(s)]; };
   Stopwatch sw;
   const std::size_t n = active.size();
@@ -235,10 +346,17 @@ void BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<con
   sort_report_ = {};
   const bool from_last = n > 1 && !previous_ids_.empty();
   bool reused = false;
+  // Sized on every sorted frame, also from scratch: the next sorted frame may come after kept
+  // frames, and should not be the one that allocates.
+  resize_with_headroom(gathered_, n);
+  resize_with_headroom(entries_, n);
+  resize_with_headroom(merged_, n);
+  if (!from_last) {
+    reserve_far(n, sort_runs(n, threads));
+    if (rank_.capacity() < spheres.size()) rank_.reserve(spheres.size() + spheres.size() / 2);
+  }
   if (from_last) {
     last_order(spheres.size(), active);
-    resize_with_headroom(gathered_, n);
-    resize_with_headroom(entries_, n);
     for_chunks(n, static_cast<std::size_t>(threads_for(n, threads)), [&](std::size_t b, std::size_t e, std::size_t) {
       for (std::size_t p = b; p < e; ++p) {
         if (p + kPrefetchAhead < e) __builtin_prefetch(&spheres[sorted_ids_[p + kPrefetchAhead]]);
@@ -269,52 +387,17 @@ void BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<con
   std::copy(sorted_ids_.begin(), sorted_ids_.end(), previous_ids_.begin());
   ms(Stage::sort) = sw.lap();
 
-  // Stage 7: build gathers the objects into bucket lanes and takes the bucket boxes; fit builds
-  // the 16-wide tree over the buckets in their order.
-  const std::size_t buckets = (n + kBucket - 1) / kBucket;
-  if (lanes_.size() != buckets) {
-    resize_with_headroom(lanes_, buckets);
-    resize_with_headroom(bucket_boxes_, buckets);
-  }
-  resize_with_headroom(sorted_filters_, filters.empty() ? 0 : n);
-  auto fill_lanes = [&](auto&& sphere_at) {
-    constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
-    parallel_for(buckets, threads, [&](std::size_t b) {
-      BucketLanes& ln = lanes_[b];
-      Aabb box;
-      const std::size_t first = b * kBucket;
-      for (std::uint32_t l = 0; l < kBucket; ++l) {
-        if (first + l < n) {
-          const Sphere& s = sphere_at(first + l);
-          const float e = conservative_half_extent(s);  // conservative_box() is s -/+ e
-          box.grow(Aabb{{s.x - e, s.y - e, s.z - e}, {s.x + e, s.y + e, s.z + e}});
-          ln.x[l] = s.x, ln.y[l] = s.y, ln.z[l] = s.z, ln.r[l] = s.r, ln.h[l] = e;
-          if (!filters.empty()) sorted_filters_[first + l] = filters[sorted_ids_[first + l]];
-        } else {
-          ln.x[l] = ln.y[l] = ln.z[l] = kNan;
-          ln.r[l] = 0;
-          ln.h[l] = kNan;
-        }
-      }
-      bucket_boxes_[b] = box;
-    });
-  };
-  if (reused)
-    fill_lanes([&](std::size_t k) -> const Sphere& { return gathered_[entries_[k].at]; });
-  else
-    fill_lanes([&](std::size_t k) -> const Sphere& {
-      if (k + kPrefetchAhead < n) __builtin_prefetch(&spheres[sorted_ids_[k + kPrefetchAhead]]);
-      return spheres[sorted_ids_[k]];
-    });
+  // Stage 7: build gathers the objects into bucket lanes and takes the bucket boxes (fit, the
+  // tree over them, follows in build_tree()).
+  const double box_sum = reused ? fill_lanes(n, filters, threads,
+                                             [&](std::size_t k) -> const Sphere& { return gathered_[entries_[k].at]; })
+                                : fill_lanes(n, filters, threads, [&](std::size_t k) -> const Sphere& {
+                                    if (k + kPrefetchAhead < n)
+                                      __builtin_prefetch(&spheres[sorted_ids_[k + kPrefetchAhead]]);
+                                    return spheres[sorted_ids_[k]];
+                                  });
   ms(Stage::build) = sw.lap();
-  build_wide_tree(std::span<const Aabb>(bucket_boxes_.data(), buckets), tree_, threads);
-  ms(Stage::fit) = sw.lap();
-#ifdef VISCD_VALIDATE
-  {
-    const std::string problem = validate_wide_tree(tree_, bucket_boxes_);
-    VISCD_ASSERT(problem.empty(), problem.c_str());
-  }
-#endif
+  return box_sum;
 }
 
 namespace {
@@ -358,6 +441,19 @@ bool insert_within_reach(SortEntry* e, std::size_t len, std::size_t far_limit, s
 
 }  // namespace
 
+std::size_t BucketBroadphase::sort_runs(std::size_t n, int threads) {
+  return std::min<std::size_t>(kMaxSortRuns, static_cast<std::size_t>(threads_for(n, threads)));
+}
+
+// Room for what each of `runs` runs over n entries may set aside (a quarter of a run, and 64), and
+// for all of it together.
+void BucketBroadphase::reserve_far(std::size_t n, std::size_t runs) {
+  const std::size_t limit = (n + runs - 1) / runs / 4 + 64;
+  for (std::size_t r = 0; r < runs; ++r)
+    if (far_[r].capacity() < limit) far_[r].reserve(limit + limit / 2);
+  if (far_[kMaxSortRuns].capacity() < runs * limit) far_[kMaxSortRuns].reserve(runs * limit + runs * limit / 2);
+}
+
 // Sorts entries_[0..n), nearly sorted already, by `less` (no two entries equal). The entries are
 // cut into one run per thread; each run is finished by insert_within_reach(), which sets aside the
 // entries that moved far (objects that crossed a large Morton cell). Then the runs and the
@@ -366,22 +462,25 @@ bool insert_within_reach(SortEntry* e, std::size_t len, std::size_t far_limit, s
 // entries: then the last order says little, and the radix sort costs less.
 template <class Less>
 bool BucketBroadphase::sort_nearly_sorted(std::size_t n, int threads, Less less) {
-  const std::size_t runs = std::min<std::size_t>(kMaxSortRuns, static_cast<std::size_t>(threads_for(n, threads)));
+  const std::size_t runs = sort_runs(n, threads);
   std::array<std::size_t, kMaxSortRuns> begin{}, kept{};
   std::array<std::uint64_t, kMaxSortRuns> moved{};
   std::array<bool, kMaxSortRuns> ok{};
+  reserve_far(n, runs);
   for_chunks(n, runs, [&](std::size_t b, std::size_t e, std::size_t r) {
     std::vector<SortEntry>& far = far_[r];
     const std::size_t far_limit = (e - b) / 4 + 64;
-    if (far.capacity() < far_limit) far.reserve(far_limit + far_limit / 2);
     far.clear();
     begin[r] = b;
     ok[r] = insert_within_reach(entries_.data() + b, e - b, far_limit, far, kept[r], moved[r], less);
   });
   std::uint64_t moves = 0, set_aside = 0;
   for (std::size_t r = 0; r < runs; ++r) moves += moved[r], set_aside += far_[r].size();
-  sort_report_ = {std::all_of(ok.begin(), ok.begin() + static_cast<std::ptrdiff_t>(runs), [](bool b) { return b; }),
-                  moves, set_aside};
+  sort_report_ = {};
+  sort_report_.reused =
+      std::all_of(ok.begin(), ok.begin() + static_cast<std::ptrdiff_t>(runs), [](bool b) { return b; });
+  sort_report_.moves = moves;
+  sort_report_.far = set_aside;
   if (!sort_report_.reused) return false;
   if (runs == 1 && set_aside == 0) return true;
 
@@ -417,7 +516,6 @@ bool BucketBroadphase::sort_nearly_sorted(std::size_t n, int threads, Less less)
     out_at[p] = 0;
     for (std::size_t k = 0; k < inputs; ++k) out_at[p] += cut[p][k];
   }
-  resize_with_headroom(merged_, n);
   run_tasks(static_cast<std::uint32_t>(runs), [&](std::uint32_t p) {
     std::array<std::size_t, kMaxSortRuns + 1> at{};
     for (std::size_t k = 0; k < inputs; ++k) at[k] = cut[p][k];
@@ -441,8 +539,9 @@ Status BucketBroadphase::find_pairs(std::span<const std::uint32_t> active, bool 
   const std::size_t groups = (buckets + kWide - 1) / kWide;
   const std::size_t chunks = threads_for(n, threads) == 1 ? 1 : std::min<std::size_t>(groups, 8 * threads);
   const std::uint32_t objects = n ? active.back() + 1 : 0;  // active is ascending
+  work_ = 0;
   const SearchView view{
-      lanes_.data(), bucket_boxes_.data(), &tree_, sorted_ids_.data(), sorted_filters_.data(), filtered, n};
+      lanes_.data(), bucket_boxes_.data(), &tree_, sorted_ids_.data(), sorted_filters_.data(), filtered, n, &work_};
   const SimdLevel simd = simd_level();
   const Status found =
       pairs_.collect(groups, chunks, threads, pair_memory_cap, objects, pairs, [&](std::size_t g, auto& emit) {
@@ -459,7 +558,17 @@ Status BucketBroadphase::find_pairs(std::span<const std::uint32_t> active, bool 
             return search_group<SimdScalar>(view, g, emit);
         }
       });
-  if (!found) return found;
+  // The bucket-pair count of a sorted frame is what kept frames compare with; a kept frame whose
+  // count has grown past it by more than kStaleness makes the next frame sort. (A frame stopped by
+  // the pair cap counted only part.)
+  if (!found) {
+    sort_next_ = true;
+    return found;
+  }
+  if (!sort_report_.kept)
+    sorted_work_ = work_;
+  else if (sorted_work_ != 0 && static_cast<double>(work_) > (1 + kStaleness) * static_cast<double>(sorted_work_))
+    sort_next_ = true;
   stats.pairs = pairs.size();
   stats.stage_ms[static_cast<std::size_t>(Stage::query)] = sw.lap();
   return {};

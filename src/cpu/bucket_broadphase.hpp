@@ -10,6 +10,13 @@
 // buckets whose boxes overlap are compared all against all with SIMD lanes, out of contiguous
 // arrays. Why a 16-wide tree over them rather than the paper's Karras tree: cpu/wide_tree.hpp.
 //
+//   kept order: when the active set is the last frame's, stages 4-6 are skipped and the last
+//                     frame's order is kept: stage 7 refills the buckets in it with the objects'
+//                     new positions, and the tree is rebuilt over their boxes (a refit). Kept
+//                     while the bucket boxes' summed size and the query's bucket-pair count stay
+//                     within kStaleness of those of the last sorted frame; else the frame sorts
+//                     (docs/architecture.md, "Keeping the order"). Exact either way: any grouping
+//                     of the objects into buckets gives the same pairs.
 //   stage 4  layout:  extent of the active centres, Morton layout (shared with every backend)
 //   stage 5  codes:   one code per active object; with a last order, the spheres are gathered in
 //                     it (the one read of the caller's array out of its order) and coded there
@@ -55,8 +62,13 @@ struct alignas(32) BucketLanes {
   float h[kBucket];  ///< half extent of the object's conservative_box()
 };
 
-/// How the last frame's stage 6 went (for tests and the bench).
+/// A kept order stays while the bucket boxes' summed size, and the count of bucket pairs whose
+/// boxes overlap, exceed those of the last sorted frame by at most this fraction.
+inline constexpr double kStaleness = 1.0 / 16;
+
+/// How the last frame's stages 5-6 went (for tests and the bench).
 struct SortReport {
+  bool kept = false;        ///< the last order was kept: stages 4-6 skipped (then reused is false)
   bool reused = false;      ///< sorted from the last frame's order (else by the radix sort)
   std::uint64_t moves = 0;  ///< entries shifted by insertions within reach (also when it gave up)
   std::uint64_t far = 0;    ///< entries set aside, sorted and merged in
@@ -68,6 +80,9 @@ struct SortEntry {
   std::uint64_t key;
   std::uint32_t id, at;
 };
+
+/// Whether keeping the order is on by default: VISCD_KEEP_ORDER=0 turns it off.
+[[nodiscard]] bool keep_order_default();
 
 class BucketBroadphase {
  public:
@@ -108,13 +123,17 @@ class BucketBroadphase {
   [[nodiscard]] const SortReport& sort_report() const { return sort_report_; }
   /// Forget the last frame's order: the next frame sorts from scratch.
   void reset_order() { previous_ids_.clear(); }
+  /// Whether frames may keep the last order (default: on, unless the environment variable
+  /// VISCD_KEEP_ORDER is 0). Off, every frame sorts: for tests of the sort and for measurements.
+  void set_keep_order(bool on) { keep_order_ = on; }
   /// Bytes of every buffer held (capacities).
   [[nodiscard]] std::uint64_t memory_bytes() const;
 
  private:
+  /// Stages 5-7 (build, without the tree); returns fill_lanes()'s box sum.
   template <class K>
-  void build_keys(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
-                  std::span<const Filter> filters, const Aabb& bounds, int threads, FrameStats& stats);
+  double build_keys(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                    std::span<const Filter> filters, const Aabb& bounds, int threads, FrameStats& stats);
   void build_tree(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
                   std::span<const Filter> filters, int bits, Layout layout, int threads, FrameStats& stats);
   Status find_pairs(std::span<const std::uint32_t> active, bool filtered, int threads, std::size_t pair_memory_cap,
@@ -126,11 +145,35 @@ class BucketBroadphase {
   template <class Hit>
   void ray_hits(const Ray& ray, double& t_hi, Hit&& hit) const;
   void last_order(std::size_t objects, std::span<const std::uint32_t> active);
+  /// Stages 4-7 keeping the last order; false (and nothing usable built) when this frame must sort.
+  bool keep_last_order(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                       std::span<const Filter> filters, int bits, Layout layout, int threads, FrameStats& stats);
+  /// Stage 7's lanes and bucket boxes from sphere_at(k), the k-th object in sorted_ids_ order;
+  /// returns the bucket boxes' summed size (their three side lengths added).
+  template <class SphereAt>
+  double fill_lanes(std::size_t n, std::span<const Filter> filters, int threads, SphereAt&& sphere_at);
+  /// After a sorted frame: what the next frames compare with to keep its order.
+  void remember_sorted(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, Layout layout,
+                       double box_sum);
   template <class Less>
   bool sort_nearly_sorted(std::size_t n, int threads, Less less);
+  /// The runs sort_nearly_sorted() cuts n entries into, and room for what they set aside.
+  static std::size_t sort_runs(std::size_t n, int threads);
+  void reserve_far(std::size_t n, std::size_t runs);
 
   MortonLayout layout_;
   int bits_ = 32;
+  // What keeping the order compares with: the last sorted frame's active set (all objects, or
+  // previous_active_), layout kind, summed bucket box size and bucket-pair count (0: unknown).
+  bool keep_order_ = keep_order_default();
+  bool sort_next_ = true;
+  bool previous_all_ = false;
+  std::size_t previous_objects_ = 0;
+  Layout previous_layout_ = Layout::extended;
+  std::vector<std::uint32_t> previous_active_;
+  double sorted_box_sum_ = 0;
+  std::uint64_t sorted_work_ = 0, work_ = 0;
+  std::vector<float> bucket_size_;
   PerWidth<KeyVector> keys_;  // each object's code
   PerWidth<RadixScratch> scratch_;
   std::vector<std::uint32_t> sorted_ids_, previous_ids_;

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <limits>
 
+#include "cpu/grow.hpp"
 #include "cpu/parallel.hpp"
 #include "viscd/assert.hpp"
 
@@ -357,8 +358,10 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
   // chunk, so each tile's list is in depth order whatever the number of chunks (and no atomics).
   const std::size_t visible = seen;
   const std::size_t chunks = chunks_for(visible, threads);
-  chunk_tile_count_.assign(chunks * tiles, 0);
-  prep_.resize(visible);
+  // (Both follow the visible count, which changes from frame to frame: grown with headroom.)
+  resize_with_headroom(chunk_tile_count_, chunks * tiles);
+  std::fill(chunk_tile_count_.begin(), chunk_tile_count_.end(), 0u);
+  resize_with_headroom(prep_, visible);
   auto for_tiles_of = [&](const Prepared& p, auto&& f) {
     for (int ty = p.y0 / kT; ty <= (p.y1 - 1) / kT; ++ty)
       for (int tx = p.x0 / kT; tx <= (p.x1 - 1) / kT; ++tx) f(static_cast<std::size_t>(ty * tiles_x + tx));

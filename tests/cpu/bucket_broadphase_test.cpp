@@ -109,12 +109,14 @@ TEST(BucketBroadphase, SubsetsOfActiveObjects) {
   }
 }
 
-// A moving sequence: objects drift a little every frame, so the sort starts from the last order.
+// A moving sequence: objects drift a little every frame, so the sort starts from the last order
+// (keeping the order is off: every frame sorts; KeepingTheOrder tests the frames that do not).
 TEST(BucketBroadphase, MovingSequencesStayExact) {
   auto s = random_spheres_by_half_extent(3000, 5, 14.0f, 0.2f, 0.6f);
   std::mt19937 rng(8);
   std::uniform_real_distribution<float> step(-0.001f, 0.001f), far(-14.0f, 14.0f);
   detail::BucketBroadphase bp;
+  bp.set_keep_order(false);
   int reused = 0;
   for (int frame = 0; frame < 40; ++frame) {
     for (Sphere& x : s) x.x += step(rng), x.y += step(rng), x.z += step(rng);
@@ -178,6 +180,7 @@ TEST(BucketBroadphase, SortRunsMergeExactly) {
     std::mt19937 rng(static_cast<unsigned>(threads));
     std::uniform_real_distribution<float> step(-0.0005f, 0.0005f), far(-17.0f, 17.0f);
     detail::BucketBroadphase bp;
+    bp.set_keep_order(false);
     const std::string t = std::to_string(threads) + " threads, ";
     for (int frame = 0; frame < 6; ++frame) {
       for (std::size_t k = 2; k < s.size(); ++k) s[k].x += step(rng), s[k].y += step(rng), s[k].z += step(rng);
@@ -202,6 +205,7 @@ TEST(BucketBroadphase, SortFromScratchGivesTheSameResult) {
   // The same frame through a broadphase that has seen the last frame and one that has not.
   auto s = random_spheres_by_half_extent(5000, 21, 20.0f);
   detail::BucketBroadphase warm, cold;
+  warm.set_keep_order(false);
   std::vector<Pair> pw, pc;
   FrameStats fs;
   for (int frame = 0; frame < 5; ++frame) {
@@ -215,6 +219,88 @@ TEST(BucketBroadphase, SortFromScratchGivesTheSameResult) {
                            cold.sorted_objects().end()));
     EXPECT_EQ(warm.sorted_codes(), cold.sorted_codes());
   }
+}
+
+// Frames that keep the last order (no codes, no sort: the buckets refilled in the last order) give
+// the exact pairs, and the order is dropped when it must be: objects moved far (the same frame),
+// the bucket-pair count grew (the next frame), the active set, N, the width or the layout changed.
+TEST(BucketBroadphase, KeepingTheOrder) {
+  auto s = random_spheres_by_half_extent(3000, 15, 14.0f, 0.2f, 0.6f);
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> step(-0.001f, 0.001f), far(-14.0f, 14.0f), speed(-0.02f, 0.02f);
+  detail::BucketBroadphase bp;
+  auto frame = [&](const std::vector<std::uint32_t>& active, int bits, const std::string& what,
+                   Layout layout = Layout::extended, std::span<const Filter> filters = {}) {
+    std::vector<Pair> pairs;
+    FrameStats stats;
+    const Status st = bp.run(s, active, filters, bits, layout, 2, 0, pairs, stats);
+    EXPECT_TRUE(st.ok()) << what << ": " << st.error();
+    const auto want = filters.empty() ? oracle_pairs(s, &active) : test::oracle_filtered_pairs(s, filters, &active);
+    EXPECT_TRUE(same_pairs(pairs, want)) << what;
+    EXPECT_EQ(detail::validate_wide_tree(bp.tree(), bp.leaf_boxes()), "") << what;
+    const auto ids = bp.sorted_objects();
+    for (std::size_t p = 0; p < ids.size(); ++p)
+      EXPECT_TRUE(bp.leaf_boxes()[p / detail::kBucket].contains(detail::conservative_box(s[ids[p]]))) << what;
+    EXPECT_EQ(stats.order_kept, bp.sort_report().kept) << what;
+    return bp.sort_report().kept;
+  };
+  const auto all = all_of(s.size());
+
+  // Small motion: every frame after the first keeps the order.
+  EXPECT_FALSE(frame(all, 32, "first frame"));
+  for (int f = 0; f < 20; ++f) {
+    for (Sphere& x : s) x.x += step(rng), x.y += step(rng), x.z += step(rng);
+    EXPECT_TRUE(frame(all, 32, "small motion " + std::to_string(f))) << f;
+  }
+
+  // Steady drift, each object its own way: the buckets spread until a frame sorts again.
+  std::vector<detail::Vec3> v(s.size());
+  for (detail::Vec3& x : v) x = {speed(rng), speed(rng), speed(rng)};
+  int kept = 0, sorted = 0;
+  for (int f = 0; f < 60; ++f) {
+    for (std::size_t k = 0; k < s.size(); ++k) s[k].x += v[k].x, s[k].y += v[k].y, s[k].z += v[k].z;
+    (frame(all, 32, "drift " + std::to_string(f)) ? kept : sorted) += 1;
+  }
+  EXPECT_GT(kept, 0);
+  EXPECT_GT(sorted, 0) << "drifting buckets should make some frame sort";
+
+  // A few teleports: the frame keeps the order with a few buckets stretched across the world (their
+  // summed size stays within bounds), but their bucket pairs make the next frame sort.
+  EXPECT_TRUE(frame(all, 32, "settle") || frame(all, 32, "settle again"));
+  for (int k = 0; k < 10; ++k) s[rng() % s.size()] = Sphere{far(rng), far(rng), far(rng), 0.4f};
+  EXPECT_TRUE(frame(all, 32, "a few teleports"));
+  EXPECT_FALSE(frame(all, 32, "after the teleports")) << "the stretched buckets should make this frame sort";
+  // Everything teleports: the boxes' size jumps, and the same frame sorts.
+  EXPECT_TRUE(frame(all, 32, "settled"));
+  for (Sphere& x : s) x = Sphere{far(rng), far(rng), far(rng), x.r};
+  EXPECT_FALSE(frame(all, 32, "everything teleports"));
+
+  // Filters may change while the order is kept: the pair filter follows them.
+  EXPECT_TRUE(frame(all, 32, "no filters"));
+  const auto filters = test::random_filters(s.size(), 4);
+  EXPECT_TRUE(frame(all, 32, "filters", Layout::extended, filters));
+  const auto other = test::random_filters(s.size(), 5);
+  EXPECT_TRUE(frame(all, 32, "other filters", Layout::extended, other));
+
+  // What drops the order.
+  std::vector<std::uint32_t> half;
+  for (std::uint32_t k = 0; k < s.size(); k += 2) half.push_back(k);
+  EXPECT_FALSE(frame(half, 32, "half active"));
+  EXPECT_TRUE(frame(half, 32, "the same half"));
+  half.back() += 1;  // as many, not the same
+  EXPECT_FALSE(frame(half, 32, "another half"));
+  EXPECT_FALSE(frame(all, 32, "all again"));
+  EXPECT_FALSE(frame(all, 64, "m = 64"));
+  EXPECT_TRUE(frame(all, 64, "m = 64 again"));
+  EXPECT_FALSE(frame(all, 64, "plain layout", Layout::plain));
+  EXPECT_TRUE(frame(all, 64, "plain layout again", Layout::plain));
+  s.push_back(Sphere{0, 0, 0, 0.3f});
+  EXPECT_FALSE(frame(all_of(s.size()), 64, "N + 1", Layout::plain));
+  bp.reset_order();
+  EXPECT_FALSE(frame(all_of(s.size()), 64, "after reset_order", Layout::plain));
+  bp.set_keep_order(false);
+  EXPECT_FALSE(frame(all_of(s.size()), 64, "keeping switched off", Layout::plain));
+  EXPECT_FALSE(frame(all_of(s.size()), 64, "keeping switched off, again", Layout::plain));
 }
 
 TEST(BucketBroadphase, PairCapIsEnforcedWhileSearching) {
