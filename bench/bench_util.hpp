@@ -29,6 +29,14 @@ using Clock = std::chrono::steady_clock;
   return 0.5 * (lower + upper);
 }
 
+/// Arithmetic mean; 0 for no samples.
+[[nodiscard]] inline double mean(const std::vector<double>& v) {
+  if (v.empty()) return 0;
+  double sum = 0;
+  for (const double x : v) sum += x;
+  return sum / static_cast<double>(v.size());
+}
+
 /// Smallest sample; 0 for no samples.
 [[nodiscard]] inline double minimum(const std::vector<double>& v) {
   return v.empty() ? 0 : *std::min_element(v.begin(), v.end());

@@ -3,10 +3,11 @@
 //
 //   (default)    viscd against the peer broadphases (Bullet dbvt and sweep-and-prune, FCL dynamic
 //                tree) in one process on the same moving scene; every method's exact pair set is
-//                checked against viscd's every frame. Per method: median and minimum ms per frame
-//                (update + query), pairs per frame, and how many times slower than viscd it is.
-//   --stages     viscd's per-stage median ms (layout, codes, sort, build, fit, query) and the
-//                wall time of detect().
+//                checked against viscd's every frame. Per method: median, mean and minimum ms per
+//                frame (update + query), pairs per frame, and how many times slower than viscd it is.
+//   --stages     viscd's per-stage ms (layout, codes, sort, build, fit, query) and the
+//                wall time of detect(), for the frames that sorted, those that kept the last
+//                order, and the mean of all.
 //   --sort-bits  the paper's Table 2: radix sort time of the scene's 16/32/64-bit Morton codes.
 //   --tree-stats viscd's LBVH: depth, nodes visited and boxes tested per object in the query.
 
@@ -198,7 +199,7 @@ int run_peers(const Options& opt) {
     }
   }
 
-  CsvWriter csv(opt.csv, {"method", "objects", "median_ms", "min_ms", "pairs", "speedup_vs_viscd"});
+  CsvWriter csv(opt.csv, {"method", "objects", "median_ms", "min_ms", "pairs", "speedup_vs_viscd", "mean_ms"});
   std::printf(
       "# viscd_peers: %s scene, %d warm-up frames, then %d block(s) of %d timed frames, methods taking "
       "turns per block; viscd threads %d; %d core(s) held busy by spinning processes\n",
@@ -281,14 +282,17 @@ int run_peers(const Options& opt) {
         fastest_peer = &r;
     std::printf("\nN = %u, pairs per frame (median) %.0f, all methods agree on all %d frames\n", n,
                 median(runners[0].pair_counts), frame);
-    std::printf("%-12s %10s %10s %10s %10s %10s %10s\n", "method", "build_ms", "median_ms", "min_ms", "pairs",
-                "candidates", "vs_viscd");
+    // The mean counts every frame in full: the cpu backend's frames that sort after frames that
+    // kept the order are few, so the median does not see them.
+    std::printf("%-12s %10s %10s %10s %10s %10s %10s %10s\n", "method", "build_ms", "median_ms", "mean_ms", "min_ms",
+                "pairs", "candidates", "vs_viscd");
     for (const Runner& r : runners) {
       const double med = median(r.frame_ms), ratio = med / viscd_ms, cand = median(r.candidate_counts);
-      std::printf("%-12s %10.2f %10.3f %10.3f %10.0f %10s %9.2fx\n", r.name.c_str(), r.build_ms, med,
+      const double avg = mean(r.frame_ms);
+      std::printf("%-12s %10.2f %10.3f %10.3f %10.3f %10.0f %10s %9.2fx\n", r.name.c_str(), r.build_ms, med, avg,
                   minimum(r.frame_ms), median(r.pair_counts), cand > 0 ? format("%.0f", cand).c_str() : "-", ratio);
       csv.row({r.name, std::to_string(n), format("%.4f", med), format("%.4f", minimum(r.frame_ms)),
-               format("%.0f", median(r.pair_counts)), format("%.3f", ratio)});
+               format("%.0f", median(r.pair_counts)), format("%.3f", ratio), format("%.4f", avg)});
     }
     if (fastest_peer)
       std::printf("viscd speed-up over the fastest peer (%s): %.2fx\n", fastest_peer->name.c_str(),
@@ -305,28 +309,34 @@ constexpr Stage kBroadphaseStages[] = {Stage::layout, Stage::codes, Stage::sort,
                                        Stage::build,  Stage::fit,   Stage::query};
 
 int run_stages(const Options& opt) {
-  CsvWriter csv(opt.csv, {"objects", "threads", "bits", "layout_ms", "codes_ms", "sort_ms", "build_ms", "fit_ms",
-                          "query_ms", "stages_ms", "wall_ms", "pairs"});
+  CsvWriter csv(opt.csv, {"objects", "threads", "bits", "frames", "layout_ms", "codes_ms", "sort_ms", "build_ms",
+                          "fit_ms", "query_ms", "stages_ms", "wall_ms", "pairs"});
   Config config;
   config.threads = opt.threads;
   config.bits = opt.bits == 0 ? Bits::adaptive : static_cast<Bits>(opt.bits);
   const int threads = detail::resolve_threads(opt.threads);
   std::printf(
-      "# viscd_peers --stages: %s scene, cpu backend, no camera, %d thread(s), median of %d frames x %d "
-      "repeat(s) after %d warm-up\n",
+      "# viscd_peers --stages: %s scene, cpu backend, no camera, %d thread(s), %d frames x %d repeat(s) after %d "
+      "warm-up\n",
       opt.scene.c_str(), threads, opt.frames, opt.repeats, opt.warmup);
+  std::printf(
+      "# frames: 'sorted' (median of the frames that sorted), 'kept' (median of those that kept the last\n"
+      "# order: no layout, codes or sort), 'all' (mean of every frame: what a frame costs on average)\n");
   std::printf("# wall = detect() incl. input validation; query includes the pair sort and object states\n");
   std::printf("# stage 8 kernels: %s (VISCD_SIMD=sse2 or scalar lowers them)\n",
               detail::simd_name(detail::simd_level()));
   std::printf("# this machine now: an independent loop runs %.2fx faster on %d threads than on 1\n",
               parallel_probe(detail::hardware_threads()), detail::hardware_threads());
-  std::printf("%9s %4s", "objects", "bits");
+  std::printf("%9s %4s %12s", "objects", "bits", "frames");
   for (Stage s : kBroadphaseStages) std::printf(" %9s", std::string(stage_name(s)).c_str());
   std::printf(" %9s %9s %9s  %s\n", "stages", "wall", "pairs", "layout");
 
+  // One frame's times: the broadphase stages, their sum, the wall time.
+  constexpr std::size_t kCols = std::size(kBroadphaseStages) + 2;
+  using Times = std::array<double, kCols>;
   for (const std::uint32_t n : opt.objects) {
-    std::vector<std::vector<double>> stage_ms(std::size(kBroadphaseStages));
-    std::vector<double> sum_ms, wall_ms, pairs;
+    std::vector<Times> sorted, kept;
+    std::vector<double> pairs;
     int bits = 0;
     std::string layout;
     const Clock::time_point t_start = Clock::now();
@@ -343,31 +353,44 @@ int run_stages(const Options& opt) {
         }
         const double wall = ms_since(t0);
         if (f < opt.warmup) continue;
-        double sum = 0;
+        Times t{};
         for (std::size_t k = 0; k < std::size(kBroadphaseStages); ++k) {
-          const double ms = out.stats.stage_ms[static_cast<std::size_t>(kBroadphaseStages[k])];
-          stage_ms[k].push_back(ms);
-          sum += ms;
+          t[k] = out.stats.stage_ms[static_cast<std::size_t>(kBroadphaseStages[k])];
+          t[kCols - 2] += t[k];
         }
-        sum_ms.push_back(sum);
-        wall_ms.push_back(wall);
+        t[kCols - 1] = wall;
+        (out.stats.order_kept ? kept : sorted).push_back(t);
         pairs.push_back(static_cast<double>(out.pairs.size()));
         bits = out.stats.bits;
         layout = out.stats.layout;
       }
     }
     progress(format("--stages N=%u done in %.1f s", n, ms_since(t_start) / 1000.0));
-    std::vector<std::string> row{std::to_string(n), std::to_string(threads), std::to_string(bits)};
-    std::printf("%9u %4d", n, bits);
-    for (const auto& v : stage_ms) {
-      std::printf(" %9.3f", median(v));
-      row.push_back(format("%.4f", median(v)));
-    }
-    std::printf(" %9.3f %9.3f %9.0f  %s\n", median(sum_ms), median(wall_ms), median(pairs), layout.c_str());
-    row.push_back(format("%.4f", median(sum_ms)));
-    row.push_back(format("%.4f", median(wall_ms)));
-    row.push_back(format("%.0f", median(pairs)));
-    csv.row(row);
+    auto column = [](const std::vector<Times>& v, std::size_t k) {
+      std::vector<double> c;
+      for (const Times& t : v) c.push_back(t[k]);
+      return c;
+    };
+    std::vector<Times> all = sorted;
+    all.insert(all.end(), kept.begin(), kept.end());
+    auto print = [&](const char* what, const std::vector<Times>& v, bool use_mean) {
+      if (v.empty()) return;
+      const std::string frames = format("%s %zu", what, v.size());
+      std::printf("%9u %4d %12s", n, bits, frames.c_str());
+      std::vector<std::string> row{std::to_string(n), std::to_string(threads), std::to_string(bits), frames};
+      for (std::size_t k = 0; k < kCols; ++k) {
+        const std::vector<double> c = column(v, k);
+        const double x = use_mean ? mean(c) : median(c);
+        std::printf(" %9.3f", x);
+        row.push_back(format("%.4f", x));
+      }
+      std::printf(" %9.0f  %s\n", median(pairs), layout.c_str());
+      row.push_back(format("%.0f", median(pairs)));
+      csv.row(row);
+    };
+    print("sorted", sorted, false);
+    print("kept", kept, false);
+    print("all", all, true);
     std::fflush(stdout);
   }
   return csv.ok() ? 0 : 1;
@@ -579,7 +602,9 @@ int main(int argc, char** argv) {
   app.add_option("--csv", opt.csv, "write the table as CSV to this file");
   app.add_option("--methods", opt.methods, "methods to compare (default: viscd, viscd_1t and every peer built in)")
       ->delimiter(',');
-  auto* stages = app.add_flag("--stages", opt.stages, "per-stage median ms of viscd's cpu backend");
+  auto* stages =
+      app.add_flag("--stages", opt.stages,
+                   "per-stage ms of viscd's cpu backend: frames that sorted, frames that kept the order, mean of all");
   auto* sort_bits = app.add_flag("--sort-bits", opt.sort_bits, "paper Table 2: radix sort time for 16/32/64-bit keys");
   auto* tree_stats =
       app.add_flag("--tree-stats", opt.tree_stats, "viscd's LBVH: depth and work per object in the query");
