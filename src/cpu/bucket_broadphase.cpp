@@ -8,7 +8,6 @@
 #include <cstdlib>
 #include <cstring>
 #include <limits>
-#include <numeric>
 
 #include "core/stopwatch.hpp"
 #include "cpu/broadphase.hpp"
@@ -146,7 +145,7 @@ bool keep_order_default() {
 std::uint64_t BucketBroadphase::memory_bytes() const {
   std::uint64_t b = bytes_of(sorted_ids_) + bytes_of(previous_ids_) + bytes_of(rank_) + bytes_of(lanes_) +
                     bytes_of(bucket_boxes_) + bytes_of(gathered_) + bytes_of(entries_) + bytes_of(merged_) +
-                    bytes_of(previous_active_) + bytes_of(bucket_size_) + pairs_.memory_bytes();
+                    bytes_of(previous_active_) + pairs_.memory_bytes();
   for (const auto& f : far_) b += bytes_of(f);
   for (const auto& level : tree_.level) b += bytes_of(level);
   keys_.for_each([&](const auto& v) { b += bytes_of(v); });
@@ -195,17 +194,25 @@ void BucketBroadphase::build_tree(std::span<const Sphere> spheres, std::span<con
       box_sum = build_keys<std::uint64_t>(spheres, active, filters, extent.bounds, threads, stats);
   }
   stats.stage_ms[static_cast<std::size_t>(Stage::build)] += attempt_ms;
-  Stopwatch fit;
-  const std::size_t buckets = (active.size() + kBucket - 1) / kBucket;
-  build_wide_tree(std::span<const Aabb>(bucket_boxes_.data(), buckets), tree_, threads);
-  stats.stage_ms[static_cast<std::size_t>(Stage::fit)] = fit.lap();
+  fit_tree(active.size(), threads, stats);
   remember_sorted(spheres, active, layout, box_sum);
+}
+
+void BucketBroadphase::fit_tree(std::size_t n, int threads, FrameStats& stats) {
+  Stopwatch sw;
+  build_wide_tree(std::span<const Aabb>(bucket_boxes_.data(), (n + kBucket - 1) / kBucket), tree_, threads);
+  stats.stage_ms[static_cast<std::size_t>(Stage::fit)] = sw.lap();
 #ifdef VISCD_VALIDATE
-  {
-    const std::string problem = validate_wide_tree(tree_, bucket_boxes_);
-    VISCD_ASSERT(problem.empty(), problem.c_str());
-  }
+  const std::string problem = validate_wide_tree(tree_, bucket_boxes_);
+  VISCD_ASSERT(problem.empty(), problem.c_str());
 #endif
+}
+
+// The same active set as the last sorted frame (and every frame since): all objects of as many,
+// or the same ids. active is ascending and distinct, so n == spheres.size() means all of them.
+bool BucketBroadphase::same_active_set(std::size_t objects, std::span<const std::uint32_t> active) const {
+  if (active.size() == objects) return previous_all_ && previous_objects_ == objects;
+  return !previous_all_ && std::equal(active.begin(), active.end(), previous_active_.begin(), previous_active_.end());
 }
 
 bool BucketBroadphase::keep_last_order(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
@@ -213,27 +220,17 @@ bool BucketBroadphase::keep_last_order(std::span<const Sphere> spheres, std::spa
                                        FrameStats& stats) {
   sort_report_ = {};
   const std::size_t n = active.size();
-  // The same active set as the last sorted frame (and every frame since): all objects of as many,
-  // or the same ids. active is ascending and distinct, so n == spheres.size() means all of them.
-  const bool all = n == spheres.size();
   if (!keep_order_ || sort_next_ || bits != bits_ || layout != previous_layout_ || n < 2 || previous_ids_.size() != n ||
-      !std::isfinite(sorted_box_sum_) ||
-      (all ? !(previous_all_ && previous_objects_ == n)
-           : (previous_all_ ||
-              !std::equal(active.begin(), active.end(), previous_active_.begin(), previous_active_.end()))))
+      !std::isfinite(sorted_box_sum_) || !same_active_set(spheres.size(), active))
     return false;
   Stopwatch sw;
   stats.bits = bits;
   layout_.write(stats.layout);  // the layout of the codes that ordered the objects
   // sorted_ids_ holds the last order (the stage 6 of the last sorted frame wrote it).
-  const double box_sum = fill_lanes(n, filters, threads, [&](std::size_t k) -> const Sphere& {
-    if (k + kPrefetchAhead < n) __builtin_prefetch(&spheres[sorted_ids_[k + kPrefetchAhead]]);
-    return spheres[sorted_ids_[k]];
-  });
+  const double box_sum = fill_lanes_in_order(spheres, n, filters, threads);
   if (!(box_sum <= (1 + kStaleness) * sorted_box_sum_)) return false;  // moved too much: sort
   stats.stage_ms[static_cast<std::size_t>(Stage::build)] = sw.lap();
-  build_wide_tree(std::span<const Aabb>(bucket_boxes_.data(), (n + kBucket - 1) / kBucket), tree_, threads);
-  stats.stage_ms[static_cast<std::size_t>(Stage::fit)] = sw.lap();
+  fit_tree(n, threads, stats);
   sort_report_.kept = stats.order_kept = true;
   return true;
 }
@@ -261,7 +258,6 @@ double BucketBroadphase::fill_lanes(std::size_t n, std::span<const Filter> filte
   if (lanes_.size() != buckets) {
     resize_with_headroom(lanes_, buckets);
     resize_with_headroom(bucket_boxes_, buckets);
-    resize_with_headroom(bucket_size_, buckets);
   }
   resize_with_headroom(sorted_filters_, filters.empty() ? 0 : n);
   parallel_for(buckets, threads, [&](std::size_t b) {
@@ -282,10 +278,22 @@ double BucketBroadphase::fill_lanes(std::size_t n, std::span<const Filter> filte
       }
     }
     bucket_boxes_[b] = box;
-    bucket_size_[b] = (box.hi.x - box.lo.x) + (box.hi.y - box.lo.y) + (box.hi.z - box.lo.z);
   });
   // Summed in bucket order, so the decisions that use it do not depend on the thread count.
-  return std::accumulate(bucket_size_.begin(), bucket_size_.end(), 0.0);
+  double sum = 0;
+  for (std::size_t b = 0; b < buckets; ++b) {
+    const Aabb& box = bucket_boxes_[b];
+    sum += double{box.hi.x - box.lo.x} + double{box.hi.y - box.lo.y} + double{box.hi.z - box.lo.z};
+  }
+  return sum;
+}
+
+double BucketBroadphase::fill_lanes_in_order(std::span<const Sphere> spheres, std::size_t n,
+                                             std::span<const Filter> filters, int threads) {
+  return fill_lanes(n, filters, threads, [&](std::size_t k) -> const Sphere& {
+    if (k + kPrefetchAhead < n) __builtin_prefetch(&spheres[sorted_ids_[k + kPrefetchAhead]]);
+    return spheres[sorted_ids_[k]];
+  });
 }
 
 // The objects still active in the last frame's order, then the new ones by index, into
@@ -394,11 +402,7 @@ double BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<c
   // tree over them, follows in build_tree()).
   const double box_sum = reused ? fill_lanes(n, filters, threads,
                                              [&](std::size_t k) -> const Sphere& { return gathered_[entries_[k].at]; })
-                                : fill_lanes(n, filters, threads, [&](std::size_t k) -> const Sphere& {
-                                    if (k + kPrefetchAhead < n)
-                                      __builtin_prefetch(&spheres[sorted_ids_[k + kPrefetchAhead]]);
-                                    return spheres[sorted_ids_[k]];
-                                  });
+                                : fill_lanes_in_order(spheres, n, filters, threads);
   ms(Stage::build) = sw.lap();
   return box_sum;
 }
@@ -542,9 +546,9 @@ Status BucketBroadphase::find_pairs(std::span<const std::uint32_t> active, bool 
   const std::size_t groups = (buckets + kWide - 1) / kWide;
   const std::size_t chunks = threads_for(n, threads) == 1 ? 1 : std::min<std::size_t>(groups, 8 * threads);
   const std::uint32_t objects = n ? active.back() + 1 : 0;  // active is ascending
-  work_ = 0;
+  std::uint64_t work = 0;                                   // bucket pairs whose boxes overlap
   const SearchView view{
-      lanes_.data(), bucket_boxes_.data(), &tree_, sorted_ids_.data(), sorted_filters_.data(), filtered, n, &work_};
+      lanes_.data(), bucket_boxes_.data(), &tree_, sorted_ids_.data(), sorted_filters_.data(), filtered, n, &work};
   const SimdLevel simd = simd_level();
   const Status found =
       pairs_.collect(groups, chunks, threads, pair_memory_cap, objects, pairs, [&](std::size_t g, auto& emit) {
@@ -569,8 +573,8 @@ Status BucketBroadphase::find_pairs(std::span<const std::uint32_t> active, bool 
     return found;
   }
   if (!sort_report_.kept)
-    sorted_work_ = work_;
-  else if (sorted_work_ != 0 && static_cast<double>(work_) > (1 + kStaleness) * static_cast<double>(sorted_work_))
+    sorted_work_ = work;
+  else if (sorted_work_ != 0 && static_cast<double>(work) > (1 + kStaleness) * static_cast<double>(sorted_work_))
     sort_next_ = true;
   stats.pairs = pairs.size();
   stats.stage_ms[static_cast<std::size_t>(Stage::query)] = sw.lap();

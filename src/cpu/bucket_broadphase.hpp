@@ -15,7 +15,7 @@
 //                     new positions, and the tree is rebuilt over their boxes (a refit). Kept
 //                     while the bucket boxes' summed size and the query's bucket-pair count stay
 //                     within kStaleness of those of the last sorted frame; else the frame sorts
-//                     (docs/architecture.md, "Keeping the order"). Exact either way: any grouping
+//                     (docs/architecture.md, "The cpu broadphase, stage by stage"). Exact either way: any grouping
 //                     of the objects into buckets gives the same pairs.
 //   stage 4  layout:  extent of the active centres, Morton layout (shared with every backend)
 //   stage 5  codes:   one code per active object; with a last order, the spheres are gathered in
@@ -152,6 +152,13 @@ class BucketBroadphase {
   /// returns the bucket boxes' summed size (their three side lengths added).
   template <class SphereAt>
   double fill_lanes(std::size_t n, std::span<const Filter> filters, int threads, SphereAt&& sphere_at);
+  /// fill_lanes() reading spheres[sorted_ids_[k]] (prefetched: the reads are out of the caller's order).
+  double fill_lanes_in_order(std::span<const Sphere> spheres, std::size_t n, std::span<const Filter> filters,
+                             int threads);
+  /// Fit: the 16-wide tree over the buckets of n objects (checked with VISCD_VALIDATE).
+  void fit_tree(std::size_t n, int threads, FrameStats& stats);
+  /// Whether `active` (ascending) over `objects` spheres is the last sorted frame's active set.
+  [[nodiscard]] bool same_active_set(std::size_t objects, std::span<const std::uint32_t> active) const;
   /// After a sorted frame: what the next frames compare with to keep its order.
   void remember_sorted(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, Layout layout,
                        double box_sum);
@@ -172,8 +179,7 @@ class BucketBroadphase {
   Layout previous_layout_ = Layout::extended;
   std::vector<std::uint32_t> previous_active_;
   double sorted_box_sum_ = 0;
-  std::uint64_t sorted_work_ = 0, work_ = 0;
-  std::vector<float> bucket_size_;
+  std::uint64_t sorted_work_ = 0;
   PerWidth<KeyVector> keys_;  // each object's code
   PerWidth<RadixScratch> scratch_;
   std::vector<std::uint32_t> sorted_ids_, previous_ids_;
