@@ -12,6 +12,7 @@
 
 #include "cpu/grow.hpp"
 #include "cpu/parallel.hpp"
+#include "cpu/raster_tile.hpp"
 #include "viscd/assert.hpp"
 
 namespace viscd::detail {
@@ -25,8 +26,6 @@ constexpr double kPixelMargin = 1.0 / 16;
 /// Depth-order key: the top 16 bits of a non-negative float, monotone in its value; kCulled for
 /// spheres no pixel can see.
 constexpr std::uint16_t kCulled = 0xFFFF;
-/// Slots a tile counts on its stack.
-constexpr std::uint32_t kLocalCounts = 1024;
 /// Buckets of the depth sort.
 constexpr std::size_t kBuckets = 1024;
 std::uint16_t depth_key(float near_depth) {
@@ -155,16 +154,6 @@ inline float hmax(__m128 v) {
   return _mm_cvtss_f32(v);
 }
 
-/// A tile's working set, on the stack of the task that rasterises it.
-struct alignas(64) TileBuffers {
-  float best[kT * kT];          // nearest hit so far: +inf none, -inf outside the map
-  std::uint32_t id[kT * kT];    // its object id (0 none)
-  std::uint32_t pad[4];         // slot[-1] is read (and ignored) by the run detection
-  std::uint32_t slot[kT * kT];  // its position in the tile's list + 1 (0 none): counted per tile
-  // The rays of the tile's pixels: CameraRig::dir() and |dir|^2, filled per row when first needed.
-  float dx[kT * kT], dy[kT * kT], dz[kT * kT], a[kT * kT];
-};
-
 /// A sphere's hit() terms in every lane.
 struct Lanes {
   __m128 ox, oy, oz, c;
@@ -275,6 +264,153 @@ std::size_t chunks_for(std::size_t n, int threads) {
 }
 
 }  // namespace
+
+TileRect tile_rect(const TileJob& job, std::uint32_t t) {
+  const int tx = static_cast<int>(t % static_cast<std::uint32_t>(job.tiles_x)),
+            ty = static_cast<int>(t / static_cast<std::uint32_t>(job.tiles_x));
+  const int x0 = tx * kT, y0 = ty * kT;
+  return {x0, y0, std::min(x0 + kT, job.map->width), std::min(y0 + kT, job.map->height)};
+}
+
+void write_background_tile(const TileJob& job, std::uint32_t t) {
+  if (job.keep_background && job.background[t]) return;  // still there from the last run
+  VisibilityMap& map = *job.map;
+  const TileRect tr = tile_rect(job, t);
+  const int w = tr.x1 - tr.x0;
+  const __m128 far_depth = _mm_set1_ps(job.cam->far_plane);
+  for (int py = tr.y0; py < tr.y1; ++py) {
+    const std::size_t row = static_cast<std::size_t>(py) * static_cast<std::size_t>(map.width) + tr.x0;
+    stream_row(map.ids.data() + row, map.depth.data() + row, w, [&](int) {
+      return std::pair{_mm_setzero_si128(), far_depth};
+    });
+    if (!map.normal.empty()) std::fill_n(map.normal.data() + 3 * row, 3 * w, 0.0f);
+  }
+  _mm_sfence();  // the streamed rows are visible before the task counts as done
+}
+
+void raster_tile_sse2(const TileJob& job, std::uint32_t t) {
+  const std::uint32_t* items = job.items + job.offset[t];
+  const std::uint32_t m = job.offset[t + 1] - job.offset[t];
+  if (m == 0) return write_background_tile(job, t);
+  const CameraRig& cam = *job.cam;
+  VisibilityMap& map = *job.map;
+  const auto [x0, y0, x1, y1] = tile_rect(job, t);
+  const int w = x1 - x0, h = y1 - y0;
+  const Planes planes{_mm_set1_ps(cam.near_plane), _mm_set1_ps(cam.far_plane)};
+  const __m128 v_far_depth = _mm_set1_ps(cam.far_plane);
+  TileBuffers buf;
+  Candidates cand;
+  std::uint32_t local_counts[kLocalCounts];
+  {
+    alignas(16) float first[kT];  // +inf on the map, -inf beyond its edge (never hit, never the max)
+    for (int i = 0; i < kT; ++i) first[i] = i < w ? kInf : -kInf;
+    const __m128i zero = _mm_setzero_si128();
+    for (int i = 0; i < 16; i += 4) _mm_store_si128(reinterpret_cast<__m128i*>(buf.pad + i), zero);
+    // (id needs no start value: it is read only where slot is set, or compared where best is
+    // +inf or -inf, where the depth alone decides.)
+    for (int r = 0; r < h; ++r)
+      for (int i = 0; i < kT; i += 4) {
+        _mm_store_ps(buf.best + r * kT + i, _mm_load_ps(first + i));
+        _mm_store_si128(reinterpret_cast<__m128i*>(buf.slot + r * kT + i), zero);
+      }
+  }
+  std::uint32_t dirs_ready = 0;  // bit r: row r's rays are filled
+  auto fill_rays = [&](int r) {
+    const std::size_t py = static_cast<std::size_t>(y0 + r);
+    const float ux = job.row_x[py], uy = job.row_y[py], uz = job.row_z[py];
+    const float *cx = job.col_x + x0, *cy = job.col_y + x0, *cz = job.col_z + x0;
+    for (int i = 0; i < kT; ++i) {
+      const float ex = cx[i] + ux, ey = cy[i] + uy, ez = cz[i] + uz;
+      buf.dx[r * kT + i] = ex, buf.dy[r * kT + i] = ey, buf.dz[r * kT + i] = ez;
+      buf.a[r * kT + i] = ex * ex + ey * ey + ez * ez;
+    }
+  };
+  // The largest nearest-hit depth in the tile: recomputed every 8 spheres once it is finite,
+  // and ever less often while some pixel has no hit (it only falls).
+  float tile_max = kInf;
+  bool changed = false;
+  std::uint32_t next_check = 8;
+
+  for (std::uint32_t j = 0; j < m; ++j) {
+    const TiledRasterizer::Prepared& p = job.prep[items[j]];
+    if (j + 1 < m) _mm_prefetch(reinterpret_cast<const char*>(&job.prep[items[j + 1]]), _MM_HINT_T0);
+    if (j == next_check) {
+      if (changed) {
+        __m128 m0 = _mm_load_ps(buf.best), m1 = _mm_load_ps(buf.best + 4), m2 = _mm_load_ps(buf.best + 8),
+               m3 = _mm_load_ps(buf.best + 12);
+        for (int q = 16; q < h * kT; q += 16) {
+          m0 = _mm_max_ps(m0, _mm_load_ps(buf.best + q));
+          m1 = _mm_max_ps(m1, _mm_load_ps(buf.best + q + 4));
+          m2 = _mm_max_ps(m2, _mm_load_ps(buf.best + q + 8));
+          m3 = _mm_max_ps(m3, _mm_load_ps(buf.best + q + 12));
+        }
+        tile_max = hmax(_mm_max_ps(_mm_max_ps(m0, m1), _mm_max_ps(m2, m3)));
+        changed = false;
+      }
+      next_check = tile_max == kInf ? 2 * j : j + 8;
+    }
+    // Every hit on this sphere has t >= near_depth, on every later one t >= key_floor: once they
+    // are beyond every pixel's nearest hit so far, nothing here can change.
+    if (p.near_depth > tile_max) {
+      if (p.key_floor > tile_max) break;
+      continue;
+    }
+    const Lanes lanes{_mm_set1_ps(p.ox),
+                      _mm_set1_ps(p.oy),
+                      _mm_set1_ps(p.oz),
+                      _mm_set1_ps(p.c),
+                      _mm_set1_epi32(static_cast<int>(p.id)),
+                      _mm_set1_epi32(static_cast<int>(j + 1))};
+    const int ra = std::max(y0, p.y0) - y0, rb = std::min(y1, p.y1) - y0;
+    const int ca = std::max(x0, p.x0) - x0, cb = std::min(x1, p.x1) - x0;
+    for (std::uint32_t need = ((rb - ra == 32 ? ~0u : (1u << (rb - ra)) - 1u) << ra) & ~dirs_ready; need;
+         need &= need - 1)
+      fill_rays(std::countr_zero(need));
+    dirs_ready |= (rb - ra == 32 ? ~0u : (1u << (rb - ra)) - 1u) << ra;
+    const __m128 near_depth = _mm_set1_ps(p.near_depth);
+    cand.n = 0;
+    // The same window of k groups on every row of the rectangle in the tile: no per-row
+    // decisions; the first pass drops the groups outside the disc or behind nearer hits.
+    const int k = (cb - ca + 3) >> 2, wa = std::min(ca, kT - 4 * k);
+    for (int r = ra; r < rb; ++r)
+      for (int g = 0; g < k; ++g) screen(buf, r * kT + wa + 4 * g, lanes, near_depth, cand);
+    if (resolve(buf, cand, lanes, planes)) changed = true;
+  }
+
+  // Write out row by row (background depth = far plane), and count the row's runs of equal
+  // slots into the tile's counts (slot 0 is the background).
+  // Counted on the stack and copied out at the end: the regions of tiles side by side share
+  // cache lines, and counting there from two threads would move them between the cores at
+  // every run. (Very long lists count in place.)
+  std::uint32_t* const out_counts = job.counts + job.offset[t] + t;
+  std::uint32_t* counts = m < kLocalCounts ? local_counts : out_counts;
+  std::fill_n(counts, m + 1, 0u);
+  for (int r = 0; r < h; ++r) {
+    const std::size_t row = static_cast<std::size_t>(y0 + r) * static_cast<std::size_t>(map.width) + x0;
+    const float* best = buf.best + r * kT;
+    const std::uint32_t* ids = buf.id + r * kT;
+    const std::uint32_t* slots = buf.slot + r * kT;
+    stream_row(map.ids.data() + row, map.depth.data() + row, w, [&](int i) {
+      const __m128i none =
+          _mm_cmpeq_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(slots + i)), _mm_setzero_si128());
+      const __m128i vi = _mm_andnot_si128(none, _mm_loadu_si128(reinterpret_cast<const __m128i*>(ids + i)));
+      return std::pair{vi, select(_mm_castsi128_ps(none), v_far_depth, _mm_loadu_ps(best + i))};
+    });
+    // Runs: bit i set where slot[i] differs from slot[i - 1] (bit 0 always).
+    std::uint32_t starts = 0;
+    for (int g = 0; g < kT; g += 4) {
+      const __m128i cur = _mm_load_si128(reinterpret_cast<const __m128i*>(slots + g));
+      const __m128i prev = _mm_loadu_si128(reinterpret_cast<const __m128i*>(slots + g - 1));
+      const int same = _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(cur, prev)));
+      starts |= static_cast<std::uint32_t>(~same & 0xF) << g;
+    }
+    add_runs(starts | 1u, slots, w, counts);
+    if (!map.normal.empty())
+      for (int px = x0; px < x1; ++px) write_normal(cam, job.spheres, map, px, y0 + r);
+  }
+  if (counts != out_counts) std::copy_n(counts, m + 1, out_counts);
+  _mm_sfence();  // the streamed rows are visible before the task counts as done
+}
 
 std::uint64_t TiledRasterizer::memory_bytes() const {
   auto b = [](const auto& v) { return static_cast<std::uint64_t>(v.capacity()) * sizeof(v[0]); };
@@ -429,154 +565,27 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
       map.stamp != 0 && map.stamp == stamp_ && background_.size() == tiles && background_far_ == cam.far_plane;
   map.stamp = 0;  // until this run is complete
   background_.resize(tiles);
-  const bool normals = !map.normal.empty();
-  const std::size_t W = static_cast<std::size_t>(map.width);
-  const float far_depth = cam.far_plane;
-  const Planes planes{_mm_set1_ps(cam.near_plane), _mm_set1_ps(cam.far_plane)};
-  const __m128 v_far_depth = _mm_set1_ps(far_depth);
-  auto tile_task = [&](std::uint32_t task) {
-    const std::size_t t = task;
-    const int tx = static_cast<int>(t % static_cast<std::size_t>(tiles_x)),
-              ty = static_cast<int>(t / static_cast<std::size_t>(tiles_x));
-    const int x0 = tx * kT, y0 = ty * kT;
-    const int x1 = std::min(x0 + kT, map.width), y1 = std::min(y0 + kT, map.height);
-    const int w = x1 - x0, h = y1 - y0;
-    const std::uint32_t* items = tile_items_.data() + tile_offset_[t];
-    const std::uint32_t m = tile_offset_[t + 1] - tile_offset_[t];
-    if (m == 0) {                                     // background only
-      if (keep_background && background_[t]) return;  // still there from the last run
-      for (int py = y0; py < y1; ++py) {
-        const std::size_t row = static_cast<std::size_t>(py) * W + static_cast<std::size_t>(x0);
-        stream_row(map.ids.data() + row, map.depth.data() + row, w, [&](int) {
-          return std::pair{_mm_setzero_si128(), v_far_depth};
-        });
-        if (normals) std::fill_n(map.normal.data() + 3 * row, 3 * w, 0.0f);
-      }
-      _mm_sfence();  // the streamed rows are visible before the task counts as done
-      return;
-    }
-    TileBuffers buf;
-    Candidates cand;
-    std::uint32_t local_counts[kLocalCounts];
-    {
-      alignas(16) float first[kT];  // +inf on the map, -inf beyond its edge (never hit, never the max)
-      for (int i = 0; i < kT; ++i) first[i] = i < w ? kInf : -kInf;
-      const __m128i zero = _mm_setzero_si128();
-      _mm_storeu_si128(reinterpret_cast<__m128i*>(buf.pad), zero);
-      // (id needs no start value: it is read only where slot is set, or compared where best is
-      // +inf or -inf, where the depth alone decides.)
-      for (int r = 0; r < h; ++r)
-        for (int i = 0; i < kT; i += 4) {
-          _mm_store_ps(buf.best + r * kT + i, _mm_load_ps(first + i));
-          _mm_store_si128(reinterpret_cast<__m128i*>(buf.slot + r * kT + i), zero);
-        }
-    }
-    std::uint32_t dirs_ready = 0;  // bit r: row r's rays are filled
-    auto fill_rays = [&](int r) {
-      const std::size_t py = static_cast<std::size_t>(y0 + r);
-      const float ux = row_x_[py], uy = row_y_[py], uz = row_z_[py];
-      const float *cx = col_x_.data() + x0, *cy = col_y_.data() + x0, *cz = col_z_.data() + x0;
-      for (int i = 0; i < kT; ++i) {
-        const float ex = cx[i] + ux, ey = cy[i] + uy, ez = cz[i] + uz;
-        buf.dx[r * kT + i] = ex, buf.dy[r * kT + i] = ey, buf.dz[r * kT + i] = ez;
-        buf.a[r * kT + i] = ex * ex + ey * ey + ez * ez;
-      }
-    };
-    // The largest nearest-hit depth in the tile: recomputed every 8 spheres once it is finite,
-    // and ever less often while some pixel has no hit (it only falls).
-    float tile_max = kInf;
-    bool changed = false;
-    std::uint32_t next_check = 8;
-
-    for (std::uint32_t j = 0; j < m; ++j) {
-      const Prepared& p = prep_[items[j]];
-      if (j + 1 < m) _mm_prefetch(reinterpret_cast<const char*>(&prep_[items[j + 1]]), _MM_HINT_T0);
-      if (j == next_check) {
-        if (changed) {
-          __m128 m0 = _mm_load_ps(buf.best), m1 = _mm_load_ps(buf.best + 4), m2 = _mm_load_ps(buf.best + 8),
-                 m3 = _mm_load_ps(buf.best + 12);
-          for (int q = 16; q < h * kT; q += 16) {
-            m0 = _mm_max_ps(m0, _mm_load_ps(buf.best + q));
-            m1 = _mm_max_ps(m1, _mm_load_ps(buf.best + q + 4));
-            m2 = _mm_max_ps(m2, _mm_load_ps(buf.best + q + 8));
-            m3 = _mm_max_ps(m3, _mm_load_ps(buf.best + q + 12));
-          }
-          tile_max = hmax(_mm_max_ps(_mm_max_ps(m0, m1), _mm_max_ps(m2, m3)));
-          changed = false;
-        }
-        next_check = tile_max == kInf ? 2 * j : j + 8;
-      }
-      // Every hit on this sphere has t >= near_depth, on every later one t >= key_floor: once they
-      // are beyond every pixel's nearest hit so far, nothing here can change.
-      if (p.near_depth > tile_max) {
-        if (p.key_floor > tile_max) break;
-        continue;
-      }
-      const Lanes lanes{_mm_set1_ps(p.ox),
-                        _mm_set1_ps(p.oy),
-                        _mm_set1_ps(p.oz),
-                        _mm_set1_ps(p.c),
-                        _mm_set1_epi32(static_cast<int>(p.id)),
-                        _mm_set1_epi32(static_cast<int>(j + 1))};
-      const int ra = std::max(y0, p.y0) - y0, rb = std::min(y1, p.y1) - y0;
-      const int ca = std::max(x0, p.x0) - x0, cb = std::min(x1, p.x1) - x0;
-      for (std::uint32_t need = ((rb - ra == 32 ? ~0u : (1u << (rb - ra)) - 1u) << ra) & ~dirs_ready; need;
-           need &= need - 1)
-        fill_rays(std::countr_zero(need));
-      dirs_ready |= (rb - ra == 32 ? ~0u : (1u << (rb - ra)) - 1u) << ra;
-      const __m128 near_depth = _mm_set1_ps(p.near_depth);
-      cand.n = 0;
-      // The same window of k groups on every row of the rectangle in the tile: no per-row
-      // decisions; the first pass drops the groups outside the disc or behind nearer hits.
-      const int k = (cb - ca + 3) >> 2, wa = std::min(ca, kT - 4 * k);
-      for (int r = ra; r < rb; ++r)
-        for (int g = 0; g < k; ++g) screen(buf, r * kT + wa + 4 * g, lanes, near_depth, cand);
-      if (resolve(buf, cand, lanes, planes)) changed = true;
-    }
-
-    // Write out row by row (background depth = far plane), and count the row's runs of equal
-    // slots into the tile's counts (slot 0 is the background).
-    // Counted on the stack and copied out at the end: the regions of tiles side by side share
-    // cache lines, and counting there from two threads would move them between the cores at
-    // every run. (Very long lists count in place.)
-    std::uint32_t* const out_counts = tile_counts_.data() + tile_offset_[t] + t;
-    std::uint32_t* counts = m < kLocalCounts ? local_counts : out_counts;
-    std::fill_n(counts, m + 1, 0u);
-    for (int r = 0; r < h; ++r) {
-      const std::size_t row = static_cast<std::size_t>(y0 + r) * W + static_cast<std::size_t>(x0);
-      const float* best = buf.best + r * kT;
-      const std::uint32_t* ids = buf.id + r * kT;
-      const std::uint32_t* slots = buf.slot + r * kT;
-      stream_row(map.ids.data() + row, map.depth.data() + row, w, [&](int i) {
-        const __m128i none =
-            _mm_cmpeq_epi32(_mm_loadu_si128(reinterpret_cast<const __m128i*>(slots + i)), _mm_setzero_si128());
-        const __m128i vi = _mm_andnot_si128(none, _mm_loadu_si128(reinterpret_cast<const __m128i*>(ids + i)));
-        return std::pair{vi, select(_mm_castsi128_ps(none), v_far_depth, _mm_loadu_ps(best + i))};
-      });
-      // Runs: bit i set where slot[i] differs from slot[i - 1] (bit 0 always).
-      std::uint32_t starts = 0;
-      for (int g = 0; g < kT; g += 4) {
-        const __m128i cur = _mm_load_si128(reinterpret_cast<const __m128i*>(slots + g));
-        const __m128i prev = _mm_loadu_si128(reinterpret_cast<const __m128i*>(slots + g - 1));
-        const int same = _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(cur, prev)));
-        starts |= static_cast<std::uint32_t>(~same & 0xF) << g;
-      }
-      starts |= 1u;
-      if (w < kT) starts &= (1u << w) - 1u;
-      int start = 0;
-      starts &= starts - 1u;
-      while (starts) {
-        const int next = std::countr_zero(starts);
-        counts[slots[start]] += static_cast<std::uint32_t>(next - start);
-        start = next;
-        starts &= starts - 1u;
-      }
-      counts[slots[start]] += static_cast<std::uint32_t>(w - start);
-      if (normals)
-        for (int px = x0; px < x1; ++px) write_normal(cam, spheres, map, px, y0 + r);
-    }
-    if (counts != out_counts) std::copy_n(counts, m + 1, out_counts);
-    _mm_sfence();  // the streamed rows are visible before the task counts as done
+  const TileJob job{&cam,
+                    spheres,
+                    &map,
+                    tiles_x,
+                    prep_.data(),
+                    tile_items_.data(),
+                    tile_offset_.data(),
+                    tile_counts_.data(),
+                    col_x_.data(),
+                    col_y_.data(),
+                    col_z_.data(),
+                    row_x_.data(),
+                    row_y_.data(),
+                    row_z_.data(),
+                    background_.data(),
+                    keep_background};
+  auto tile_task = [&job](std::uint32_t t) {
+#if VISCD_HAVE_AVX512
+    if (simd_level() == SimdLevel::avx512) return raster_tile_avx512(job, t);
+#endif
+    raster_tile_sse2(job, t);
   };
   if (threads_for(tiles * kT * kT, threads) == 1) {
     for (std::size_t t = 0; t < tiles; ++t) tile_task(static_cast<std::uint32_t>(t));

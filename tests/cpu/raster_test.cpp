@@ -3,7 +3,8 @@
 // into the tile pass against a histogram of the reference's id map. The cases aim at each path of
 // the rasterizer: the tight rectangles and row spans of single spheres (random cameras, fields of
 // view, sizes from sub-pixel to screen-filling), tile and map borders, many spheres in a tile,
-// exact depth ties, camera inside or beside a sphere, odd and tiny maps, N = 0, 1, 2.
+// exact depth ties, camera inside or beside a sphere, odd and tiny maps, N = 0, 1, 2. Each case
+// runs every tile kernel the CPU has (SSE2, AVX-512).
 #include <gtest/gtest.h>
 
 #include <bit>
@@ -12,6 +13,7 @@
 #include <sstream>
 
 #include "cpu/raster.hpp"
+#include "cpu/simd.hpp"
 #include "cpu/visibility.hpp"
 #include "test_util.hpp"
 #include "viscd/scene.hpp"
@@ -51,7 +53,7 @@ Oracle reference(const CameraRig& rig, std::span<const Sphere> s) {
 
 // Runs the tiled rasterizer with `threads` and compares with the oracle; the message names the
 // first differing pixel.
-::testing::AssertionResult matches(const Oracle& want, const CameraRig& rig, std::span<const Sphere> s,
+::testing::AssertionResult matches_at_level(const Oracle& want, const CameraRig& rig, std::span<const Sphere> s,
                                    int threads = 2) {
   VisibilityMap got;
   got.resize(rig.map_w, rig.map_h, false);
@@ -79,6 +81,24 @@ Oracle reference(const CameraRig& rig, std::span<const Sphere> s) {
     return ::testing::AssertionFailure() << "count vector sizes differ";
   }
   return ::testing::AssertionSuccess();
+}
+
+// The same for each tile kernel this CPU can run (SSE2, and AVX-512 where it has it).
+::testing::AssertionResult matches(const Oracle& want, const CameraRig& rig, std::span<const Sphere> s,
+                                   int threads = 2) {
+  const detail::SimdLevel was = detail::simd_level();
+  ::testing::AssertionResult result = ::testing::AssertionSuccess();
+  for (detail::SimdLevel level : {detail::SimdLevel::sse2, detail::SimdLevel::avx512}) {
+    if (level > detail::best_simd_level()) continue;
+    detail::set_simd_level(level);
+    result = matches_at_level(want, rig, s, threads);
+    if (!result) {
+      result << " (" << detail::simd_name(level) << " tile kernel)";
+      break;
+    }
+  }
+  detail::set_simd_level(was);
+  return result;
 }
 
 ::testing::AssertionResult matches_reference(const Camera& cam, int w, int h, std::span<const Sphere> s,
@@ -184,6 +204,16 @@ TEST(Raster, ManySpheresInOneTileAndExactTies) {
   // Different spheres reaching the same depth at some pixel: concentric, equal near point.
   const std::vector<Sphere> tie = {{0, 0, -1, 1}, {0, 0, -1.5f, 1.5f}, {0, 0, -2, 2}, {0, 0, -1, 1}};
   ASSERT_TRUE(matches_reference(cam, 40, 40, tie));
+  // On a 41x41 map the centre pixel's ray is the axis (0, 0, -1), and both spheres below are hit
+  // on it at t = 10 exactly (every term is exact in float: for the second, |o|^2 - r^2 = 180,
+  // disc = 196 - 180 = 16). The second one's near point is nearer, so it comes first in depth
+  // order and the first must take the pixel from it by the smaller id, in the kernel.
+  const std::vector<Sphere> cross = {{0, 0, -1, 1}, {3, 0, -4, 5}};
+  const CameraRig centre(cam, 41, 41);
+  const Oracle want = reference(centre, cross);
+  ASSERT_EQ(want.map.ids[20 * 41 + 20], 1u);
+  ASSERT_EQ(want.map.depth[20 * 41 + 20], 10.0f);
+  ASSERT_TRUE(matches(want, centre, cross));
 }
 
 TEST(Raster, DepthsOverManyOctaves) {

@@ -1,0 +1,81 @@
+#pragma once
+// The tile pass of the cpu rasterizer (cpu/raster.hpp): one task per 32x32-pixel tile runs
+// hit() for the tile's spheres in depth order, writes the tile's pixels to the map and counts
+// them per sphere. Two kernels give the same bits: SSE2 (every x86-64; groups of 4 pixels) and
+// AVX-512 (rows of 16 pixels), chosen at run time by simd_level() (cpu/simd.hpp). What both
+// share is here.
+
+#include <cstdint>
+#include <span>
+
+#include "cpu/raster.hpp"
+#include "cpu/simd.hpp"
+#include "cpu/visibility.hpp"
+
+namespace viscd::detail {
+
+/// What every tile task reads (and where it writes), set up once per frame by run().
+struct TileJob {
+  const CameraRig* cam;
+  std::span<const Sphere> spheres;  // for the normals
+  VisibilityMap* map;
+  int tiles_x;
+  const TiledRasterizer::Prepared* prep;  // the visible spheres in depth order
+  const std::uint32_t* items;             // per tile, its spheres (indices into prep) in depth order
+  const std::uint32_t* offset;            // tile t's items are [offset[t], offset[t + 1])
+  std::uint32_t* counts;                  // tile t's pixels per item at offset[t] + t (+1: 0 is background)
+  // The rays: dir() = (forward + right nx) + up ny, per column (padded to whole tiles) and row.
+  const float *col_x, *col_y, *col_z, *row_x, *row_y, *row_z;
+  const std::uint8_t* background;  // tiles written as background only by the last run
+  bool keep_background;            // ... and the map still holds them
+};
+
+/// Tile edge in pixels.
+inline constexpr int kTileSide = TiledRasterizer::kTile;
+/// Slots a tile counts on its stack (longer lists count in place).
+inline constexpr std::uint32_t kLocalCounts = 1024;
+
+/// A tile's working set, on the stack of the task that rasterises it.
+struct alignas(64) TileBuffers {
+  static constexpr int kT = kTileSide;
+  float best[kT * kT];          // nearest hit so far: +inf none, -inf outside the map
+  std::uint32_t id[kT * kT];    // its object id (0 none)
+  std::uint32_t pad[16];        // zero: slot[-1] is read (and ignored) by the run detection
+  std::uint32_t slot[kT * kT];  // its position in the tile's list + 1 (0 none): counted per tile
+  // The rays of the tile's pixels: CameraRig::dir() and |dir|^2, filled per row when first needed.
+  float dx[kT * kT], dy[kT * kT], dz[kT * kT], a[kT * kT];
+};
+
+/// Tile t's pixels: columns [x0, x1), rows [y0, y1).
+struct TileRect {
+  int x0, y0, x1, y1;
+};
+[[nodiscard]] TileRect tile_rect(const TileJob& job, std::uint32_t t);
+
+/// Writes tile t as background (id 0, depth = far plane, normal 0) unless the last run left it
+/// so and the map still holds it.
+void write_background_tile(const TileJob& job, std::uint32_t t);
+
+/// Adds one row's runs of equal slots to counts: bit i of `starts` is set where slots[i] differs
+/// from slots[i - 1] (and bit 0), for the row's first w pixels.
+inline void add_runs(std::uint32_t starts, const std::uint32_t* slots, int w, std::uint32_t* counts) {
+  if (w < kTileSide) starts &= (1u << w) - 1u;
+  int start = 0;
+  starts &= starts - 1u;
+  while (starts) {
+    const int next = __builtin_ctz(starts);
+    counts[slots[start]] += static_cast<std::uint32_t>(next - start);
+    start = next;
+    starts &= starts - 1u;
+  }
+  counts[slots[start]] += static_cast<std::uint32_t>(w - start);
+}
+
+/// The tile pass for tile t with SSE2.
+void raster_tile_sse2(const TileJob& job, std::uint32_t t);
+#if VISCD_HAVE_AVX512
+/// The same with AVX-512F; call only when best_simd_level() is avx512.
+void raster_tile_avx512(const TileJob& job, std::uint32_t t);
+#endif
+
+}  // namespace viscd::detail
