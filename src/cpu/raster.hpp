@@ -37,12 +37,13 @@ class TiledRasterizer {
     std::int32_t x0, y0, x1, y1;
   };
 
- private:
   /// A sphere's rectangle and depth bound, by sphere index.
   struct Bound {
     std::uint16_t x0, y0, x1, y1;
     float near_depth;
   };
+
+ private:
   std::vector<Bound> bounds_;
   std::vector<Prepared> prep_;  // the visible spheres in depth order
   std::vector<std::uint16_t> keys_;

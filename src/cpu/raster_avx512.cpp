@@ -13,6 +13,13 @@
 #include <algorithm>
 #include <limits>
 
+// GCC 12 takes the undefined pass-through operands inside some AVX-512 intrinsics (max, the
+// reductions) for uninitialised variables.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+
 namespace viscd::detail {
 namespace {
 
@@ -162,7 +169,8 @@ VISCD_AVX512_FLATTEN void raster_tile_avx512(const TileJob& job, std::uint32_t t
       for (int r = ra; r < rb; ++r) any |= hit16(buf, r * kT + wa, lanes, near_plane, far_plane);
     } else {
       for (int r = ra; r < rb; ++r)
-        any |= hit16(buf, r * kT, lanes, near_plane, far_plane) | hit16(buf, r * kT + 16, lanes, near_plane, far_plane);
+        any |= static_cast<__mmask16>(hit16(buf, r * kT, lanes, near_plane, far_plane) |
+                                      hit16(buf, r * kT + 16, lanes, near_plane, far_plane));
     }
     if (any) changed = true;
   }
@@ -212,5 +220,9 @@ VISCD_AVX512_FLATTEN void raster_tile_avx512(const TileJob& job, std::uint32_t t
 }
 
 }  // namespace viscd::detail
+
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 
 #endif  // VISCD_HAVE_AVX512

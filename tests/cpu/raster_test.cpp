@@ -83,7 +83,8 @@ Oracle reference(const CameraRig& rig, std::span<const Sphere> s) {
   return ::testing::AssertionSuccess();
 }
 
-// The same for each tile kernel this CPU can run (SSE2, and AVX-512 where it has it).
+// The same for each instruction set this CPU can run the rasterizer with (SSE2, and AVX-512 where
+// it has it: the bounds and the tile kernel).
 ::testing::AssertionResult matches(const Oracle& want, const CameraRig& rig, std::span<const Sphere> s,
                                    int threads = 2) {
   const detail::SimdLevel was = detail::simd_level();
@@ -93,7 +94,7 @@ Oracle reference(const CameraRig& rig, std::span<const Sphere> s) {
     detail::set_simd_level(level);
     result = matches_at_level(want, rig, s, threads);
     if (!result) {
-      result << " (" << detail::simd_name(level) << " tile kernel)";
+      result << " (" << detail::simd_name(level) << " kernels)";
       break;
     }
   }
