@@ -57,93 +57,9 @@ struct View {
   }
 };
 
-// GCC 12 warns, wrongly, in the AVX-512 instantiation below: that vectors pass through bounds()
-// and its lambdas without AVX-512 (they are always inlined into a function compiled for it), and
-// that the intrinsics' own undefined pass-through operands are used uninitialised.
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wpsabi"
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#endif
-/// The double-precision lanes bounds() runs on: SSE2 (2 lanes, every x86-64) and AVX-512 (8
-/// lanes, in functions compiled for it only). Each operation is the same IEEE operation in both,
-/// so a sphere gets the same rectangle whichever runs.
-struct Sse2Doubles {
-  static constexpr int kLanes = 2;
-  using V = __m128d;
-  using M = __m128d;
-  static V c(double x) { return _mm_set1_pd(x); }
-  static V add(V a, V b) { return _mm_add_pd(a, b); }
-  static V sub(V a, V b) { return _mm_sub_pd(a, b); }
-  static V mul(V a, V b) { return _mm_mul_pd(a, b); }
-  static V div(V a, V b) { return _mm_div_pd(a, b); }
-  static V sqrt(V a) { return _mm_sqrt_pd(a); }
-  static V min(V a, V b) { return _mm_min_pd(a, b); }
-  static V max(V a, V b) { return _mm_max_pd(a, b); }
-  static V abs(V a) { return _mm_andnot_pd(_mm_set1_pd(-0.0), a); }
-  static V neg(V a) { return _mm_xor_pd(a, _mm_set1_pd(-0.0)); }
-  static M lt(V a, V b) { return _mm_cmplt_pd(a, b); }
-  static M gt(V a, V b) { return _mm_cmpgt_pd(a, b); }
-  static M ge(V a, V b) { return _mm_cmpge_pd(a, b); }
-  static M both(M a, M b) { return _mm_and_pd(a, b); }
-  static V select(M m, V a, V b) { return _mm_or_pd(_mm_and_pd(m, a), _mm_andnot_pd(m, b)); }
-  static V trunc(V a) { return _mm_cvtepi32_pd(_mm_cvttpd_epi32(a)); }  // |a| < 2^31
-  static void store(double* out, V a) { _mm_storeu_pd(out, a); }
-  static void store_int(std::int32_t* out, V a) {
-    _mm_storel_epi64(reinterpret_cast<__m128i*>(out), _mm_cvttpd_epi32(a));
-  }
-  /// Centres and radii of s[0], s[1] (s[k] for k >= count repeats the last).
-  static void load(const Sphere* s, int count, V& x, V& y, V& z, V& r) {
-    const Sphere& a = s[0];
-    const Sphere& b = s[count > 1 ? 1 : 0];
-    x = _mm_set_pd(b.x, a.x), y = _mm_set_pd(b.y, a.y), z = _mm_set_pd(b.z, a.z), r = _mm_set_pd(b.r, a.r);
-  }
-};
-
-#if VISCD_HAVE_AVX512
-struct Avx512Doubles {
-  static constexpr int kLanes = 8;
-  using V = __m512d;
-  using M = __mmask8;
-  VISCD_AVX512_TARGET static V c(double x) { return _mm512_set1_pd(x); }
-  VISCD_AVX512_TARGET static V add(V a, V b) { return _mm512_add_pd(a, b); }
-  VISCD_AVX512_TARGET static V sub(V a, V b) { return _mm512_sub_pd(a, b); }
-  VISCD_AVX512_TARGET static V mul(V a, V b) { return _mm512_mul_pd(a, b); }
-  VISCD_AVX512_TARGET static V div(V a, V b) { return _mm512_div_pd(a, b); }
-  VISCD_AVX512_TARGET static V sqrt(V a) { return _mm512_sqrt_pd(a); }
-  VISCD_AVX512_TARGET static V min(V a, V b) { return _mm512_min_pd(a, b); }
-  VISCD_AVX512_TARGET static V max(V a, V b) { return _mm512_max_pd(a, b); }
-  VISCD_AVX512_TARGET static V abs(V a) {
-    return _mm512_castsi512_pd(_mm512_and_si512(_mm512_castpd_si512(a), _mm512_set1_epi64(0x7FFF'FFFF'FFFF'FFFF)));
-  }
-  VISCD_AVX512_TARGET static V neg(V a) {
-    return _mm512_castsi512_pd(_mm512_xor_si512(_mm512_castpd_si512(a), _mm512_castpd_si512(_mm512_set1_pd(-0.0))));
-  }
-  VISCD_AVX512_TARGET static M lt(V a, V b) { return _mm512_cmp_pd_mask(a, b, _CMP_LT_OS); }
-  VISCD_AVX512_TARGET static M gt(V a, V b) { return _mm512_cmp_pd_mask(a, b, _CMP_GT_OS); }
-  VISCD_AVX512_TARGET static M ge(V a, V b) { return _mm512_cmp_pd_mask(a, b, _CMP_GE_OS); }
-  VISCD_AVX512_TARGET static M both(M a, M b) { return static_cast<M>(a & b); }
-  VISCD_AVX512_TARGET static V select(M m, V a, V b) { return _mm512_mask_blend_pd(m, b, a); }
-  VISCD_AVX512_TARGET static V trunc(V a) { return _mm512_cvtepi32_pd(_mm512_cvttpd_epi32(a)); }
-  VISCD_AVX512_TARGET static void store(double* out, V a) { _mm512_storeu_pd(out, a); }
-  VISCD_AVX512_TARGET static void store_int(std::int32_t* out, V a) {
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out), _mm512_cvttpd_epi32(a));
-  }
-  /// Centres and radii of s[0 .. 8) (s[k] for k >= count repeats the last).
-  VISCD_AVX512_TARGET static void load(const Sphere* s, int count, V& x, V& y, V& z, V& r) {
-    alignas(64) double f[4][8];
-    for (int k = 0; k < 8; ++k) {
-      const Sphere& q = s[k < count ? k : count - 1];
-      f[0][k] = q.x, f[1][k] = q.y, f[2][k] = q.z, f[3][k] = q.r;
-    }
-    x = _mm512_load_pd(f[0]), y = _mm512_load_pd(f[1]), z = _mm512_load_pd(f[2]), r = _mm512_load_pd(f[3]);
-  }
-};
-#endif
-
-/// kLanes spheres at a time: the sphere widened to the radius R that holds every ray hit() can
-/// accept, and its projection. hit() decides on a float discriminant that cancels near the
-/// centre of spheres small against their distance |o|, so R = sqrt(r^2 + 2^-19 |o|^2) as
+/// Two spheres at a time (SSE2 double lanes): the sphere widened to the radius R that holds every
+/// ray hit() can accept, and its projection. hit() decides on a float discriminant that cancels
+/// near the centre of spheres small against their distance |o|, so R = sqrt(r^2 + 2^-19 |o|^2) as
 /// sphere_rect (docs/architecture.md, "Visibility map"), plus 2e-4 (|o|_1 + r): twice
 /// sphere_rect's slack, and far more than the float rounding of a ray's direction or of the
 /// depth t (relative 1e-5 at most, at a 179.9 degree field of view).
@@ -158,72 +74,64 @@ struct Avx512Doubles {
 /// d2 not clearly negative, no real roots, a root not finite) that axis is not bounded.
 /// The pixel rectangle of each lane is the extent's pixels, those whose centre lies within
 /// kPixelMargin of it (the whole map along an axis that is not bounded).
-template <int L>
-struct SphereBounds {
-  double rr[L], cz[L];                  // R, view depth of the centre
-  std::int32_t first[2][L], end[2][L];  // [axis: 0 rows, 1 columns][lane]: pixels [first, end)
+struct Bounds2 {
+  alignas(16) double rr[2], cz[2];                  // R, view depth of the centre
+  alignas(16) std::int32_t first[2][4], end[2][4];  // [axis: 0 rows, 1 columns][lane]: pixels [first, end)
 };
-// (Always inlined, as are its lambdas: the AVX-512 instantiation runs inside a function compiled
-// for AVX-512, and must be compiled there.)
-template <class D>
-[[gnu::always_inline]] inline void bounds(const View& v, const Sphere* s, int count, SphereBounds<D::kLanes>& out) {
-  using V = typename D::V;
-  using M = typename D::M;
-  V sx, sy, sz, r;
-  D::load(s, count, sx, sy, sz, r);
-  const V zero = D::c(0);
-  const V ox = D::sub(D::c(v.ex), sx), oy = D::sub(D::c(v.ey), sy), oz = D::sub(D::c(v.ez), sz);
-  const V o2 = D::add(D::add(D::mul(ox, ox), D::mul(oy, oy)), D::mul(oz, oz));
-  const V l1 = D::add(D::add(D::abs(ox), D::abs(oy)), D::abs(oz));
-  const V rr = D::add(D::add(D::sqrt(D::add(D::mul(r, r), D::mul(D::c(0x1p-19), o2))), D::mul(D::c(2e-4), D::add(l1, r))),
-                      D::c(1e-6));
-  const V k = D::sub(o2, D::mul(rr, rr));
-  // (The lambdas take and give vectors by reference: no vector crosses a function boundary
-  // compiled without the caller's instruction set.)
-  auto dot = [&](const double* a, V& into) [[gnu::always_inline]] {
-    into = D::add(D::add(D::mul(ox, D::c(a[0])), D::mul(oy, D::c(a[1]))), D::mul(oz, D::c(a[2])));
-  };
-  V of, ou, orr;
-  dot(v.f, of), dot(v.up, ou), dot(v.rt, orr);
-  D::store(out.rr, rr);
-  D::store(out.cz, D::neg(of));
-  const M k_pos = D::gt(k, zero);  // else the eye is inside (or at) the widened sphere
-  auto extent = [&](int axis, const V& oa, const V& ob, double aa, double bb, double fa, double fb,
-                    double ab) [[gnu::always_inline]] {
-    const V oa2 = D::mul(oa, oa), kaa = D::mul(k, D::c(aa));
-    const V la = D::sub(oa2, kaa);
-    M ok = D::both(k_pos, D::lt(la, D::mul(D::c(-1e-6), D::add(oa2, kaa))));
-    const V b0 = D::sub(D::mul(of, oa), D::mul(k, D::c(fa))), b1 = D::sub(D::mul(ob, oa), D::mul(k, D::c(ab)));
-    const V c0 = D::sub(D::mul(of, of), D::mul(k, D::c(v.ff))),
-            c1 = D::mul(D::c(2), D::sub(D::mul(of, ob), D::mul(k, D::c(fb)))),
-            c2 = D::sub(D::mul(ob, ob), D::mul(k, D::c(bb)));
-    const V b1b1 = D::mul(b1, b1);
-    const V d0 = D::sub(D::mul(b0, b0), D::mul(la, c0)), d1 = D::sub(D::mul(D::c(2), D::mul(b0, b1)), D::mul(la, c1)),
-            d2 = D::sub(b1b1, D::mul(la, c2));
-    ok = D::both(ok, D::lt(d2, D::mul(D::c(-1e-9), D::add(b1b1, D::abs(D::sub(d2, b1b1))))));
-    const V disc = D::sub(D::mul(d1, d1), D::mul(D::c(4), D::mul(d2, d0)));
-    ok = D::both(ok, D::ge(disc, zero));
-    const V sq = D::sqrt(D::max(disc, zero)), inv = D::div(D::c(0.5), d2);
-    const V nd1 = D::neg(d1);
-    const V r0 = D::mul(D::sub(nd1, sq), inv), r1 = D::mul(D::add(nd1, sq), inv);
-    const V lo = D::min(r0, r1), hi = D::max(r0, r1);
-    const V inf = D::c(std::numeric_limits<double>::infinity());
-    ok = D::both(ok, D::both(D::lt(D::abs(lo), inf), D::lt(D::abs(hi), inf)));
+inline void bounds2(const View& v, const Sphere& s0, const Sphere& s1, Bounds2& out) {
+  auto pair = [](double a, double b) { return _mm_set_pd(b, a); };  // lane 0 = a
+  auto c = [](double x) { return _mm_set1_pd(x); };
+  const __m128d sign = c(-0.0), zero = _mm_setzero_pd();
+  auto abs = [&](__m128d x) { return _mm_andnot_pd(sign, x); };
+  auto add = [](__m128d x, __m128d y) { return _mm_add_pd(x, y); };
+  auto sub = [](__m128d x, __m128d y) { return _mm_sub_pd(x, y); };
+  auto mul = [](__m128d x, __m128d y) { return _mm_mul_pd(x, y); };
+  const __m128d ox = sub(c(v.ex), pair(s0.x, s1.x)), oy = sub(c(v.ey), pair(s0.y, s1.y)),
+                oz = sub(c(v.ez), pair(s0.z, s1.z)), r = pair(s0.r, s1.r);
+  const __m128d o2 = add(add(mul(ox, ox), mul(oy, oy)), mul(oz, oz));
+  const __m128d l1 = add(add(abs(ox), abs(oy)), abs(oz));
+  const __m128d rr = add(add(_mm_sqrt_pd(add(mul(r, r), mul(c(0x1p-19), o2))), mul(c(2e-4), add(l1, r))), c(1e-6));
+  const __m128d k = sub(o2, mul(rr, rr));
+  auto dot = [&](const double* a) { return add(add(mul(ox, c(a[0])), mul(oy, c(a[1]))), mul(oz, c(a[2]))); };
+  const __m128d of = dot(v.f), ou = dot(v.up), orr = dot(v.rt);
+  _mm_store_pd(out.rr, rr);
+  _mm_store_pd(out.cz, _mm_xor_pd(of, sign));
+  const __m128d k_pos = _mm_cmpgt_pd(k, zero);  // else the eye is inside (or at) the widened sphere
+  auto extent = [&](int axis, __m128d oa, __m128d ob, double aa, double bb, double fa, double fb, double ab) {
+    const __m128d oa2 = mul(oa, oa), kaa = mul(k, c(aa));
+    const __m128d la = sub(oa2, kaa);
+    __m128d ok = _mm_and_pd(k_pos, _mm_cmplt_pd(la, mul(c(-1e-6), add(oa2, kaa))));
+    const __m128d b0 = sub(mul(of, oa), mul(k, c(fa))), b1 = sub(mul(ob, oa), mul(k, c(ab)));
+    const __m128d c0 = sub(mul(of, of), mul(k, c(v.ff))), c1 = mul(c(2), sub(mul(of, ob), mul(k, c(fb)))),
+                  c2 = sub(mul(ob, ob), mul(k, c(bb)));
+    const __m128d b1b1 = mul(b1, b1);
+    const __m128d d0 = sub(mul(b0, b0), mul(la, c0)), d1 = sub(mul(c(2), mul(b0, b1)), mul(la, c1)),
+                  d2 = sub(b1b1, mul(la, c2));
+    ok = _mm_and_pd(ok, _mm_cmplt_pd(d2, mul(c(-1e-9), add(b1b1, abs(sub(d2, b1b1))))));
+    const __m128d disc = sub(mul(d1, d1), mul(c(4), mul(d2, d0)));
+    ok = _mm_and_pd(ok, _mm_cmpge_pd(disc, zero));
+    const __m128d sq = _mm_sqrt_pd(_mm_max_pd(disc, zero)), inv = _mm_div_pd(c(0.5), d2);
+    const __m128d nd1 = _mm_xor_pd(d1, sign);
+    const __m128d r0 = mul(sub(nd1, sq), inv), r1 = mul(add(nd1, sq), inv);
+    const __m128d lo = _mm_min_pd(r0, r1), hi = _mm_max_pd(r0, r1);
+    const __m128d inf = c(std::numeric_limits<double>::infinity());
+    ok = _mm_and_pd(ok, _mm_and_pd(_mm_cmplt_pd(abs(lo), inf), _mm_cmplt_pd(abs(hi), inf)));
     // Pixel coordinates: px = nx sx + cx, py = -ny sy + cy (rows run down).
     const double scale = axis == 0 ? -v.sy : v.sx, centre = axis == 0 ? v.cy : v.cx;
     const auto n = static_cast<double>(axis == 0 ? v.h : v.w);
-    const V p0 = D::add(D::mul(axis == 0 ? hi : lo, D::c(scale)), D::c(centre)),
-            p1 = D::add(D::mul(axis == 0 ? lo : hi, D::c(scale)), D::c(centre));
+    const __m128d p0 = add(mul(axis == 0 ? hi : lo, c(scale)), c(centre)),
+                  p1 = add(mul(axis == 0 ? lo : hi, c(scale)), c(centre));
     // Clamped to [-1, n] (so the conversions below cannot overflow); then ceil and floor from
-    // the truncation, and the first and one-past-last pixel.
-    const V q0 = D::min(D::max(D::sub(p0, D::c(kPixelMargin)), D::c(-1)), D::c(n)),
-            q1 = D::min(D::max(D::add(p1, D::c(kPixelMargin)), D::c(-1)), D::c(n));
-    const V t0 = D::trunc(q0), t1 = D::trunc(q1);
-    const V ceil0 = D::add(t0, D::select(D::lt(t0, q0), D::c(1), zero)),
-            floor1 = D::sub(t1, D::select(D::gt(t1, q1), D::c(1), zero));
-    const V first = D::max(ceil0, zero), end = D::min(D::add(floor1, D::c(1)), D::c(n));
-    D::store_int(out.first[axis], D::select(ok, first, zero));
-    D::store_int(out.end[axis], D::select(ok, end, D::c(n)));
+    // the truncation (SSE2 has no rounding to an integer), and the first and one-past-last pixel.
+    const __m128d q0 = _mm_min_pd(_mm_max_pd(sub(p0, c(kPixelMargin)), c(-1)), c(n)),
+                  q1 = _mm_min_pd(_mm_max_pd(add(p1, c(kPixelMargin)), c(-1)), c(n));
+    const __m128d t0 = _mm_cvtepi32_pd(_mm_cvttpd_epi32(q0)), t1 = _mm_cvtepi32_pd(_mm_cvttpd_epi32(q1));
+    const __m128d ceil0 = add(t0, _mm_and_pd(_mm_cmplt_pd(t0, q0), c(1))),
+                  floor1 = sub(t1, _mm_and_pd(_mm_cmpgt_pd(t1, q1), c(1)));
+    const __m128d first = _mm_max_pd(ceil0, zero), end = _mm_min_pd(add(floor1, c(1)), c(n));
+    auto select_pd = [](__m128d m, __m128d a, __m128d b) { return _mm_or_pd(_mm_and_pd(m, a), _mm_andnot_pd(m, b)); };
+    _mm_store_si128(reinterpret_cast<__m128i*>(out.first[axis]), _mm_cvttpd_epi32(select_pd(ok, first, zero)));
+    _mm_store_si128(reinterpret_cast<__m128i*>(out.end[axis]), _mm_cvttpd_epi32(select_pd(ok, end, c(n))));
   };
   extent(0, orr, ou, v.rr, v.uu, v.fr, v.fu, v.ur);  // rows: u = nx, v = ny
   extent(1, ou, orr, v.uu, v.rr, v.fu, v.fr, v.ur);  // columns: u = ny, v = nx
@@ -235,42 +143,6 @@ inline float near_depth(double cz, double rr) {
   const auto f = static_cast<float>(d);  // > 0: d is at least the float's half ulp
   return static_cast<double>(f) > d ? std::bit_cast<float>(std::bit_cast<std::uint32_t>(f) - 1) : f;
 }
-
-/// Spheres [b, e): their rectangle and depth bound, and their depth key (kCulled for those no
-/// pixel can see: wholly before near or beyond far, or off the map); lo and hi take the smallest
-/// and largest key seen.
-template <class D>
-inline void bound_spheres(const View& view, std::span<const Sphere> spheres, std::size_t b, std::size_t e,
-                          TiledRasterizer::Bound* out, std::uint16_t* keys, std::uint16_t& lo, std::uint16_t& hi) {
-  constexpr int L = D::kLanes;
-  SphereBounds<L> q;
-  for (std::size_t k0 = b; k0 < e; k0 += L) {
-    const int count = static_cast<int>(std::min<std::size_t>(L, e - k0));
-    bounds<D>(view, spheres.data() + k0, count, q);
-    for (int lane = 0; lane < count; ++lane) {
-      const std::size_t k = k0 + static_cast<std::size_t>(lane);
-      const std::int32_t x0 = q.first[1][lane], y0 = q.first[0][lane], x1 = q.end[1][lane], y1 = q.end[0][lane];
-      const bool seen = !(q.cz[lane] + q.rr[lane] < view.near_plane || q.cz[lane] - q.rr[lane] > view.far_plane) &&
-                        x0 < x1 && y0 < y1;
-      const float depth = near_depth(q.cz[lane], q.rr[lane]);
-      out[k] = {static_cast<std::uint16_t>(x0), static_cast<std::uint16_t>(y0), static_cast<std::uint16_t>(x1),
-                static_cast<std::uint16_t>(y1), depth};
-      const std::uint16_t key = seen ? depth_key(depth) : kCulled;
-      keys[k] = key;
-      if (seen) lo = std::min(lo, key), hi = std::max(hi, key);
-    }
-  }
-}
-#if VISCD_HAVE_AVX512
-VISCD_AVX512_FLATTEN void bound_spheres_avx512(const View& view, std::span<const Sphere> spheres, std::size_t b,
-                                               std::size_t e, TiledRasterizer::Bound* out, std::uint16_t* keys,
-                                               std::uint16_t& lo, std::uint16_t& hi) {
-  bound_spheres<Avx512Doubles>(view, spheres, b, e, out, keys, lo, hi);
-}
-#endif
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic pop
-#endif
 
 inline __m128 select(__m128 mask, __m128 a, __m128 b) { return _mm_or_ps(_mm_and_ps(mask, a), _mm_andnot_ps(mask, b)); }
 inline __m128i select(__m128i mask, __m128i a, __m128i b) {
@@ -422,7 +294,8 @@ void raster_tile_sse2(const TileJob& job, std::uint32_t t) {
   if (m == 0) return write_background_tile(job, t);
   const CameraRig& cam = *job.cam;
   VisibilityMap& map = *job.map;
-  const auto [x0, y0, x1, y1] = tile_rect(job, t);
+  const TileRect tr = tile_rect(job, t);
+  const int x0 = tr.x0, y0 = tr.y0, x1 = tr.x1, y1 = tr.y1;
   const int w = x1 - x0, h = y1 - y0;
   const Planes planes{_mm_set1_ps(cam.near_plane), _mm_set1_ps(cam.far_plane)};
   const __m128 v_far_depth = _mm_set1_ps(cam.far_plane);
@@ -566,12 +439,22 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
   key_range_.assign(2 * sphere_chunks, 0);
   for_chunks(n, sphere_chunks, [&](std::size_t b, std::size_t e, std::size_t chunk) {
     std::uint16_t lo = kCulled, hi = 0;
-#if VISCD_HAVE_AVX512
-    if (simd_level() == SimdLevel::avx512)
-      bound_spheres_avx512(view, spheres, b, e, bounds_.data(), keys_.data(), lo, hi);
-    else
-#endif
-      bound_spheres<Sse2Doubles>(view, spheres, b, e, bounds_.data(), keys_.data(), lo, hi);
+    Bounds2 q;
+    for (std::size_t k0 = b; k0 < e; k0 += 2) {
+      bounds2(view, spheres[k0], spheres[std::min(k0 + 1, e - 1)], q);
+      for (std::size_t lane = 0; lane < 2 && k0 + lane < e; ++lane) {
+        const std::size_t k = k0 + lane;
+        const std::int32_t x0 = q.first[1][lane], y0 = q.first[0][lane], x1 = q.end[1][lane], y1 = q.end[0][lane];
+        const bool seen = !(q.cz[lane] + q.rr[lane] < view.near_plane || q.cz[lane] - q.rr[lane] > view.far_plane) &&
+                          x0 < x1 && y0 < y1;
+        const float depth = near_depth(q.cz[lane], q.rr[lane]);
+        bounds_[k] = {static_cast<std::uint16_t>(x0), static_cast<std::uint16_t>(y0), static_cast<std::uint16_t>(x1),
+                      static_cast<std::uint16_t>(y1), depth};
+        const std::uint16_t key = seen ? depth_key(depth) : kCulled;
+        keys_[k] = key;
+        if (seen) lo = std::min(lo, key), hi = std::max(hi, key);
+      }
+    }
     key_range_[2 * chunk] = lo, key_range_[2 * chunk + 1] = hi;
   });
 

@@ -2,9 +2,9 @@
 // The cpu backend's visibility map (stage 1) with the pixel counts (stage 2) fused into it.
 // Spheres are sorted front to back by a coarse depth key and binned into 32x32-pixel tiles by a
 // conservative rectangle (the projection of the sphere widened as hit()'s rounding requires);
-// tiles are rasterised in parallel. Per sphere, a branch-free first pass over its rectangle in
-// the tile computes hit()'s discriminant and keeps the groups of 4 pixels that are inside the
-// disc and not already nearer; a second finishes hit() for those. The expressions are hit()'s,
+// tiles are rasterised in parallel, by an SSE2 or an AVX-512 kernel (cpu/raster_tile.hpp) that
+// runs hit() over each sphere's rectangle in the tile, skipping the pixels outside the disc or
+// already nearer before the square root and division. The expressions are hit()'s,
 // so the map equals the reference's bit for bit (nearest hit, ties to the smaller id). Each tile
 // counts its pixels per object while it streams its rows to the map; background tiles it wrote
 // in the last frame are left as they are while the map still holds them (VisibilityMap::stamp).
@@ -37,13 +37,12 @@ class TiledRasterizer {
     std::int32_t x0, y0, x1, y1;
   };
 
+ private:
   /// A sphere's rectangle and depth bound, by sphere index.
   struct Bound {
     std::uint16_t x0, y0, x1, y1;
     float near_depth;
   };
-
- private:
   std::vector<Bound> bounds_;
   std::vector<Prepared> prep_;  // the visible spheres in depth order
   std::vector<std::uint16_t> keys_;

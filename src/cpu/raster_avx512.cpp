@@ -39,21 +39,23 @@ VISCD_AVX512_TARGET inline __mmask16 hit16(TileBuffers& buf, int i, const Lanes&
                                            __m512 far_plane) {
   const __m512 vx = _mm512_loadu_ps(buf.dx + i), vy = _mm512_loadu_ps(buf.dy + i), vz = _mm512_loadu_ps(buf.dz + i);
   const __m512 va = _mm512_loadu_ps(buf.a + i), bb = _mm512_loadu_ps(buf.best + i);
-  const __m512 b = _mm512_add_ps(_mm512_add_ps(_mm512_mul_ps(s.ox, vx), _mm512_mul_ps(s.oy, vy)), _mm512_mul_ps(s.oz, vz));
+  const __m512 b =
+      _mm512_add_ps(_mm512_add_ps(_mm512_mul_ps(s.ox, vx), _mm512_mul_ps(s.oy, vy)), _mm512_mul_ps(s.oz, vz));
   const __m512 disc = _mm512_sub_ps(_mm512_mul_ps(b, b), _mm512_mul_ps(va, s.c));
   const __mmask16 real = _mm512_cmp_ps_mask(disc, _mm512_setzero_ps(), _CMP_GE_OQ);
   if (_mm512_mask_cmp_ps_mask(real, bb, s.near_depth, _CMP_GE_OQ) == 0) return 0;
   const __m512 sq = _mm512_maskz_sqrt_ps(real, disc);
-  const __m512 nb = _mm512_castsi512_ps(_mm512_xor_si512(_mm512_castps_si512(b), _mm512_castps_si512(_mm512_set1_ps(-0.0f))));
+  const __m512 nb =
+      _mm512_castsi512_ps(_mm512_xor_si512(_mm512_castps_si512(b), _mm512_castps_si512(_mm512_set1_ps(-0.0f))));
   const __m512 t0 = _mm512_div_ps(_mm512_sub_ps(nb, sq), va);
-  const __mmask16 in0 = _mm512_mask_cmp_ps_mask(_mm512_cmp_ps_mask(t0, near_plane, _CMP_GE_OQ), t0, far_plane,
-                                                _CMP_LE_OQ);
+  const __mmask16 in0 =
+      _mm512_mask_cmp_ps_mask(_mm512_cmp_ps_mask(t0, near_plane, _CMP_GE_OQ), t0, far_plane, _CMP_LE_OQ);
   __m512 hv = t0;
   __mmask16 hit = real & in0;
   if ((real & ~in0) != 0) [[unlikely]] {  // the front root is clipped: the back one, if in range
     const __m512 t1 = _mm512_div_ps(_mm512_add_ps(nb, sq), va);
-    const __mmask16 in1 = _mm512_mask_cmp_ps_mask(_mm512_cmp_ps_mask(t1, near_plane, _CMP_GE_OQ), t1, far_plane,
-                                                  _CMP_LE_OQ);
+    const __mmask16 in1 =
+        _mm512_mask_cmp_ps_mask(_mm512_cmp_ps_mask(t1, near_plane, _CMP_GE_OQ), t1, far_plane, _CMP_LE_OQ);
     hv = _mm512_mask_blend_ps(in0, t1, t0);
     hit = real & (in0 | in1);
   }
@@ -81,8 +83,8 @@ VISCD_AVX512_TARGET inline void fill_rays16(const TileJob& job, TileBuffers& buf
     _mm512_store_ps(buf.dx + at, ex);
     _mm512_store_ps(buf.dy + at, ey);
     _mm512_store_ps(buf.dz + at, ez);
-    _mm512_store_ps(buf.a + at, _mm512_add_ps(_mm512_add_ps(_mm512_mul_ps(ex, ex), _mm512_mul_ps(ey, ey)),
-                                              _mm512_mul_ps(ez, ez)));
+    _mm512_store_ps(buf.a + at,
+                    _mm512_add_ps(_mm512_add_ps(_mm512_mul_ps(ex, ex), _mm512_mul_ps(ey, ey)), _mm512_mul_ps(ez, ez)));
   }
 }
 
@@ -115,8 +117,8 @@ VISCD_AVX512_FLATTEN void raster_tile_avx512(const TileJob& job, std::uint32_t t
     // value: it is read only where slot is set, or compared where best is +inf or -inf, where
     // the depth alone decides.
     const __mmask32 on_map = w == kT ? ~0u : (1u << w) - 1u;
-    const __m512 first0 = _mm512_mask_blend_ps(static_cast<__mmask16>(on_map), _mm512_set1_ps(-kInf),
-                                               _mm512_set1_ps(kInf)),
+    const __m512 first0 =
+                     _mm512_mask_blend_ps(static_cast<__mmask16>(on_map), _mm512_set1_ps(-kInf), _mm512_set1_ps(kInf)),
                  first1 = _mm512_mask_blend_ps(static_cast<__mmask16>(on_map >> 16), _mm512_set1_ps(-kInf),
                                                _mm512_set1_ps(kInf));
     const __m512i zero = _mm512_setzero_si512();

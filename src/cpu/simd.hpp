@@ -5,6 +5,7 @@
 // that runs the AVX-512 kernels is instantiated with that struct inside a function compiled for
 // AVX-512 (VISCD_AVX512_FLATTEN: everything it calls is inlined into it), and is only entered
 // when simd_level() says the CPU has it. Nothing is compiled for AVX-512 outside such functions.
+// simd_level() also picks the rasterizer's kernels (cpu/raster_tile.hpp), built the same way.
 //
 // Exactness: sphere_lanes() performs overlap_exact()'s float operations in its order (sub, mul,
 // add, no FMA: the library is compiled with -ffp-contract=off), and every comparison is an

@@ -54,7 +54,7 @@ Oracle reference(const CameraRig& rig, std::span<const Sphere> s) {
 // Runs the tiled rasterizer with `threads` and compares with the oracle; the message names the
 // first differing pixel.
 ::testing::AssertionResult matches_at_level(const Oracle& want, const CameraRig& rig, std::span<const Sphere> s,
-                                   int threads = 2) {
+                                            int threads = 2) {
   VisibilityMap got;
   got.resize(rig.map_w, rig.map_h, false);
   std::fill(got.ids.begin(), got.ids.end(), 0xDEADu);  // stale content must be overwritten
