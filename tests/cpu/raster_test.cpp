@@ -281,6 +281,17 @@ TEST(Raster, DemoSceneOnASmallMapAndThreadCounts) {
   }
 }
 
+TEST(Raster, ManySpheresSortedAndBinnedInChunks) {
+  // Enough spheres that the depth sort and the binning both run in several chunks (the sort
+  // stays on one below 2^16), on a map small enough for the reference.
+  Scene scene = Scene::make({.objects = 70000});
+  scene.step(1.0f / 60.0f);
+  const Camera cam = camera_preset("zoom-out", scene, 1280, 720).value();
+  const CameraRig rig(cam, 64, 36);
+  const Oracle want = reference(rig, scene.spheres());
+  for (int threads : {1, 2, 3}) ASSERT_TRUE(matches(want, rig, scene.spheres(), threads)) << threads << " threads";
+}
+
 TEST(Raster, CountsFollowTheMapAcrossFramesAndResizes) {
   // One rasterizer reused over frames of different sizes and sphere counts (buffers are reused).
   TiledRasterizer r;
