@@ -330,48 +330,34 @@ void raster_tile_sse2(const TileJob& job, std::uint32_t t) {
       buf.a[r * kT + i] = ex * ex + ey * ey + ez * ez;
     }
   };
-  // The largest nearest-hit depth in the tile: recomputed every 8 spheres once it is finite,
-  // and ever less often while some pixel has no hit (it only falls).
-  float tile_max = kInf;
-  bool changed = false;
-  std::uint32_t next_check = 8;
-
+  DepthCut cut;
   for (std::uint32_t j = 0; j < m; ++j) {
     const TiledRasterizer::Prepared& p = job.prep[items[j]];
     if (j + 1 < m) _mm_prefetch(reinterpret_cast<const char*>(&job.prep[items[j + 1]]), _MM_HINT_T0);
-    if (j == next_check) {
-      if (changed) {
-        __m128 m0 = _mm_load_ps(buf.best), m1 = _mm_load_ps(buf.best + 4), m2 = _mm_load_ps(buf.best + 8),
-               m3 = _mm_load_ps(buf.best + 12);
-        for (int q = 16; q < h * kT; q += 16) {
-          m0 = _mm_max_ps(m0, _mm_load_ps(buf.best + q));
-          m1 = _mm_max_ps(m1, _mm_load_ps(buf.best + q + 4));
-          m2 = _mm_max_ps(m2, _mm_load_ps(buf.best + q + 8));
-          m3 = _mm_max_ps(m3, _mm_load_ps(buf.best + q + 12));
-        }
-        tile_max = hmax(_mm_max_ps(_mm_max_ps(m0, m1), _mm_max_ps(m2, m3)));
-        changed = false;
+    if (cut.stale(j)) {
+      __m128 m0 = _mm_load_ps(buf.best), m1 = _mm_load_ps(buf.best + 4), m2 = _mm_load_ps(buf.best + 8),
+             m3 = _mm_load_ps(buf.best + 12);
+      for (int q = 16; q < h * kT; q += 16) {
+        m0 = _mm_max_ps(m0, _mm_load_ps(buf.best + q));
+        m1 = _mm_max_ps(m1, _mm_load_ps(buf.best + q + 4));
+        m2 = _mm_max_ps(m2, _mm_load_ps(buf.best + q + 8));
+        m3 = _mm_max_ps(m3, _mm_load_ps(buf.best + q + 12));
       }
-      next_check = tile_max == kInf ? 2 * j : j + 8;
+      cut.refresh(hmax(_mm_max_ps(_mm_max_ps(m0, m1), _mm_max_ps(m2, m3))));
     }
-    // Every hit on this sphere has t >= near_depth, on every later one t >= key_floor: once they
-    // are beyond every pixel's nearest hit so far, nothing here can change.
-    if (p.near_depth > tile_max) {
-      if (p.key_floor > tile_max) break;
-      continue;
-    }
+    const DepthCut::Verdict verdict = cut.verdict(j, p);
+    if (verdict == DepthCut::Verdict::stop) break;
+    if (verdict == DepthCut::Verdict::skip) continue;
     const Lanes lanes{_mm_set1_ps(p.ox),
                       _mm_set1_ps(p.oy),
                       _mm_set1_ps(p.oz),
                       _mm_set1_ps(p.c),
                       _mm_set1_epi32(static_cast<int>(p.id)),
                       _mm_set1_epi32(static_cast<int>(j + 1))};
-    const int ra = std::max(y0, p.y0) - y0, rb = std::min(y1, p.y1) - y0;
-    const int ca = std::max(x0, p.x0) - x0, cb = std::min(x1, p.x1) - x0;
-    for (std::uint32_t need = ((rb - ra == 32 ? ~0u : (1u << (rb - ra)) - 1u) << ra) & ~dirs_ready; need;
-         need &= need - 1)
-      fill_rays(std::countr_zero(need));
-    dirs_ready |= (rb - ra == 32 ? ~0u : (1u << (rb - ra)) - 1u) << ra;
+    const TileSpan span = tile_span(tr, p);
+    const int ra = span.ra, rb = span.rb, ca = span.ca, cb = span.cb;
+    for (std::uint32_t need = span.rows & ~dirs_ready; need; need &= need - 1) fill_rays(std::countr_zero(need));
+    dirs_ready |= span.rows;
     const __m128 near_depth = _mm_set1_ps(p.near_depth);
     cand.n = 0;
     // The same window of k groups on every row of the rectangle in the tile: no per-row
@@ -379,7 +365,7 @@ void raster_tile_sse2(const TileJob& job, std::uint32_t t) {
     const int k = (cb - ca + 3) >> 2, wa = std::min(ca, kT - 4 * k);
     for (int r = ra; r < rb; ++r)
       for (int g = 0; g < k; ++g) screen(buf, r * kT + wa + 4 * g, lanes, near_depth, cand);
-    if (resolve(buf, cand, lanes, planes)) changed = true;
+    if (resolve(buf, cand, lanes, planes)) cut.changed();
   }
 
   // Write out row by row (background depth = far plane), and count the row's runs of equal

@@ -131,25 +131,14 @@ VISCD_AVX512_FLATTEN void raster_tile_avx512(const TileJob& job, std::uint32_t t
     }
   }
   std::uint32_t dirs_ready = 0;  // bit r: row r's rays are filled
-  // The largest nearest-hit depth in the tile: recomputed every 8 spheres once it is finite,
-  // and ever less often while some pixel has no hit (it only falls).
-  float tile_max = kInf;
-  bool changed = false;
-  std::uint32_t next_check = 8;
-
+  DepthCut cut;
   for (std::uint32_t j = 0; j < m; ++j) {
     const TiledRasterizer::Prepared& p = job.prep[items[j]];
     if (j + 1 < m) _mm_prefetch(reinterpret_cast<const char*>(&job.prep[items[j + 1]]), _MM_HINT_T0);
-    if (j == next_check) {
-      if (changed) tile_max = max_depth(buf.best, h * kT), changed = false;
-      next_check = tile_max == kInf ? 2 * j : j + 8;
-    }
-    // Every hit on this sphere has t >= near_depth, on every later one t >= key_floor: once they
-    // are beyond every pixel's nearest hit so far, nothing here can change.
-    if (p.near_depth > tile_max) {
-      if (p.key_floor > tile_max) break;
-      continue;
-    }
+    if (cut.stale(j)) cut.refresh(max_depth(buf.best, h * kT));
+    const DepthCut::Verdict verdict = cut.verdict(j, p);
+    if (verdict == DepthCut::Verdict::stop) break;
+    if (verdict == DepthCut::Verdict::skip) continue;
     const Lanes lanes{_mm512_set1_ps(p.ox),
                       _mm512_set1_ps(p.oy),
                       _mm512_set1_ps(p.oz),
@@ -157,12 +146,11 @@ VISCD_AVX512_FLATTEN void raster_tile_avx512(const TileJob& job, std::uint32_t t
                       _mm512_set1_ps(p.near_depth),
                       _mm512_set1_epi32(static_cast<int>(p.id)),
                       _mm512_set1_epi32(static_cast<int>(j + 1))};
-    const int ra = std::max(y0, p.y0) - y0, rb = std::min(y1, p.y1) - y0;
-    const int ca = std::max(x0, p.x0) - x0, cb = std::min(x1, p.x1) - x0;
-    const std::uint32_t rows = (rb - ra == 32 ? ~0u : (1u << (rb - ra)) - 1u) << ra;
-    for (std::uint32_t need = rows & ~dirs_ready; need; need &= need - 1)
+    const TileSpan span = tile_span(tr, p);
+    const int ra = span.ra, rb = span.rb, ca = span.ca, cb = span.cb;
+    for (std::uint32_t need = span.rows & ~dirs_ready; need; need &= need - 1)
       fill_rays16(job, buf, x0, y0, __builtin_ctz(need));
-    dirs_ready |= rows;
+    dirs_ready |= span.rows;
     // The same window on every row: 16 pixels from min(ca, 16) when the rectangle fits, else the
     // whole row. Pixels of the window outside the rectangle are tested too (hit() misses them).
     __mmask16 any = 0;
@@ -174,7 +162,7 @@ VISCD_AVX512_FLATTEN void raster_tile_avx512(const TileJob& job, std::uint32_t t
         any |= static_cast<__mmask16>(hit16(buf, r * kT, lanes, near_plane, far_plane) |
                                       hit16(buf, r * kT + 16, lanes, near_plane, far_plane));
     }
-    if (any) changed = true;
+    if (any) cut.changed();
   }
 
   // Write out row by row (background depth = far plane), and count the row's runs of equal

@@ -5,6 +5,7 @@
 // AVX-512 (rows of 16 pixels), chosen at run time by simd_level() (cpu/simd.hpp). What both
 // share is here.
 
+#include <algorithm>
 #include <cstdint>
 #include <span>
 
@@ -55,6 +56,46 @@ struct TileRect {
 /// Writes tile t as background (id 0, depth = far plane, normal 0) unless the last run left it
 /// so and the map still holds it.
 void write_background_tile(const TileJob& job, std::uint32_t t);
+
+/// The order in which a tile's kernel works through its spheres (front to back) lets it stop
+/// early: every hit on a sphere has t >= near_depth, on every later one t >= key_floor, so once
+/// they lie beyond every pixel's nearest hit so far nothing can change. The tile's largest
+/// nearest-hit depth is recomputed every 8 spheres once it is finite, and ever less often while
+/// some pixel has no hit (it only falls).
+class DepthCut {
+ public:
+  enum class Verdict { draw, skip, stop };
+  /// Whether the kernel must give refresh() the tile's largest depth before sphere j.
+  [[nodiscard]] bool stale(std::uint32_t j) const { return changed_ && j == next_check_; }
+  void refresh(float tile_max) { tile_max_ = tile_max, changed_ = false; }
+  /// What to do with sphere j (after any refresh).
+  Verdict verdict(std::uint32_t j, const TiledRasterizer::Prepared& p) {
+    if (j == next_check_) next_check_ = tile_max_ == kInfinity ? 2 * j : j + 8;
+    if (p.near_depth > tile_max_) return p.key_floor > tile_max_ ? Verdict::stop : Verdict::skip;
+    return Verdict::draw;
+  }
+  /// Some pixel got a nearer hit.
+  void changed() { changed_ = true; }
+
+ private:
+  static constexpr float kInfinity = __builtin_inff();
+  float tile_max_ = kInfinity;
+  bool changed_ = false;
+  std::uint32_t next_check_ = 8;
+};
+
+/// A sphere's rectangle in a tile, in tile coordinates: rows [ra, rb), columns [ca, cb); bit r of
+/// `rows` set for its rows.
+struct TileSpan {
+  int ra, rb, ca, cb;
+  std::uint32_t rows;
+};
+inline TileSpan tile_span(const TileRect& tr, const TiledRasterizer::Prepared& p) {
+  TileSpan s{std::max(tr.y0, p.y0) - tr.y0, std::min(tr.y1, p.y1) - tr.y0, std::max(tr.x0, p.x0) - tr.x0,
+             std::min(tr.x1, p.x1) - tr.x0, 0};
+  s.rows = (s.rb - s.ra == kTileSide ? ~0u : (1u << (s.rb - s.ra)) - 1u) << s.ra;
+  return s;
+}
 
 /// Adds one row's runs of equal slots to counts: bit i of `starts` is set where slots[i] differs
 /// from slots[i - 1] (and bit 0), for the row's first w pixels.
