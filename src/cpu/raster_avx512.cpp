@@ -33,8 +33,8 @@ struct Lanes {
 };
 
 /// hit() for the 16 pixels at `i`, kept where nearer than the pixel's best (ties to the smaller
-/// id). Pixels no lane can change (disc < 0, or best nearer than the sphere's near bound) cost no
-/// sqrt or division. Returns the lanes that changed.
+/// id). A row of 16 in which no pixel can change (disc < 0, or best nearer than the sphere's near
+/// bound) costs no square root or division. Returns the lanes that changed.
 VISCD_AVX512_TARGET inline __mmask16 hit16(TileBuffers& buf, int i, const Lanes& s, __m512 near_plane,
                                            __m512 far_plane) {
   const __m512 vx = _mm512_loadu_ps(buf.dx + i), vy = _mm512_loadu_ps(buf.dy + i), vz = _mm512_loadu_ps(buf.dz + i);

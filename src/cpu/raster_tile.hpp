@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <limits>
 #include <span>
 
 #include "cpu/raster.hpp"
@@ -78,7 +79,7 @@ class DepthCut {
   void changed() { changed_ = true; }
 
  private:
-  static constexpr float kInfinity = __builtin_inff();
+  static constexpr float kInfinity = std::numeric_limits<float>::infinity();
   float tile_max_ = kInfinity;
   bool changed_ = false;
   std::uint32_t next_check_ = 8;
