@@ -305,7 +305,6 @@ void raster_tile_sse2(const TileJob& job, std::uint32_t t) {
   const __m128 v_far_depth = _mm_set1_ps(cam.far_plane);
   TileBuffers buf;
   Candidates cand;
-  std::uint32_t local_counts[kLocalCounts];
   {
     alignas(16) float first[kT];  // +inf on the map, -inf beyond its edge (never hit, never the max)
     for (int i = 0; i < kT; ++i) first[i] = i < w ? kInf : -kInf;
@@ -370,12 +369,7 @@ void raster_tile_sse2(const TileJob& job, std::uint32_t t) {
 
   // Write out row by row (background depth = far plane), and count the row's runs of equal
   // slots into the tile's counts (slot 0 is the background).
-  // Counted on the stack and copied out at the end: the regions of tiles side by side share
-  // cache lines, and counting there from two threads would move them between the cores at
-  // every run. (Very long lists count in place.)
-  std::uint32_t* const out_counts = job.counts + job.offset[t] + t;
-  std::uint32_t* counts = m < kLocalCounts ? local_counts : out_counts;
-  std::fill_n(counts, m + 1, 0u);
+  TileCounts counts(job, t, m);
   for (int r = 0; r < h; ++r) {
     const std::size_t row = static_cast<std::size_t>(y0 + r) * static_cast<std::size_t>(map.width) + x0;
     const float* best = buf.best + r * kT;
@@ -395,11 +389,11 @@ void raster_tile_sse2(const TileJob& job, std::uint32_t t) {
       const int same = _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(cur, prev)));
       starts |= static_cast<std::uint32_t>(~same & 0xF) << g;
     }
-    add_runs(starts | 1u, slots, w, counts);
+    add_runs(starts | 1u, slots, w, counts.data());
     if (!map.normal.empty())
       for (int px = x0; px < x1; ++px) write_normal(cam, job.spheres, map, px, y0 + r);
   }
-  if (counts != out_counts) std::copy_n(counts, m + 1, out_counts);
+  counts.finish();
   _mm_sfence();  // the streamed rows are visible before the task counts as done
 }
 
@@ -575,12 +569,11 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
                     row_z_.data(),
                     background_.data(),
                     keep_background};
-  auto tile_task = [&job](std::uint32_t t) {
+  void (*kernel)(const TileJob&, std::uint32_t) = raster_tile_sse2;
 #if VISCD_HAVE_AVX512
-    if (simd_level() == SimdLevel::avx512) return raster_tile_avx512(job, t);
+  if (simd_level() == SimdLevel::avx512) kernel = raster_tile_avx512;
 #endif
-    raster_tile_sse2(job, t);
-  };
+  auto tile_task = [&job, kernel](std::uint32_t t) { kernel(job, t); };
   if (threads_for(tiles * kT * kT, threads) == 1) {
     for (std::size_t t = 0; t < tiles; ++t) tile_task(static_cast<std::uint32_t>(t));
   } else {

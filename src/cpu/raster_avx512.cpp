@@ -110,13 +110,12 @@ VISCD_AVX512_FLATTEN void raster_tile_avx512(const TileJob& job, std::uint32_t t
   const int x0 = tr.x0, y0 = tr.y0, x1 = tr.x1, y1 = tr.y1;
   const int w = x1 - x0, h = y1 - y0;
   const __m512 near_plane = _mm512_set1_ps(cam.near_plane), far_plane = _mm512_set1_ps(cam.far_plane);
+  const std::uint32_t on_map = w == kT ? ~0u : (1u << w) - 1u;  // bit i: column i is on the map
   TileBuffers buf;
-  std::uint32_t local_counts[kLocalCounts];
   {
     // best: +inf on the map, -inf beyond its edge (never hit, never the max). id needs no start
     // value: it is read only where slot is set, or compared where best is +inf or -inf, where
     // the depth alone decides.
-    const __mmask32 on_map = w == kT ? ~0u : (1u << w) - 1u;
     const __m512 first0 =
                      _mm512_mask_blend_ps(static_cast<__mmask16>(on_map), _mm512_set1_ps(-kInf), _mm512_set1_ps(kInf)),
                  first1 = _mm512_mask_blend_ps(static_cast<__mmask16>(on_map >> 16), _mm512_set1_ps(-kInf),
@@ -166,13 +165,9 @@ VISCD_AVX512_FLATTEN void raster_tile_avx512(const TileJob& job, std::uint32_t t
   }
 
   // Write out row by row (background depth = far plane), and count the row's runs of equal
-  // slots into the tile's counts (slot 0 is the background). Counted on the stack and copied
-  // out at the end (see the SSE2 kernel).
-  std::uint32_t* const out_counts = job.counts + job.offset[t] + t;
-  std::uint32_t* counts = m < kLocalCounts ? local_counts : out_counts;
-  std::fill_n(counts, m + 1, 0u);
+  // slots into the tile's counts (slot 0 is the background).
+  TileCounts counts(job, t, m);
   const __m512 far_depth = _mm512_set1_ps(cam.far_plane);
-  const std::uint32_t on_map = w == kT ? ~0u : (1u << w) - 1u;
   for (int r = 0; r < h; ++r) {
     const std::size_t row = static_cast<std::size_t>(y0 + r) * static_cast<std::size_t>(map.width) + x0;
     std::uint32_t* out_ids = map.ids.data() + row;
@@ -201,11 +196,11 @@ VISCD_AVX512_FLATTEN void raster_tile_avx512(const TileJob& job, std::uint32_t t
         _mm512_mask_storeu_ps(out_depth + g, lanes, vd);
       }
     }
-    add_runs(starts, slots, w, counts);
+    add_runs(starts, slots, w, counts.data());
     if (!map.normal.empty())
       for (int px = x0; px < x1; ++px) write_normal(cam, job.spheres, map, px, y0 + r);
   }
-  if (counts != out_counts) std::copy_n(counts, m + 1, out_counts);
+  counts.finish();
   _mm_sfence();  // the streamed rows are visible before the task counts as done
 }
 

@@ -113,6 +113,30 @@ inline void add_runs(std::uint32_t starts, const std::uint32_t* slots, int w, st
   counts[slots[start]] += static_cast<std::uint32_t>(w - start);
 }
 
+/// A tile's pixel counts per item (slot 0: the background). Counted on the task's stack and
+/// copied out by finish(): the regions of tiles side by side share cache lines, and counting
+/// there from two threads would move them between the cores at every run. Lists of
+/// kLocalCounts items or more count in place.
+class TileCounts {
+ public:
+  TileCounts(const TileJob& job, std::uint32_t t, std::uint32_t m)
+      : out_(job.counts + job.offset[t] + t), counts_(m < kLocalCounts ? local_ : out_), size_(m + 1) {
+    std::fill_n(counts_, size_, 0u);
+  }
+  TileCounts(const TileCounts&) = delete;
+  TileCounts& operator=(const TileCounts&) = delete;
+  [[nodiscard]] std::uint32_t* data() { return counts_; }
+  void finish() {
+    if (counts_ != out_) std::copy_n(counts_, size_, out_);
+  }
+
+ private:
+  std::uint32_t local_[kLocalCounts];
+  std::uint32_t* out_;
+  std::uint32_t* counts_;
+  std::uint32_t size_;
+};
+
 /// The tile pass for tile t with SSE2.
 void raster_tile_sse2(const TileJob& job, std::uint32_t t);
 #if VISCD_HAVE_AVX512
