@@ -4,12 +4,27 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <initializer_list>
 #include <string>
 #include <vector>
 
+#include "viscd/config.hpp"
+#include "viscd/io.hpp"
+
 namespace viscd::bench {
+
+/// Config{} with the tools' environment knobs applied (VISCD_SIMD, VISCD_KEEP_ORDER; viscd/io.hpp);
+/// a bad value ends the benchmark with the message.
+[[nodiscard]] inline Config bench_config() {
+  Config c;
+  if (Status s = apply_environment(c); !s) {
+    std::fprintf(stderr, "%s\n", s.error().c_str());
+    std::exit(2);
+  }
+  return c;
+}
 
 using Clock = std::chrono::steady_clock;
 

@@ -49,7 +49,7 @@ double frame_ms(const Options& o, std::uint32_t n, const std::vector<Filter>& fi
   std::array<std::vector<double>, kStageCount> per_stage;
   for (int rep = 0; rep < o.repeats; ++rep) {
     Scene scene = Scene::make({.objects = n});
-    Config c;
+    Config c = bench_config();
     c.threads = o.threads;
     auto d = make_cpu_detector(c);
     FrameResult f;
@@ -85,7 +85,7 @@ int run_events(const Options& o) {
       for (const bool second : {false, true}) {
         const bool with_events = second != (rep % 2 == 1);  // the order alternates run by run
         Scene scene = Scene::make({.objects = n});
-        Config c;
+        Config c = bench_config();
         c.threads = o.threads;
         c.contact_events = with_events;
         auto d = make_cpu_detector(c);
@@ -154,12 +154,12 @@ int run_id_map(const Options& o) {
   for (const std::uint32_t n : o.objects) {
     Scene scene = Scene::make({.objects = n});
     const Camera cam = camera_preset("zoom-out", scene, 1280, 720).value();
-    Config c;
+    Config c = bench_config();
     c.threads = o.threads;
     auto own = make_cpu_detector(c);
     FrameResult f;
     if (!own->detect(scene.spheres(), &cam, f).ok()) return 1;
-    const auto& map = static_cast<detail::PipelineDetector&>(*own).visibility_map();
+    const auto& map = detail::backend_as<detail::PipelineDetector>(*own).visibility_map();
     const std::vector<std::uint32_t> ids(map.ids.begin(), map.ids.end());
     std::size_t runs = ids.empty() ? 0 : 1, background = 0;
     for (std::size_t k = 1; k < ids.size(); ++k) runs += ids[k] != ids[k - 1];
@@ -184,7 +184,7 @@ int run_id_map(const Options& o) {
       if (!d->detect(in, f).ok()) return 1;
       if (k < o.warmup) continue;
       count_ms.push_back(t);
-      stage_ms.push_back(f.stats.stage_ms[static_cast<std::size_t>(Stage::count)]);
+      stage_ms.push_back(f.stats.ms(Stage::count));
     }
     for (const auto& [what, v] : {std::pair<const char*, std::vector<double>*>{"count_ids, 1280x720", &count_ms},
                                   {"detect() count stage, 1280x720", &stage_ms}}) {
@@ -200,7 +200,7 @@ int run_rays(const Options& o) {
   std::printf("%9s %-22s %10s %10s %9s\n", "objects", "query", "median_us", "min_us", "hits");
   for (const std::uint32_t n : o.objects) {
     Scene scene = Scene::make({.objects = n});
-    Config c;
+    Config c = bench_config();
     c.threads = o.threads;
     auto d = make_cpu_detector(c);
     FrameResult f;

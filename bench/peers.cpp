@@ -2,6 +2,8 @@
 
 #include <utility>
 
+#include "bench_util.hpp"
+
 #include "viscd/detector.hpp"
 
 namespace viscd::bench {
@@ -10,7 +12,7 @@ namespace {
 class ViscdMethod final : public Method {
  public:
   ViscdMethod(std::string name, int threads) : name_(std::move(name)) {
-    Config config;
+    Config config = bench_config();
     config.threads = threads;
     detector_ = make_cpu_detector(config);
   }

@@ -206,7 +206,7 @@ int run_peers(const Options& opt) {
       opt.scene.c_str(), opt.warmup, opt.repeats, opt.frames, detail::resolve_threads(opt.threads), opt.busy);
   std::printf("# ms per frame = update + query + exact sphere test (viscd: detect(), pairs sorted)\n");
   std::printf("# viscd's stage 8 kernels: %s (VISCD_SIMD=sse2 or scalar lowers them)\n",
-              detail::simd_name(detail::simd_level()));
+              detail::simd_name(detail::simd_level_for(bench_config().simd)));
   std::printf("# this machine now: an independent loop runs %.2fx faster on %d threads than on 1\n",
               parallel_probe(detail::resolve_threads(opt.threads)), detail::resolve_threads(opt.threads));
 
@@ -311,7 +311,7 @@ constexpr Stage kBroadphaseStages[] = {Stage::layout, Stage::codes, Stage::sort,
 int run_stages(const Options& opt) {
   CsvWriter csv(opt.csv, {"objects", "threads", "bits", "frames", "layout_ms", "codes_ms", "sort_ms", "build_ms",
                           "fit_ms", "query_ms", "stages_ms", "wall_ms", "pairs"});
-  Config config;
+  Config config = bench_config();
   config.threads = opt.threads;
   config.bits = opt.bits == 0 ? Bits::adaptive : static_cast<Bits>(opt.bits);
   const int threads = detail::resolve_threads(opt.threads);
@@ -324,7 +324,7 @@ int run_stages(const Options& opt) {
       "# order: no layout, codes or sort), 'all' (mean of every frame: what a frame costs on average)\n");
   std::printf("# wall = detect() incl. input validation; query includes the pair sort and object states\n");
   std::printf("# stage 8 kernels: %s (VISCD_SIMD=sse2 or scalar lowers them)\n",
-              detail::simd_name(detail::simd_level()));
+              detail::simd_name(detail::simd_level_for(bench_config().simd)));
   std::printf("# this machine now: an independent loop runs %.2fx faster on %d threads than on 1\n",
               parallel_probe(detail::hardware_threads()), detail::hardware_threads());
   std::printf("%9s %4s %12s", "objects", "bits", "frames");
@@ -355,14 +355,14 @@ int run_stages(const Options& opt) {
         if (f < opt.warmup) continue;
         Times t{};
         for (std::size_t k = 0; k < std::size(kBroadphaseStages); ++k) {
-          t[k] = out.stats.stage_ms[static_cast<std::size_t>(kBroadphaseStages[k])];
+          t[k] = out.stats.ms(kBroadphaseStages[k]);
           t[kCols - 2] += t[k];
         }
         t[kCols - 1] = wall;
         (out.stats.order_kept ? kept : sorted).push_back(t);
         pairs.push_back(static_cast<double>(out.pairs.size()));
         bits = out.stats.bits;
-        layout = out.stats.layout;
+        layout = format_layout(out.stats.layout);
       }
     }
     progress(format("--stages N=%u done in %.1f s", n, ms_since(t_start) / 1000.0));
@@ -459,7 +459,7 @@ int run_sort_bits(Options opt, bool objects_given) {
                                                   : time_radix_sort<std::uint64_t>(codes, opt);
       const double med = median(us);
       if (bits == 16) us16 = med;
-      const std::string config = layout.to_string();
+      const std::string config = format_layout(layout.info());
       std::printf("%9u %4d %10.2f %10.2f %8.2fx %8.2fx  %s\n", n, bits, med, minimum(us), med / us16,
                   kPaperSortUs[b] / kPaperSortUs[0], config.c_str());
       csv.row({std::to_string(n), std::to_string(bits), format("%.3f", med), format("%.3f", minimum(us)),
@@ -552,7 +552,7 @@ int run_tree_stats(const Options& opt) {
         std::fprintf(stderr, "broadphase failed at N=%u: %s\n", n, s.error().c_str());
         return 1;
       }
-      if (f >= opt.warmup) query_ms.push_back(stats.stage_ms[static_cast<std::size_t>(Stage::query)]);
+      if (f >= opt.warmup) query_ms.push_back(stats.ms(Stage::query));
     }
     const detail::Lbvh& tree = broadphase.tree();
     const std::span<const detail::Aabb> boxes = broadphase.leaf_boxes();

@@ -69,7 +69,7 @@ int main() {
     if (tick % 40 == 0)
       std::printf("tick %3d: %u of %u objects visible enough, %llu pairs, %d-bit codes %s\n", tick, frame.stats.active,
                   frame.stats.objects, static_cast<unsigned long long>(frame.stats.pairs), frame.stats.bits,
-                  frame.stats.layout.c_str());
+                  viscd::format_layout(frame.stats.layout).c_str());
   }
   return 0;
 }

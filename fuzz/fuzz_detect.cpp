@@ -202,8 +202,8 @@ Input decode(Bytes& in) {
   if (flags & 128) {
     const std::uint8_t tuning = in.u8();
     c.lambda = kLambda[tuning & 7];
-    c.a = kThresholds[(tuning >> 3) & 3][0];
-    c.b = kThresholds[(tuning >> 3) & 3][1];
+    c.pixels_for_32_bits = kThresholds[(tuning >> 3) & 3][0];
+    c.pixels_for_64_bits = kThresholds[(tuning >> 3) & 3][1];
     switch ((tuning >> 5) & 3) {
       case 1:
         c.map_width = c.map_height = 1;
@@ -298,7 +298,7 @@ void check_frame(const Input& in, const FrameResult& cpu, const FrameResult& ref
   if (cpu.stats.mean_pixels != ref.stats.mean_pixels) fail("cpu and reference mu differ");
   if (cpu.stats.bits != ref.stats.bits) fail("cpu and reference Morton widths differ");
   if (cpu.stats.layout != ref.stats.layout)
-    fail("cpu and reference layouts differ", cpu.stats.layout + " vs " + ref.stats.layout);
+    fail("cpu and reference layouts differ", format_layout(cpu.stats.layout) + " vs " + format_layout(ref.stats.layout));
   if (c.bits != viscd::Bits::adaptive && cpu.stats.bits != static_cast<int>(c.bits))
     fail("a fixed Morton width was not used");
   if (has_camera && c.shade) {
@@ -345,8 +345,8 @@ void print(const Input& in, const viscd::Status& status, const FrameResult& ref)
                "fuzz_detect: config bits %d layout %s culling %d threads %d shade %d lambda %a a %a b %a map %dx%d "
                "pair_memory_cap %zu\n",
                static_cast<int>(c.bits), c.layout == viscd::Layout::plain ? "plain" : "extended", c.culling ? 1 : 0,
-               c.threads, c.shade ? 1 : 0, static_cast<double>(c.lambda), static_cast<double>(c.a),
-               static_cast<double>(c.b), c.map_width, c.map_height, c.pair_memory_cap);
+               c.threads, c.shade ? 1 : 0, static_cast<double>(c.lambda), static_cast<double>(c.pixels_for_32_bits),
+               static_cast<double>(c.pixels_for_64_bits), c.map_width, c.map_height, c.pair_memory_cap);
   if (in.camera) {
     const Camera& k = *in.camera;
     std::fprintf(stderr,
@@ -365,7 +365,7 @@ void print(const Input& in, const viscd::Status& status, const FrameResult& ref)
   }
   std::fprintf(stderr, "fuzz_detect: N = %zu, %s: active %u, pairs %zu, bits %d, %s\n", in.spheres.size(),
                status.ok() ? "ok" : status.error().c_str(), ref.stats.active, ref.pairs.size(), ref.stats.bits,
-               ref.stats.layout.c_str());
+               format_layout(ref.stats.layout).c_str());
 }
 
 }  // namespace

@@ -45,7 +45,7 @@ Result<Point> measure(const std::string& backend, Config config, std::uint32_t n
   PipelineOptions o;
   o.backend = backend;
   auto det = make_backend(o, config, true);
-  if (!det) return Result<Point>::failure(det.error());
+  if (!det) return Result<Point>::failure(det.status());
   Scene scene = Scene::make({.objects = n});
   std::vector<double> wall;
   std::array<std::vector<double>, kStageCount> stages;
@@ -54,8 +54,8 @@ Result<Point> measure(const std::string& backend, Config config, std::uint32_t n
     const auto t0 = Clock::now();
     scene.step(1.0f / 60.0f);
     auto cam = camera_preset(camera, scene, 1280, 720);
-    if (!cam) return Result<Point>::failure(cam.error());
-    if (Status s = det.value()->detect(scene.spheres(), &cam.value(), f); !s) return Result<Point>::failure(s.error());
+    if (!cam) return Result<Point>::failure(cam.status());
+    if (Status s = det.value()->detect(scene.spheres(), &cam.value(), f); !s) return Result<Point>::failure(s);
     const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
     if (k < warmup) continue;
     wall.push_back(ms);
@@ -141,8 +141,8 @@ int run_paper(const BenchArgs& a) {
         if (!check(q, be + " table 2")) return 1;
         const double ms = q.value().stage_ms[static_cast<std::size_t>(Stage::sort)];
         if (bits == Bits::b16) sort16 = ms;
-        t2 << be << ',' << n << ',' << static_cast<int>(bits) << ',' << q.value().last.layout << ',' << ms << ','
-           << (sort16 > 0 ? ms / sort16 : 0) << '\n';
+        t2 << be << ',' << n << ',' << static_cast<int>(bits) << ',' << format_layout(q.value().last.layout) << ','
+           << ms << ',' << (sort16 > 0 ? ms / sort16 : 0) << '\n';
         tick(be + " table 2");
       }
     }

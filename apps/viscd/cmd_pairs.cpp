@@ -76,7 +76,7 @@ int run_pairs(const PairsArgs& a) {
 
   const std::uint64_t hash = pairs_hash(frame.pairs);
   std::printf("%u objects, %u active, %" PRIu64 " pairs, m = %d (%s), hash %016" PRIx64 "\n", frame.stats.objects,
-              frame.stats.active, frame.stats.pairs, frame.stats.bits, frame.stats.layout.c_str(), hash);
+              frame.stats.active, frame.stats.pairs, frame.stats.bits, format_layout(frame.stats.layout).c_str(), hash);
   std::printf("wrote %s%s%s\n", printable(a.out, 200).c_str(), a.stats.empty() ? "" : " and ",
               printable(a.stats, 200).c_str());
   if (!a.validate_hash.empty()) {

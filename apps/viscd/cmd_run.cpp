@@ -171,7 +171,7 @@ int run_run(RunArgs a) {
     sim_ms.add(sim);
     frame_ms.add(total);
     rows << f << ',' << scene.time() << ',' << st.objects << ',' << st.active << ',' << st.mean_pixels << ',' << st.bits
-         << ',' << st.layout << ',' << st.pairs << ',' << sim;
+         << ',' << format_layout(st.layout) << ',' << st.pairs << ',' << sim;
     for (std::size_t s = 0; s < kStageCount; ++s) rows << ',' << st.stage_ms[s];
     rows << ',' << total << '\n';
     if (rows.tellp() > (1 << 16) || last) {
@@ -216,11 +216,10 @@ int run_run(RunArgs a) {
     }
     std::printf("  %-12s %10.3f   (%.0f frames per second)\n", "frame", med_frame,
                 med_frame > 0 ? 1000.0 / med_frame : 0.0);
-    std::printf("  (shading ran on the screenshot frame only: %.3f ms)\n\n",
-                st.stage_ms[static_cast<std::size_t>(Stage::shade)]);
+    std::printf("  (shading ran on the screenshot frame only: %.3f ms)\n\n", st.ms(Stage::shade));
     std::printf("last frame: %u of %u objects active (%.1f %%), mu = %.1f px, m = %d bits %s, %" PRIu64 " pairs\n",
                 st.active, st.objects, st.objects ? 100.0 * st.active / st.objects : 0.0, st.mean_pixels, st.bits,
-                st.layout.c_str(), st.pairs);
+                format_layout(st.layout).c_str(), st.pairs);
   }
   // All three are written to temporary files first and renamed into place only when all succeeded.
   auto shot_file = AtomicFile::create(shot);

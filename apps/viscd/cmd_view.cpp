@@ -68,11 +68,6 @@ std::string series_name(std::size_t s) {
 }
 
 // Layouts are printed with arrows (x(7)→z(6)→y(3)); ImGui's built-in font is ASCII only.
-std::string ascii_layout(std::string s) {
-  for (std::size_t p; (p = s.find("\xe2\x86\x92")) != std::string::npos;) s.replace(p, 3, "->");
-  return s;
-}
-
 std::string glfw_error_text;
 void on_glfw_error(int code, const char* message) {
   glfw_error_text = message ? message : ("GLFW error " + std::to_string(code));
@@ -182,8 +177,8 @@ class Viewer {
 Config Viewer::current_config() const {
   Config c = base_;
   c.lambda = lambda_;
-  c.a = a_;
-  c.b = b_;
+  c.pixels_for_32_bits = a_;
+  c.pixels_for_64_bits = b_;
   c.culling = culling_;
   c.bits = adaptive_ ? Bits::adaptive
                      : (fixed_bits_index_ == 0   ? Bits::b16
@@ -250,33 +245,36 @@ void Viewer::switch_backend(Backend b, bool mesh) {
 
 Status Viewer::setup() {
   auto config = make_config(args_.pipeline);
-  if (!config) return Status::failure(config.error());
+  if (!config) return config.status();
   base_ = config.value();
-  lambda_ = base_.lambda, a_ = base_.a, b_ = base_.b;
+  lambda_ = base_.lambda, a_ = base_.pixels_for_32_bits, b_ = base_.pixels_for_64_bits;
   culling_ = base_.culling;
   adaptive_ = base_.bits == Bits::adaptive;
   fixed_bits_index_ = base_.bits == Bits::b16 ? 0 : base_.bits == Bits::b64 ? 2 : 1;
   map_width_ = base_.map_width;
   map_height_ = base_.map_height;
   if (args_.world.objects < 1 || args_.world.objects > (1u << 29))
-    return Status::failure("--objects: expected 1 to 536870912");
+    return Status::failure(ErrorKind::invalid_input, "--objects: expected 1 to 536870912");
   objects_ = static_cast<int>(args_.world.objects);
   auto params = make_scene_params(args_.world);
-  if (!params) return Status::failure(params.error());
+  if (!params) return params.status();
   kind_ = params.value().kind;
-  if (args_.frames < 0) return Status::failure("--frames: expected 0 (until the window closes) or more");
-  if (auto g = make_gl_options(args_.pipeline); !g) return Status::failure(g.error());
+  if (args_.frames < 0)
+    return Status::failure(ErrorKind::invalid_input, "--frames: expected 0 (until the window closes) or more");
+  if (auto g = make_gl_options(args_.pipeline); !g) return g.status();
   const std::string& be = args_.pipeline.backend;
   if (be != "cpu" && be != "gl")
-    return Status::failure("--backend: viscd view runs cpu or gl, got '" + be +
-                           "' (the reference backend ray-casts every pixel against every object: use viscd pairs)");
+    return Status::failure(ErrorKind::invalid_input,
+                           "--backend: viscd view runs cpu or gl, got '" + be +
+                               "' (the reference backend ray-casts every pixel against every object: use viscd pairs)");
   if (args_.camera.size() > 5 && args_.camera.ends_with(".json")) {
     auto c = read_camera(args_.camera);
-    if (!c) return Status::failure(c.error());
+    if (!c) return c.status();
     file_camera_ = c.value();
     have_file_camera_ = true;
   } else if (args_.camera != "zoom-out" && args_.camera != "zoom-in") {
-    return Status::failure("--camera: expected zoom-out, zoom-in or a .json file, got '" + args_.camera + "'");
+    return Status::failure(ErrorKind::invalid_input,
+                           "--camera: expected zoom-out, zoom-in or a .json file, got '" + args_.camera + "'");
   }
   return {};
 }
@@ -472,7 +470,7 @@ void Viewer::panel() {
     ImGui::Text("%.1f FPS (%.1f ms per frame), %s backend", fps, frame_ms_smooth_,
                 detector_ ? std::string(detector_->name()).c_str() : "-");
     ImGui::Text("active %u / %u (%.1f %%)", st.active, st.objects, st.objects ? 100.0 * st.active / st.objects : 0.0);
-    ImGui::Text("mu = %.1f px, m = %d bits %s", st.mean_pixels, st.bits, ascii_layout(st.layout).c_str());
+    ImGui::Text("mu = %.1f px, m = %d bits %s", st.mean_pixels, st.bits, format_layout(st.layout, true).c_str());
     ImGui::Text("pairs %" PRIu64 ", scene time %.1f s", st.pairs, scene_.time());
   }
 
@@ -644,9 +642,9 @@ int Viewer::run() {
     if (have_result_) ++frames_done;
     if (args_.frames > 0 && frames_done >= args_.frames) {
       const FrameStats& st = result_.stats;
-      std::printf("viscd view: %d frames, last: %u of %u objects active, mu = %.1f px, m = %d bits %s, %" PRIu64
-                  " pairs\n",
-                  frames_done, st.active, st.objects, st.mean_pixels, st.bits, st.layout.c_str(), st.pairs);
+      std::printf(
+          "viscd view: %d frames, last: %u of %u objects active, mu = %.1f px, m = %d bits %s, %" PRIu64 " pairs\n",
+          frames_done, st.active, st.objects, st.mean_pixels, st.bits, format_layout(st.layout).c_str(), st.pairs);
       if (!args_.screenshot.empty()) {
         if (std::string err = save_screenshot(args_.screenshot); !err.empty()) rc = fail(err);
       }

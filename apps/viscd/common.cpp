@@ -59,9 +59,10 @@ void add_scene_options(CLI::App& cmd, SceneOptions& o) {
 
 Result<SceneParams> make_scene_params(const SceneOptions& o) {
   auto kind = parse_scene_kind(o.kind);
-  if (!kind) return Result<SceneParams>::failure(kind.error());
+  if (!kind) return Result<SceneParams>::failure(kind.status());
   if (!(o.dt >= 0 && std::isfinite(o.dt)))
-    return Result<SceneParams>::failure("--dt: expected a finite number >= 0, got " + std::to_string(o.dt));
+    return Result<SceneParams>::failure(ErrorKind::invalid_input,
+                                        "--dt: expected a finite number >= 0, got " + std::to_string(o.dt));
   return SceneParams{.kind = kind.value(), .objects = o.objects, .seed = o.seed};
 }
 
@@ -72,13 +73,15 @@ Result<GlOptions> make_gl_options(const PipelineOptions& o) {
   else if (o.geometry == "mesh")
     g.geometry = GlGeometry::mesh;
   else
-    return Result<GlOptions>::failure("--geometry: expected impostor or mesh, got '" + printable(o.geometry) + "'");
+    return Result<GlOptions>::failure(ErrorKind::invalid_input,
+                                      "--geometry: expected impostor or mesh, got '" + printable(o.geometry) + "'");
   if (o.counter == "ssbo")
     g.counter = GlCounter::ssbo;
   else if (o.counter == "atomic_uint")
     g.counter = GlCounter::atomic_uint;
   else
-    return Result<GlOptions>::failure("--counter: expected ssbo or atomic_uint, got '" + printable(o.counter) + "'");
+    return Result<GlOptions>::failure(ErrorKind::invalid_input,
+                                      "--counter: expected ssbo or atomic_uint, got '" + printable(o.counter) + "'");
   return g;
 }
 
@@ -102,7 +105,7 @@ Result<std::unique_ptr<Detector>> make_backend(const PipelineOptions& o, const C
   }
   if (backend != "gl") return make_detector(backend, config);
   auto g = make_gl_options(o);
-  if (!g) return R::failure(g.error());
+  if (!g) return R::failure(g.status());
   return make_gl_detector(config, g.value());
 }
 
@@ -115,6 +118,7 @@ Result<std::pair<int, int>> parse_size(std::string_view text, std::string_view o
   };
   if (x == std::string_view::npos || !num(text.substr(0, x), w) || !num(text.substr(x + 1), h))
     return Result<std::pair<int, int>>::failure(
+        ErrorKind::invalid_input,
         std::string(option) + ": expected WIDTHxHEIGHT such as 1280x720, got '" + printable(text) + "'");
   return std::pair{w, h};
 }
@@ -130,42 +134,49 @@ Result<Config> make_config(const PipelineOptions& o) {
   else if (o.bits == "64")
     c.bits = Bits::b64;
   else
-    return Result<Config>::failure("--bits: expected adaptive, 16, 32 or 64, got '" + printable(o.bits) + "'");
+    return Result<Config>::failure(ErrorKind::invalid_input,
+                                   "--bits: expected adaptive, 16, 32 or 64, got '" + printable(o.bits) + "'");
   if (o.layout == "extended")
     c.layout = Layout::extended;
   else if (o.layout == "plain")
     c.layout = Layout::plain;
   else
-    return Result<Config>::failure("--layout: expected extended or plain, got '" + printable(o.layout) + "'");
+    return Result<Config>::failure(ErrorKind::invalid_input,
+                                   "--layout: expected extended or plain, got '" + printable(o.layout) + "'");
   if (!(o.lambda >= 0 && std::isfinite(o.lambda)))
-    return Result<Config>::failure("--lambda: expected a finite number >= 0");
-  if (!(o.a >= 0 && o.b >= o.a && std::isfinite(o.b))) return Result<Config>::failure("-a/-b: expected 0 <= a <= b");
-  if (o.threads < 0) return Result<Config>::failure("--threads: expected 0 (all cores) or a positive count");
+    return Result<Config>::failure(ErrorKind::invalid_input, "--lambda: expected a finite number >= 0");
+  if (!(o.a >= 0 && o.b >= o.a && std::isfinite(o.b)))
+    return Result<Config>::failure(ErrorKind::invalid_input, "-a/-b: expected 0 <= a <= b");
+  if (o.threads < 0)
+    return Result<Config>::failure(ErrorKind::invalid_input, "--threads: expected 0 (all cores) or a positive count");
   if (o.backend != "cpu" && o.backend != "reference" && o.backend != "gl" && o.backend != "auto")
-    return Result<Config>::failure("--backend: expected cpu, reference, gl or auto, got '" + printable(o.backend) +
-                                   "'");
+    return Result<Config>::failure(
+        ErrorKind::invalid_input, "--backend: expected cpu, reference, gl or auto, got '" + printable(o.backend) + "'");
   // The gl options are checked whatever the backend: a typo must not pass silently.
-  if (auto g = make_gl_options(o); !g) return Result<Config>::failure(g.error());
+  if (auto g = make_gl_options(o); !g) return Result<Config>::failure(g.status());
   auto cap = parse_bytes(o.max_pair_memory, "--max-pair-memory");
-  if (!cap) return Result<Config>::failure(cap.error());
+  if (!cap) return Result<Config>::failure(cap.status());
   c.pair_memory_cap = static_cast<std::size_t>(cap.value());
   c.lambda = o.lambda;
-  c.a = o.a;
-  c.b = o.b;
+  c.pixels_for_32_bits = o.a;
+  c.pixels_for_64_bits = o.b;
   c.culling = !o.no_culling;
   c.threads = o.threads;
+  // VISCD_SIMD and VISCD_KEEP_ORDER, for measurements (docs/usage.md).
+  if (Status s = apply_environment(c); !s) return Result<Config>::failure(s);
   if (!o.map_size.empty()) {
     auto s = parse_size(o.map_size, "--map-size");
-    if (!s) return Result<Config>::failure(s.error());
+    if (!s) return Result<Config>::failure(s.status());
     c.map_width = s.value().first;
     c.map_height = s.value().second;
-    if (auto m = check_map_size(c.map_width, c.map_height, "--map-size"); !m) return Result<Config>::failure(m.error());
+    if (auto m = check_map_size(c.map_width, c.map_height, "--map-size"); !m) return Result<Config>::failure(m);
   }
   return c;
 }
 
 Status check_map_size(int width, int height, std::string_view option) {
-  if (Status s = validate_map_size(width, height); !s) return Status::failure(std::string(option) + ": " + s.error());
+  if (Status s = validate_map_size(width, height); !s)
+    return Status::failure(ErrorKind::invalid_input, std::string(option) + ": " + s.error());
   return {};
 }
 
@@ -241,8 +252,9 @@ Result<std::uint64_t> parse_bytes(std::string_view text, std::string_view option
     scale = 1024.0 * 1024 * 1024 * 1024;
   const double bytes = v * scale;
   if (ec != std::errc() || p == text.data() || scale == 0 || !(bytes >= 0) || bytes > 9.0e18)
-    return R::failure(std::string(option) + ": expected a size such as 512M, 4G or 0 (no cap), got '" +
-                      printable(text) + "'");
+    return R::failure(
+        ErrorKind::invalid_input,
+        std::string(option) + ": expected a size such as 512M, 4G or 0 (no cap), got '" + printable(text) + "'");
   return static_cast<std::uint64_t>(bytes);
 }
 
@@ -269,16 +281,19 @@ Status check_outputs(const std::vector<NamedPath>& inputs, const std::vector<Nam
   for (std::size_t k = 0; k < outputs.size(); ++k) {
     const NamedPath& out = outputs[k];
     const std::string shown = printable(out.path.string(), 200);
-    if (out.path.empty()) return Status::failure(out.option + ": expected a file name");
+    if (out.path.empty()) return Status::failure(ErrorKind::invalid_input, out.option + ": expected a file name");
     if (fs::is_directory(out.path, ec))
-      return Status::failure(out.option + " " + shown + ": is a folder, expected a file name");
+      return Status::failure(ErrorKind::invalid_input,
+                             out.option + " " + shown + ": is a folder, expected a file name");
     for (const NamedPath& in : inputs)
       if (!in.path.empty() && same(in.path, out.path))
-        return Status::failure(out.option + " " + shown + " is the same file as " + in.option + " " +
-                               printable(in.path.string(), 200) + ": refusing to overwrite an input");
+        return Status::failure(ErrorKind::invalid_input, out.option + " " + shown + " is the same file as " +
+                                                             in.option + " " + printable(in.path.string(), 200) +
+                                                             ": refusing to overwrite an input");
     for (std::size_t j = 0; j < k; ++j)
       if (same(outputs[j].path, out.path))
-        return Status::failure(out.option + " and " + outputs[j].option + " name the same file " + shown);
+        return Status::failure(ErrorKind::invalid_input,
+                               out.option + " and " + outputs[j].option + " name the same file " + shown);
   }
   return {};
 }
@@ -287,9 +302,9 @@ Status check_folder_output(const NamedPath& folder, const std::vector<NamedPath>
   namespace fs = std::filesystem;
   std::error_code ec;
   const std::string shown = printable(folder.path.string(), 200);
-  if (folder.path.empty()) return Status::failure(folder.option + ": expected a folder name");
+  if (folder.path.empty()) return Status::failure(ErrorKind::invalid_input, folder.option + ": expected a folder name");
   if (fs::exists(folder.path, ec) && !fs::is_directory(folder.path, ec))
-    return Status::failure(folder.option + " " + shown + ": is a file, expected a folder");
+    return Status::failure(ErrorKind::invalid_input, folder.option + " " + shown + ": is a file, expected a folder");
   // Where a name leads (through links, also for names that do not exist yet), without a trailing "/".
   auto where = [&](const fs::path& x) {
     fs::path c = fs::weakly_canonical(fs::absolute(x, ec), ec).lexically_normal();
@@ -301,8 +316,9 @@ Status check_folder_output(const NamedPath& folder, const std::vector<NamedPath>
     if (other.path.empty()) continue;
     const fs::path p = where(other.path);
     if (std::mismatch(dir.begin(), dir.end(), p.begin(), p.end()).first == dir.end())
-      return Status::failure(other.option + " " + printable(other.path.string(), 200) + " lies in " + folder.option +
-                             " " + shown + ", which is replaced as a whole: name a file elsewhere");
+      return Status::failure(ErrorKind::invalid_input, other.option + " " + printable(other.path.string(), 200) +
+                                                           " lies in " + folder.option + " " + shown +
+                                                           ", which is replaced as a whole: name a file elsewhere");
   }
   return {};
 }
@@ -314,23 +330,29 @@ Result<StagedFolder> StagedFolder::create(const std::filesystem::path& dest, con
   std::error_code ec;
   const std::string shown = printable(dest.string(), 200);
   if (fs::exists(dest, ec)) {
-    if (!fs::is_directory(dest, ec)) return R::failure(option + " " + shown + ": is a file, expected a folder");
+    if (!fs::is_directory(dest, ec))
+      return R::failure(ErrorKind::invalid_input, option + " " + shown + ": is a file, expected a folder");
     for (const auto& entry : fs::directory_iterator(dest, ec)) {
       const std::string name = entry.path().filename().string();
       if (!entry.is_regular_file(ec) || !name.starts_with(prefix) || !name.ends_with(suffix))
-        return R::failure(option + " " + shown + " holds " + printable(name, 100) + ", which is not a file " +
-                          std::string(prefix) + "*" + std::string(suffix) +
-                          " of an earlier run: refusing to replace the folder (name a new or empty one)");
+        return R::failure(ErrorKind::invalid_input,
+                          option + " " + shown + " holds " + printable(name, 100) + ", which is not a file " +
+                              std::string(prefix) + "*" + std::string(suffix) +
+                              " of an earlier run: refusing to replace the folder (name a new or empty one)");
     }
-    if (ec) return R::failure(option + " " + shown + ": cannot list the folder: " + ec.message());
+    if (ec)
+      return R::failure(ErrorKind::io_failure, option + " " + shown + ": cannot list the folder: " + ec.message());
   }
   const fs::path abs = fs::absolute(dest, ec);
   const fs::path parent = abs.parent_path();
   fs::create_directories(parent, ec);
-  if (ec) return R::failure(option + " " + shown + ": cannot create its parent folder: " + ec.message());
+  if (ec)
+    return R::failure(ErrorKind::io_failure,
+                      option + " " + shown + ": cannot create its parent folder: " + ec.message());
   std::string tmpl = (parent / ("." + abs.filename().string() + ".tmp-XXXXXX")).string();
   if (!::mkdtemp(tmpl.data()))
-    return R::failure(option + " " + shown + ": cannot create a folder beside it: " + std::strerror(errno));
+    return R::failure(ErrorKind::io_failure,
+                      option + " " + shown + ": cannot create a folder beside it: " + std::strerror(errno));
   return StagedFolder(abs, tmpl);
 }
 
@@ -363,18 +385,18 @@ Status StagedFolder::commit() {
     // No exchange on this file system: move the old folder aside, the new one in, the old one out.
     const fs::path old = staging_.string() + ".old";
     if (::rename(dest_.c_str(), old.c_str()) != 0)
-      return Status::failure(shown + ": cannot replace the folder: " + std::strerror(errno));
+      return Status::failure(ErrorKind::io_failure, shown + ": cannot replace the folder: " + std::strerror(errno));
     if (::rename(staging_.c_str(), dest_.c_str()) != 0) {
       const int e = errno;
       (void)::rename(old.c_str(), dest_.c_str());
-      return Status::failure(shown + ": cannot replace the folder: " + std::strerror(e));
+      return Status::failure(ErrorKind::io_failure, shown + ": cannot replace the folder: " + std::strerror(e));
     }
     fs::remove_all(old, ec);
     done_ = true;
     return {};
   }
   if (::rename(staging_.c_str(), dest_.c_str()) != 0)
-    return Status::failure(shown + ": cannot create the folder: " + std::strerror(errno));
+    return Status::failure(ErrorKind::io_failure, shown + ": cannot create the folder: " + std::strerror(errno));
   done_ = true;
   return {};
 }
@@ -383,7 +405,7 @@ Result<std::optional<Camera>> read_optional_camera(const std::string& path) {
   using R = Result<std::optional<Camera>>;
   if (path.empty()) return std::optional<Camera>{};
   auto c = read_camera(path);
-  if (!c) return R::failure(c.error());
+  if (!c) return R::failure(c.status());
   return std::optional<Camera>(c.value());
 }
 
@@ -391,19 +413,21 @@ Result<std::vector<std::uint32_t>> read_id_map(const std::filesystem::path& path
   using R = Result<std::vector<std::uint32_t>>;
   const std::string name = printable(path.string(), 200);
   std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) return R::failure(name + ": is a folder, expected a file");
+  if (std::filesystem::is_directory(path, ec))
+    return R::failure(ErrorKind::invalid_input, name + ": is a folder, expected a file");
   std::ifstream in(path, std::ios::binary);
-  if (!in) return R::failure(name + ": cannot open for reading: " + std::strerror(errno));
+  if (!in) return R::failure(ErrorKind::io_failure, name + ": cannot open for reading: " + std::strerror(errno));
   in.seekg(0, std::ios::end);
   const auto size = static_cast<std::uint64_t>(in.tellg());
   const std::uint64_t want = static_cast<std::uint64_t>(width) * static_cast<std::uint64_t>(height) * 4;
   if (size != want)
-    return R::failure(name + ": " + std::to_string(size) + " bytes, but a " + std::to_string(width) + "x" +
-                      std::to_string(height) + " id map of 32-bit ids has " + std::to_string(want) + " bytes");
+    return R::failure(ErrorKind::invalid_input, name + ": " + std::to_string(size) + " bytes, but a " +
+                                                    std::to_string(width) + "x" + std::to_string(height) +
+                                                    " id map of 32-bit ids has " + std::to_string(want) + " bytes");
   in.seekg(0);
   std::vector<unsigned char> bytes(static_cast<std::size_t>(size));
   if (!in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(size)))
-    return R::failure(name + ": read error: " + std::strerror(errno));
+    return R::failure(ErrorKind::io_failure, name + ": read error: " + std::strerror(errno));
   std::vector<std::uint32_t> ids(bytes.size() / 4);
   for (std::size_t k = 0; k < ids.size(); ++k)  // little-endian whatever the host
     ids[k] = std::uint32_t{bytes[4 * k]} | std::uint32_t{bytes[4 * k + 1]} << 8 |
@@ -422,15 +446,17 @@ Result<std::vector<float>> parse_numbers(std::string_view text, std::size_t coun
     float x = 0;
     const auto [p, ec] = std::from_chars(field.data(), field.data() + field.size(), x);
     if (field.empty() || ec != std::errc() || p != field.data() + field.size() || !std::isfinite(x))
-      return R::failure(std::string(option) + ": expected " + std::string(form) + " (" + std::to_string(count) +
-                        " finite numbers separated by commas), got '" + printable(text) + "'");
+      return R::failure(ErrorKind::invalid_input,
+                        std::string(option) + ": expected " + std::string(form) + " (" + std::to_string(count) +
+                            " finite numbers separated by commas), got '" + printable(text) + "'");
     v.push_back(x);
     if (comma == std::string_view::npos) break;
     start = comma + 1;
   }
   if (v.size() != count)
-    return R::failure(std::string(option) + ": expected " + std::string(form) + " (" + std::to_string(count) +
-                      " numbers), got " + std::to_string(v.size()) + " in '" + printable(text) + "'");
+    return R::failure(ErrorKind::invalid_input, std::string(option) + ": expected " + std::string(form) + " (" +
+                                                    std::to_string(count) + " numbers), got " +
+                                                    std::to_string(v.size()) + " in '" + printable(text) + "'");
   return v;
 }
 

@@ -18,14 +18,24 @@ enum class Layout : std::uint8_t {
   plain,     ///< classic interleaving x,y,z with equal bits: 5/5/5, 10/10/10 or 21/21/21
 };
 
+/// Which SIMD kernels the cpu backend may use (stage 8's lanes, the rasterizer's tiles, queries).
+/// The best the CPU has is used unless this lowers it; results are equal bit for bit whatever the
+/// choice (for tests and measurements).
+enum class Simd : std::uint8_t {
+  best,    ///< the widest the CPU offers (AVX-512F when present, else SSE2)
+  sse2,    ///< at most SSE2
+  scalar,  ///< plain C++
+};
+
 /// Settings shared by every backend. Defaults follow the paper's experiments.
 struct Config {
   /// Culling threshold lambda, in screen pixels: objects covering fewer are culled. Default 200.
   float lambda = 200.0f;
-  /// Eq. (1) thresholds on mu (mean screen pixels per object): m = 16 if mu < a, 32 if mu < b,
-  /// else 64. Defaults a = 100, b = 400.
-  float a = 100.0f;
-  float b = 400.0f;
+  /// Adaptive Morton width (the paper's Eq. (1), its thresholds a and b): with mu the mean screen
+  /// pixels per object, m = 16 if mu < pixels_for_32_bits, 32 if mu < pixels_for_64_bits, else 64.
+  /// Defaults 100 (a) and 400 (b).
+  float pixels_for_32_bits = 100.0f;
+  float pixels_for_64_bits = 400.0f;
   /// Morton width: adaptive (default) or fixed 16/32/64. Pairs are exact for every choice.
   Bits bits = Bits::adaptive;
   /// Bit layout, extended (default) or plain.
@@ -57,6 +67,12 @@ struct Config {
   /// outlive the detect() calls), or nullptr (default) for viscd's own pool, whose threads sleep
   /// while there is no work and whose caller works too (docs/architecture.md, "Threads").
   Executor* executor = nullptr;
+  /// cpu backend: keep the last frame's object order while it stays good, skipping stages 4-6
+  /// (docs/architecture.md, "The cpu broadphase, stage by stage"). Pairs are exact either way.
+  /// Default on; off, every frame sorts (for measurements and tests of the sort).
+  bool keep_order = true;
+  /// cpu backend: the widest SIMD kernels allowed. Default Simd::best.
+  Simd simd = Simd::best;
 };
 
 }  // namespace viscd

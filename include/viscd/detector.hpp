@@ -1,6 +1,6 @@
 #pragma once
 /// \file detector.hpp
-/// The one interface every backend implements, and a factory per backend.
+/// The detector an engine calls, a factory per backend, and the rules every backend shares.
 
 #include <memory>
 #include <span>
@@ -15,31 +15,37 @@
 
 namespace viscd {
 
+namespace detail {
+class Backend;  // what each backend implements (src/core/backend.hpp); not part of the API
+struct DetectorAccess;
+}  // namespace detail
+
 /// Finds every overlapping pair of spheres, frame after frame, and answers ray and overlap
-/// queries on the last frame.
+/// queries on the last frame. Made by a factory below (make_cpu_detector(), make_detector(),
+/// make_gl_detector()); the backend it runs is fixed for its lifetime.
 ///
 /// Threading: a Detector is not thread-safe; use one per thread. It may use worker threads
-/// internally (Config::threads). Lifetime: the input's spans need only live for the call.
-///
-/// Backends implement run_frame() (the frame itself); detect() around it checks the input rules
-/// every backend shares and computes the contact events, so every backend treats them alike.
+/// internally (Config::threads, Config::executor). Lifetime: the input's spans need only live
+/// for the call.
 class Detector {
  public:
-  virtual ~Detector() = default;
+  ~Detector();
   Detector(const Detector&) = delete;
   Detector& operator=(const Detector&) = delete;
 
   /// Runs one frame. Without a camera (and without an id map) no visibility stages run and every
   /// object is active; with a camera and Config::culling, objects below lambda screen pixels are
-  /// culled. Fails (and leaves `out` unspecified) on invalid spheres (non-finite, negative radius,
-  /// beyond kMaxCoordinate), an invalid camera, a visibility map beyond kMaxMapSide or
-  /// kMaxMapPixels, filters that are neither empty nor one per sphere, an id map whose size is not
-  /// id_map_width x id_map_height or whose ids exceed the number of spheres, an id map and a gl
-  /// texture together, input the backend does not take (the message says which), negative
-  /// Config::threads, more than 2^31 - 1 objects, pairs beyond Config::pair_memory_cap, or when
-  /// memory runs out (the message names the frame's size). A failed frame leaves the contact
-  /// events' previous frame as it was, and queries see no objects until the next frame succeeds.
-  /// No exception leaves detect().
+  /// culled. Fails (and leaves `out` unspecified) with ErrorKind::invalid_input on invalid
+  /// spheres (non-finite, negative radius, beyond kMaxCoordinate), an invalid camera, a
+  /// visibility map beyond kMaxMapSide or kMaxMapPixels, filters that are neither empty nor one
+  /// per sphere, an id map whose size is not id_map_width x id_map_height or whose ids exceed the
+  /// number of spheres, an id map and a gl texture together, negative Config::threads or more
+  /// than 2^31 - 1 objects; with ErrorKind::unsupported_input on input this backend does not
+  /// take (the message says which); with ErrorKind::pair_cap when the pairs exceed
+  /// Config::pair_memory_cap; with ErrorKind::out_of_memory when memory runs out (the message
+  /// names the frame's size); with ErrorKind::backend_failure when the backend fails (a GL
+  /// error). A failed frame leaves the contact events' previous frame as it was, and queries see
+  /// no objects until the next frame succeeds. No exception leaves detect().
   [[nodiscard]] Status detect(const FrameInput& input, FrameResult& out);
   /// detect() with spheres and a camera only (no filters, no id map).
   [[nodiscard]] Status detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out);
@@ -61,61 +67,27 @@ class Detector {
   void overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices);
 
   /// Backend name: "reference", "cpu", "gl".
-  [[nodiscard]] virtual std::string_view name() const = 0;
+  [[nodiscard]] std::string_view name() const;
 
   /// Working memory the backend holds now, in bytes: visibility map, counts, codes, sort
   /// buffers, tree, pair buffers (GPU memory for gl; there the driver's own figure, from
   /// GL_NVX_gpu_memory_info, when it offers one). Grows with the largest frame seen so far.
-  [[nodiscard]] virtual std::uint64_t memory_bytes() const = 0;
+  [[nodiscard]] std::uint64_t memory_bytes() const;
 
   /// Backends that time stages on a GPU report a frame's times one frame late, so that timing
   /// never stalls the pipeline. After a frame whose times are needed now (a single-frame run),
   /// call this: it waits until that frame's times are known and writes them into `stats`.
   /// CPU backends report times at once; for them this does nothing.
-  virtual void wait_for_stage_times(FrameStats& stats) { (void)stats; }
+  void wait_for_stage_times(FrameStats& stats);
 
-  [[nodiscard]] const Config& config() const { return config_; }
+  [[nodiscard]] const Config& config() const;
   /// Changes settings; takes effect on the next detect().
-  void set_config(const Config& config) { config_ = config; }
-
- protected:
-  explicit Detector(const Config& config) : config_(config) {}
-
-  /// One frame, after detect() checked the shared input rules (spheres, camera, map sizes,
-  /// filter count, id map size, Config::threads): writes pairs, states, pixels, image and stats.
-  /// Applies `input.filters` to the pairs. Returns a failed Status for input this backend does
-  /// not take. detect() turns std::bad_alloc into a failed Status.
-  [[nodiscard]] virtual Status run_frame(const FrameInput& input, FrameResult& out) = 0;
-
-  /// Queries on the last successful frame (called only after one; the ray is valid: finite, a
-  /// non-zero direction, max_t >= 0; the sphere passes validate_spheres). A backend that answers
-  /// them from structures of its own overrides all three and answers_queries(). The defaults
-  /// search, by brute force, a copy of the active spheres that detect() keeps after each frame
-  /// for backends whose answers_queries() is false.
-  [[nodiscard]] virtual bool answers_queries() const { return false; }
-  [[nodiscard]] virtual bool query_ray(const Ray& ray, RayHit& hit);
-  virtual void query_ray_all(const Ray& ray, std::vector<RayHit>& hits);
-  virtual void query_overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices);
-  /// The brute-force answers over given spheres with their object indices (ascending): the
-  /// defaults above, for a backend that keeps the active spheres its own way.
-  [[nodiscard]] static bool brute_ray(std::span<const Sphere> spheres, std::span<const std::uint32_t> ids,
-                                      const Ray& ray, RayHit& hit);
-  static void brute_ray_all(std::span<const Sphere> spheres, std::span<const std::uint32_t> ids, const Ray& ray,
-                            std::vector<RayHit>& hits);
-  static void brute_overlap(std::span<const Sphere> spheres, std::span<const std::uint32_t> ids, const Sphere& sphere,
-                            std::vector<std::uint32_t>& indices);
-
-  Config config_;
+  void set_config(const Config& config);
 
  private:
-  [[nodiscard]] Status detect_checked(const FrameInput& input, FrameResult& out);
-  void keep_active_spheres(std::span<const Sphere> spheres, const FrameResult& out);
-
-  std::vector<Pair> previous_pairs_;  // the contact events' previous frame (empty: none)
-  bool queries_ready_ = false;        // the last detect() succeeded
-  // The active objects of the last frame, for the default queries.
-  std::vector<Sphere> query_spheres_;
-  std::vector<std::uint32_t> query_ids_;
+  friend struct detail::DetectorAccess;
+  explicit Detector(std::unique_ptr<detail::Backend> backend);
+  std::unique_ptr<detail::Backend> backend_;
 };
 
 /// Brute force O(N^2) pairs and a per-pixel ray cast visibility map: the test oracle.

@@ -13,19 +13,21 @@
 
 namespace viscd {
 
-/// Pipeline stages timed by detectors (docs/architecture.md, stages 1-9; stage 0, simulation, is
-/// the caller's).
+/// Pipeline stages timed by detectors (docs/architecture.md, "Where each stage lives"; stage 0,
+/// simulation, is the caller's). The stages are the paper's; where a backend does a stage its own
+/// way, the line says so (reference = brute force, the test oracle).
 enum class Stage : std::uint8_t {
-  visibility,  ///< 1: id map + depth + normal
-  count,       ///< 2: pixels per object
-  cull,        ///< 3: active set and mu
-  layout,      ///< 4: bit count m, axis order, bounds of the active centres
-  codes,       ///< 5: Morton codes
-  sort,        ///< 6: radix sort of (key, index)
-  build,       ///< 7a: Karras hierarchy
-  fit,         ///< 7b: bottom-up AABB fit
-  query,       ///< 8: traversal, exact sphere tests, pair sort, object states
-  shade,       ///< 9: shaded image
+  visibility,  ///< 1: id map + depth. reference: a ray per pixel; cpu: tiled sphere rasterizer; gl: instanced draw
+  count,       ///< 2: pixels per object from the id map (all backends; gl: SSBO or atomic-counter atomics)
+  cull,        ///< 3: active set (pixels >= lambda) and mu; the bit count m from mu
+  layout,      ///< 4: extent of the active centres and the Morton layout (all backends; reference only reports it)
+  codes,       ///< 5: Morton codes. cpu: also gathers the objects in the last frame's order; reference: none
+  sort,        ///< 6: (code, object) by code, ties by object. cpu: from the last order, or LSD radix; gl: radix passes
+  build,       ///< 7a: gl: the Karras hierarchy over the sorted codes; cpu: the objects into buckets of 16 lanes
+  fit,         ///< 7b: gl: bottom-up AABB fit; cpu: the 16-wide tree over the bucket boxes
+  query,       ///< 8: exact overlap tests, sorted pairs, object states. reference: all pairs; cpu: bucket search; gl:
+               ///< traversal
+  shade,       ///< 9: shaded image: red colliding, blue free, yellow culled
   count_       ///< number of stages (not a stage)
 };
 inline constexpr std::size_t kStageCount = static_cast<std::size_t>(Stage::count_);
@@ -58,6 +60,19 @@ struct FrameInput {
   unsigned gl_id_texture = 0;
 };
 
+/// The Morton layout a frame used (stage 4), as data: which axis supplies the code's bits first,
+/// and how many bits each axis got. format_layout() prints it as the paper's Table 2 does.
+struct MortonLayoutInfo {
+  std::array<std::uint8_t, 3> order{0, 1, 2};  ///< axes (0 = x, 1 = y, 2 = z), largest extent first
+  std::array<std::uint8_t, 3> axis_bits{};     ///< bits per axis, indexed by axis (x, y, z); all 0: none
+  [[nodiscard]] int total_bits() const { return axis_bits[0] + axis_bits[1] + axis_bits[2]; }
+  friend bool operator==(const MortonLayoutInfo&, const MortonLayoutInfo&) = default;
+};
+
+/// "x(7)→z(6)→y(3)": the axes in `order` with their bit counts (an axis with no bits is left out;
+/// "" when no axis has any). `ascii` writes "->" for the arrow.
+[[nodiscard]] std::string format_layout(const MortonLayoutInfo& layout, bool ascii = false);
+
 /// Numbers describing one frame.
 struct FrameStats {
   std::uint32_t objects = 0;                   ///< N, all input spheres
@@ -66,10 +81,13 @@ struct FrameStats {
   bool has_pixels = false;                     ///< pixels were counted (a camera or the caller's id map): mu is defined
   double mean_pixels = 0;                      ///< mu: total covered screen pixels / N (0 without pixels)
   int bits = 0;                                ///< Morton width m used this frame: 16, 32 or 64
-  std::string layout;                          ///< e.g. "x(7)→z(6)→y(3)"
+  MortonLayoutInfo layout;                     ///< the Morton layout used; format_layout() prints it
   std::uint64_t pairs = 0;                     ///< number of colliding pairs
   bool order_kept = false;                     ///< cpu: the last frame's object order was kept (no stages 4-6)
-  std::array<double, kStageCount> stage_ms{};  ///< wall (cpu) or GPU (gl) milliseconds per stage
+  std::array<double, kStageCount> stage_ms{};  ///< wall (cpu) or GPU (gl) milliseconds per stage, by Stage
+  /// Milliseconds of one stage.
+  [[nodiscard]] double& ms(Stage s) { return stage_ms[static_cast<std::size_t>(s)]; }
+  [[nodiscard]] double ms(Stage s) const { return stage_ms[static_cast<std::size_t>(s)]; }
   [[nodiscard]] double total_ms() const;
 };
 

@@ -11,6 +11,7 @@
 #include <string_view>
 #include <vector>
 
+#include "viscd/config.hpp"
 #include "viscd/frame.hpp"
 #include "viscd/result.hpp"
 #include "viscd/types.hpp"
@@ -44,6 +45,11 @@ struct SphereTable {
 [[nodiscard]] Result<SphereTable> parse_sphere_table(std::string_view text, std::string_view source);
 /// Reads a sphere file with its filters: `.csv` as parse_sphere_table, anything else XYZR (no filters).
 [[nodiscard]] Result<SphereTable> read_sphere_table(const std::filesystem::path& path);
+
+/// The tools' environment knobs, applied to `config` (the library itself reads no environment):
+/// VISCD_SIMD=best|sse2|scalar sets Config::simd, VISCD_KEEP_ORDER=1|0 sets Config::keep_order.
+/// Unset variables change nothing; any other value is an error naming the variable and value.
+[[nodiscard]] Status apply_environment(Config& config);
 
 /// Camera JSON: {"eye":[x,y,z], "target":[x,y,z], "up":[0,1,0], "fov_y_deg":60, "near":0.1,
 /// "far":1000, "width":1280, "height":720}. Missing keys take those defaults; unknown keys are errors.

@@ -6,6 +6,8 @@
 #include <new>
 #include <string>
 
+#include "core/backend.hpp"
+#include "core/brute_queries.hpp"
 #include "core/frame_rules.hpp"
 #include "core/geometry.hpp"
 #include "viscd/assert.hpp"
@@ -18,15 +20,18 @@ namespace viscd {
 // Without the gl backend (VISCD_ENABLE_GL=OFF) its entry points exist and say so; src/gl defines
 // them otherwise.
 Result<std::unique_ptr<Detector>> make_gl_detector(const Config&, const GlOptions&) {
-  return Result<std::unique_ptr<Detector>>::failure("backend 'gl' is not built in (configure with VISCD_ENABLE_GL=ON)");
+  return Result<std::unique_ptr<Detector>>::failure(ErrorKind::unsupported_input,
+                                                    "backend 'gl' is not built in (configure with VISCD_ENABLE_GL=ON)");
 }
 
 Result<std::string> gl_device() {
-  return Result<std::string>::failure("viscd was built without the gl backend (VISCD_ENABLE_GL=OFF)");
+  return Result<std::string>::failure(ErrorKind::unsupported_input,
+                                      "viscd was built without the gl backend (VISCD_ENABLE_GL=OFF)");
 }
 
 Result<unsigned> make_gl_id_texture(int, int) {
-  return Result<unsigned>::failure("viscd was built without the gl backend (VISCD_ENABLE_GL=OFF)");
+  return Result<unsigned>::failure(ErrorKind::unsupported_input,
+                                   "viscd was built without the gl backend (VISCD_ENABLE_GL=OFF)");
 }
 #endif
 
@@ -40,8 +45,8 @@ Result<std::unique_ptr<Detector>> make_detector(std::string_view backend, const 
   if (backend == "reference") return make_reference_detector(config);
   if (backend == "cpu") return make_cpu_detector(config);
   if (backend == "gl") return make_gl_detector(config);
-  return Result<std::unique_ptr<Detector>>::failure("unknown backend '" + std::string(backend) +
-                                                    "': expected reference, cpu or gl");
+  return Result<std::unique_ptr<Detector>>::failure(
+      ErrorKind::invalid_input, "unknown backend '" + std::string(backend) + "': expected reference, cpu or gl");
 }
 
 bool spheres_overlap(const Sphere& a, const Sphere& b) { return detail::overlap_exact(a, b); }
@@ -97,74 +102,9 @@ bool hit_before(const RayHit& a, const RayHit& b) { return a.t < b.t || (a.t == 
 
 }  // namespace
 
-Status Detector::detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) {
-  FrameInput input;
-  input.spheres = spheres;
-  input.camera = camera;
-  return detect(input, out);
-}
+namespace detail {
 
-Status Detector::detect(const FrameInput& input, FrameResult& out) {
-  queries_ready_ = false;
-  try {
-    const Status s = detect_checked(input, out);
-    queries_ready_ = s.ok();
-    return s;
-  } catch (const std::bad_alloc&) {
-    return Status::failure(detail::out_of_memory_message(input.spheres.size(), input.camera, config_));
-  }
-}
-
-Status Detector::detect_checked(const FrameInput& input, FrameResult& out) {
-  if (Status s = detail::validate_frame_input(input, config_); !s) return s;
-  if (Status s = run_frame(input, out); !s) return s;
-  // Pixels were counted when there is a camera or the caller's map, whatever the backend.
-  out.stats.has_pixels = input.camera != nullptr || !input.id_map.empty() || input.gl_id_texture != 0;
-  if (config_.contact_events) {
-    pair_differences(previous_pairs_, out.pairs, out.began, out.ended);
-    reserve_with_headroom(previous_pairs_, out.pairs.size());
-    previous_pairs_.assign(out.pairs.begin(), out.pairs.end());
-  } else {
-    // Not kept while events are off: the first frame with them on starts afresh.
-    out.began.clear();
-    out.ended.clear();
-    previous_pairs_.clear();
-  }
-  if (!answers_queries()) keep_active_spheres(input.spheres, out);
-  return {};
-}
-
-void Detector::reset_events() { previous_pairs_.clear(); }
-
-void Detector::keep_active_spheres(std::span<const Sphere> spheres, const FrameResult& out) {
-  query_spheres_.clear();
-  query_ids_.clear();
-  query_spheres_.reserve(spheres.size());  // at most every object: no allocation as the active set changes
-  query_ids_.reserve(spheres.size());
-  for (std::size_t k = 0; k < spheres.size(); ++k) {
-    if (out.state[k] == ObjectState::culled) continue;
-    query_spheres_.push_back(spheres[k]);
-    query_ids_.push_back(static_cast<std::uint32_t>(k));
-  }
-}
-
-bool Detector::ray_cast(const Ray& ray, RayHit& hit) {
-  if (!queries_ready_ || !valid_ray(ray)) return false;
-  return query_ray(ray, hit);
-}
-
-void Detector::ray_cast_all(const Ray& ray, std::vector<RayHit>& hits) {
-  hits.clear();
-  if (queries_ready_ && valid_ray(ray)) query_ray_all(ray, hits);
-}
-
-void Detector::overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices) {
-  indices.clear();
-  if (queries_ready_ && valid_sphere(sphere)) query_overlap(sphere, indices);
-}
-
-bool Detector::brute_ray(std::span<const Sphere> spheres, std::span<const std::uint32_t> ids, const Ray& ray,
-                         RayHit& hit) {
+bool brute_ray(std::span<const Sphere> spheres, std::span<const std::uint32_t> ids, const Ray& ray, RayHit& hit) {
   bool found = false;
   for (std::size_t k = 0; k < spheres.size(); ++k) {
     float t = 0;
@@ -176,8 +116,8 @@ bool Detector::brute_ray(std::span<const Sphere> spheres, std::span<const std::u
   return found;
 }
 
-void Detector::brute_ray_all(std::span<const Sphere> spheres, std::span<const std::uint32_t> ids, const Ray& ray,
-                             std::vector<RayHit>& hits) {
+void brute_ray_all(std::span<const Sphere> spheres, std::span<const std::uint32_t> ids, const Ray& ray,
+                   std::vector<RayHit>& hits) {
   for (std::size_t k = 0; k < spheres.size(); ++k) {
     float t = 0;
     if (ray_hits_sphere(ray, spheres[k], t)) hits.push_back({ids[k], t});
@@ -185,25 +125,100 @@ void Detector::brute_ray_all(std::span<const Sphere> spheres, std::span<const st
   std::sort(hits.begin(), hits.end(), hit_before);
 }
 
-void Detector::brute_overlap(std::span<const Sphere> spheres, std::span<const std::uint32_t> ids, const Sphere& sphere,
-                             std::vector<std::uint32_t>& indices) {
+void brute_overlap(std::span<const Sphere> spheres, std::span<const std::uint32_t> ids, const Sphere& sphere,
+                   std::vector<std::uint32_t>& indices) {
   for (std::size_t k = 0; k < spheres.size(); ++k)
-    if (spheres_overlap(sphere, spheres[k])) indices.push_back(ids[k]);  // ascending already
+    if (spheres_overlap(sphere, spheres[k])) indices.push_back(ids[k]);
 }
 
-bool Detector::query_ray(const Ray& ray, RayHit& hit) { return brute_ray(query_spheres_, query_ids_, ray, hit); }
+bool Backend::query_ray(const Ray& ray, RayHit& hit) { return brute_ray(query_spheres_, query_ids_, ray, hit); }
 
-void Detector::query_ray_all(const Ray& ray, std::vector<RayHit>& hits) {
+void Backend::query_ray_all(const Ray& ray, std::vector<RayHit>& hits) {
   brute_ray_all(query_spheres_, query_ids_, ray, hits);
 }
 
-void Detector::query_overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices) {
+void Backend::query_overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices) {
   brute_overlap(query_spheres_, query_ids_, sphere, indices);
+}
+
+}  // namespace detail
+
+Detector::Detector(std::unique_ptr<detail::Backend> backend) : backend_(std::move(backend)) {}
+Detector::~Detector() = default;
+
+std::string_view Detector::name() const { return backend_->name(); }
+std::uint64_t Detector::memory_bytes() const { return backend_->memory_bytes(); }
+void Detector::wait_for_stage_times(FrameStats& stats) { backend_->wait_for_stage_times(stats); }
+const Config& Detector::config() const { return backend_->config(); }
+void Detector::set_config(const Config& config) { backend_->set_config(config); }
+
+Status Detector::detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out) {
+  FrameInput input;
+  input.spheres = spheres;
+  input.camera = camera;
+  return detect(input, out);
+}
+
+Status Detector::detect(const FrameInput& input, FrameResult& out) {
+  detail::Backend& b = *backend_;
+  b.queries_ready_ = false;
+  try {
+    if (Status s = detail::validate_frame_input(input, b.config()); !s) return s;
+    if (Status s = b.run_frame(input, out); !s) return s;
+    // Pixels were counted when there is a camera or the caller's map, whatever the backend.
+    out.stats.has_pixels = input.camera != nullptr || !input.id_map.empty() || input.gl_id_texture != 0;
+    if (b.config().contact_events) {
+      pair_differences(b.previous_pairs_, out.pairs, out.began, out.ended);
+      reserve_with_headroom(b.previous_pairs_, out.pairs.size());
+      b.previous_pairs_.assign(out.pairs.begin(), out.pairs.end());
+    } else {
+      // Not kept while events are off: the first frame with them on starts afresh.
+      out.began.clear();
+      out.ended.clear();
+      b.previous_pairs_.clear();
+    }
+    if (!b.answers_queries()) {
+      // The active objects, for the brute-force queries; reserved for every object, so that no
+      // allocation follows the active set as it changes.
+      b.query_spheres_.clear();
+      b.query_ids_.clear();
+      b.query_spheres_.reserve(input.spheres.size());
+      b.query_ids_.reserve(input.spheres.size());
+      for (std::size_t k = 0; k < input.spheres.size(); ++k) {
+        if (out.state[k] == ObjectState::culled) continue;
+        b.query_spheres_.push_back(input.spheres[k]);
+        b.query_ids_.push_back(static_cast<std::uint32_t>(k));
+      }
+    }
+    b.queries_ready_ = true;
+    return {};
+  } catch (const std::bad_alloc&) {
+    return Status::failure(ErrorKind::out_of_memory,
+                           detail::out_of_memory_message(input.spheres.size(), input.camera, b.config()));
+  }
+}
+
+void Detector::reset_events() { backend_->previous_pairs_.clear(); }
+
+bool Detector::ray_cast(const Ray& ray, RayHit& hit) {
+  if (!backend_->queries_ready_ || !valid_ray(ray)) return false;
+  return backend_->query_ray(ray, hit);
+}
+
+void Detector::ray_cast_all(const Ray& ray, std::vector<RayHit>& hits) {
+  hits.clear();
+  if (backend_->queries_ready_ && valid_ray(ray)) backend_->query_ray_all(ray, hits);
+}
+
+void Detector::overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices) {
+  indices.clear();
+  if (backend_->queries_ready_ && valid_sphere(sphere)) backend_->query_overlap(sphere, indices);
 }
 
 Status validate_spheres(std::span<const Sphere> spheres) {
   if (spheres.size() > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
-    return Status::failure("too many spheres: " + std::to_string(spheres.size()) + " (at most 2^31 - 1)");
+    return Status::failure(ErrorKind::invalid_input,
+                           "too many spheres: " + std::to_string(spheres.size()) + " (at most 2^31 - 1)");
   // A pass without branches first (every frame pays it): |v| <= 1e18 is false for NaN and
   // infinities too. Only a failing set is searched for its first bad sphere.
   bool all_valid = true;
@@ -218,12 +233,15 @@ Status validate_spheres(std::span<const Sphere> spheres) {
     const float v[4] = {s.x, s.y, s.z, s.r};
     for (int c = 0; c < 4; ++c) {
       if (!std::isfinite(v[c]))
-        return Status::failure("sphere " + std::to_string(k) + ": " + "xyzr"[c] + " is not a finite number");
+        return Status::failure(ErrorKind::invalid_input,
+                               "sphere " + std::to_string(k) + ": " + "xyzr"[c] + " is not a finite number");
       if (std::fabs(v[c]) > kMaxCoordinate)
-        return Status::failure("sphere " + std::to_string(k) + ": |" + "xyzr"[c] + "| = " + std::to_string(v[c]) +
-                               " exceeds the supported 1e18");
+        return Status::failure(ErrorKind::invalid_input, "sphere " + std::to_string(k) + ": |" + "xyzr"[c] + "| = " +
+                                                             std::to_string(v[c]) + " exceeds the supported 1e18");
     }
-    if (s.r < 0) return Status::failure("sphere " + std::to_string(k) + ": negative radius " + std::to_string(s.r));
+    if (s.r < 0)
+      return Status::failure(ErrorKind::invalid_input,
+                             "sphere " + std::to_string(k) + ": negative radius " + std::to_string(s.r));
   }
   return {};
 }
@@ -232,34 +250,38 @@ Status validate_map_size(int width, int height) {
   if (width <= kMaxMapSide && height <= kMaxMapSide &&
       static_cast<std::uint64_t>(width) * static_cast<std::uint64_t>(height) <= kMaxMapPixels)
     return {};
-  return Status::failure("visibility map " + std::to_string(width) + "x" + std::to_string(height) +
-                         " is too large: at most " + std::to_string(kMaxMapSide) + " pixels a side and " +
-                         std::to_string(kMaxMapPixels) + " pixels in all (8192x8192); a smaller map works, " +
-                         "its counts are scaled to the screen");
+  return Status::failure(ErrorKind::invalid_input,
+                         "visibility map " + std::to_string(width) + "x" + std::to_string(height) +
+                             " is too large: at most " + std::to_string(kMaxMapSide) + " pixels a side and " +
+                             std::to_string(kMaxMapPixels) + " pixels in all (8192x8192); a smaller map works, " +
+                             "its counts are scaled to the screen");
 }
 
 Status validate_camera(const Camera& c) {
   auto finite3 = [](const float* v) { return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]); };
   if (!finite3(c.eye) || !finite3(c.target) || !finite3(c.up))
-    return Status::failure("camera: eye, target and up must be finite");
+    return Status::failure(ErrorKind::invalid_input, "camera: eye, target and up must be finite");
   // Bounded like spheres: squared distances stay finite in float, so no projection overflows.
   auto bounded3 = [](const float* v) {
     return std::fabs(v[0]) <= kMaxCoordinate && std::fabs(v[1]) <= kMaxCoordinate && std::fabs(v[2]) <= kMaxCoordinate;
   };
   if (!bounded3(c.eye) || !bounded3(c.target) || !bounded3(c.up))
-    return Status::failure("camera: eye, target and up must lie within the supported magnitude 1e18");
-  if (c.width < 1 || c.height < 1) return Status::failure("camera: width and height must be at least 1 pixel");
-  if (!(c.fov_y_deg > 0 && c.fov_y_deg < 180)) return Status::failure("camera: fov_y_deg must be in (0, 180)");
+    return Status::failure(ErrorKind::invalid_input,
+                           "camera: eye, target and up must lie within the supported magnitude 1e18");
+  if (c.width < 1 || c.height < 1)
+    return Status::failure(ErrorKind::invalid_input, "camera: width and height must be at least 1 pixel");
+  if (!(c.fov_y_deg > 0 && c.fov_y_deg < 180))
+    return Status::failure(ErrorKind::invalid_input, "camera: fov_y_deg must be in (0, 180)");
   if (!(c.near_plane > 0 && c.far_plane > c.near_plane && c.far_plane <= kMaxCoordinate))
-    return Status::failure("camera: need 0 < near < far <= 1e18");
+    return Status::failure(ErrorKind::invalid_input, "camera: need 0 < near < far <= 1e18");
   const double f[3] = {double(c.target[0]) - c.eye[0], double(c.target[1]) - c.eye[1], double(c.target[2]) - c.eye[2]};
   const double fl = std::sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
-  if (!(fl > 0)) return Status::failure("camera: eye and target coincide");
+  if (!(fl > 0)) return Status::failure(ErrorKind::invalid_input, "camera: eye and target coincide");
   const double u[3] = {c.up[0], c.up[1], c.up[2]};
   const double cx = f[1] * u[2] - f[2] * u[1], cy = f[2] * u[0] - f[0] * u[2], cz = f[0] * u[1] - f[1] * u[0];
   const double ul = std::sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
   if (!(std::sqrt(cx * cx + cy * cy + cz * cz) > 1e-6 * fl * ul))
-    return Status::failure("camera: up is zero or parallel to the view direction");
+    return Status::failure(ErrorKind::invalid_input, "camera: up is zero or parallel to the view direction");
   return {};
 }
 

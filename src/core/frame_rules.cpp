@@ -10,13 +10,14 @@ namespace viscd::detail {
 
 Status validate_frame(std::span<const Sphere> spheres, const Camera* camera, const Config& config) {
   if (config.threads < 0)
-    return Status::failure("Config::threads = " + std::to_string(config.threads) +
-                           ": expected 0 (all cores) or a positive count");
+    return Status::failure(ErrorKind::invalid_input, "Config::threads = " + std::to_string(config.threads) +
+                                                         ": expected 0 (all cores) or a positive count");
   if (Status s = validate_spheres(spheres); !s) return s;
   if (camera) {
     if (Status s = validate_camera(*camera); !s) return s;
     if (config.map_width < 0 || config.map_height < 0 || (config.map_width == 0) != (config.map_height == 0))
-      return Status::failure("visibility map size must be W x H with both positive, or 0 x 0 for the screen size");
+      return Status::failure(ErrorKind::invalid_input,
+                             "visibility map size must be W x H with both positive, or 0 x 0 for the screen size");
     const MapSize map = map_size(config, *camera);
     if (Status s = validate_map_size(map.width, map.height); !s) return s;
   }
@@ -25,7 +26,8 @@ Status validate_frame(std::span<const Sphere> spheres, const Camera* camera, con
 
 Status validate_frame_input(const FrameInput& in, const Config& config) {
   if (!in.id_map.empty() && in.gl_id_texture != 0)
-    return Status::failure("FrameInput: id_map and gl_id_texture are both set; give the visibility map one way");
+    return Status::failure(ErrorKind::invalid_input,
+                           "FrameInput: id_map and gl_id_texture are both set; give the visibility map one way");
   if (in.id_map.empty() && in.gl_id_texture == 0)
     if (Status s = validate_frame(in.spheres, in.camera, config); !s) return s;
   if (!in.id_map.empty() || in.gl_id_texture != 0) {
@@ -35,21 +37,26 @@ Status validate_frame_input(const FrameInput& in, const Config& config) {
     if (Status s = validate_frame(in.spheres, in.camera, own); !s) return s;
     const int w = in.id_map_width, h = in.id_map_height;
     if (w < 1 || h < 1)
-      return Status::failure("FrameInput: the id map is " + std::to_string(w) + "x" + std::to_string(h) +
-                             " pixels; id_map_width and id_map_height must be at least 1");
-    if (Status s = validate_map_size(w, h); !s) return Status::failure("FrameInput: " + s.error());
+      return Status::failure(ErrorKind::invalid_input,
+                             "FrameInput: the id map is " + std::to_string(w) + "x" + std::to_string(h) +
+                                 " pixels; id_map_width and id_map_height must be at least 1");
+    if (Status s = validate_map_size(w, h); !s)
+      return Status::failure(ErrorKind::invalid_input, "FrameInput: " + s.error());
     const std::uint64_t want = static_cast<std::uint64_t>(w) * static_cast<std::uint64_t>(h);
     if (!in.id_map.empty() && in.id_map.size() != want)
-      return Status::failure("FrameInput: the id map holds " + std::to_string(in.id_map.size()) + " ids, but " +
-                             std::to_string(w) + "x" + std::to_string(h) + " needs " + std::to_string(want));
+      return Status::failure(ErrorKind::invalid_input,
+                             "FrameInput: the id map holds " + std::to_string(in.id_map.size()) + " ids, but " +
+                                 std::to_string(w) + "x" + std::to_string(h) + " needs " + std::to_string(want));
   }
   if ((!in.id_map.empty() || in.gl_id_texture != 0) && config.shade)
     return Status::failure(
+        ErrorKind::invalid_input,
         "Config::shade needs the detector's own visibility map (depth and normals); with the caller's id map "
         "(FrameInput::id_map or gl_id_texture) no image can be shaded");
   if (!in.filters.empty() && in.filters.size() != in.spheres.size())
-    return Status::failure("FrameInput: " + std::to_string(in.filters.size()) + " filters for " +
-                           std::to_string(in.spheres.size()) + " spheres; give none or one per sphere");
+    return Status::failure(ErrorKind::invalid_input, "FrameInput: " + std::to_string(in.filters.size()) +
+                                                         " filters for " + std::to_string(in.spheres.size()) +
+                                                         " spheres; give none or one per sphere");
   return {};
 }
 
@@ -57,9 +64,10 @@ Status id_map_error(std::span<const std::uint32_t> ids, int width, std::size_t o
   for (std::size_t k = 0; k < ids.size(); ++k) {
     if (ids[k] <= objects) continue;
     const std::size_t w = static_cast<std::size_t>(width);
-    return Status::failure("id map pixel (" + std::to_string(k % w) + ", " + std::to_string(k / w) + ") holds id " +
-                           std::to_string(ids[k]) + ", but the frame has " + std::to_string(objects) +
-                           " objects (an id is an object index + 1, 0 is background)");
+    return Status::failure(ErrorKind::invalid_input,
+                           "id map pixel (" + std::to_string(k % w) + ", " + std::to_string(k / w) + ") holds id " +
+                               std::to_string(ids[k]) + ", but the frame has " + std::to_string(objects) +
+                               " objects (an id is an object index + 1, 0 is background)");
   }
   return {};
 }
@@ -90,10 +98,11 @@ std::size_t pairs_within_cap(std::size_t cap) {
 Status check_pair_cap(std::size_t pairs, std::size_t cap, bool at_least) {
   if (!at_least && pairs <= pairs_within_cap(cap)) return {};
   const char* more = at_least ? "at least " : "";
-  return Status::failure("frame has " + std::string(more) + std::to_string(pairs) + " colliding pairs, which need " +
-                         more + std::to_string(pairs * sizeof(Pair)) + " bytes, over the pair memory cap of " +
-                         std::to_string(cap) +
-                         " bytes (raise it with Config::pair_memory_cap, or the tool's --max-pair-memory)");
+  return Status::failure(ErrorKind::pair_cap,
+                         "frame has " + std::string(more) + std::to_string(pairs) + " colliding pairs, which need " +
+                             more + std::to_string(pairs * sizeof(Pair)) + " bytes, over the pair memory cap of " +
+                             std::to_string(cap) +
+                             " bytes (raise it with Config::pair_memory_cap, or the tool's --max-pair-memory)");
 }
 
 ActiveExtent extent_of(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, std::size_t begin,

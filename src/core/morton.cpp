@@ -8,8 +8,6 @@
 namespace viscd::detail {
 namespace {
 
-constexpr char kAxisName[3] = {'x', 'y', 'z'};
-
 // Fills `position` from the top bit of the code down; each bit goes to the axis whose current
 // cell is the largest (extent / 2^bits already given), ties in `order`, skipping axes whose bits
 // are used up. The used bits occupy the low sum(axis_bits) positions of the code.
@@ -35,25 +33,13 @@ void assign_positions(MortonLayout& l, std::array<double, 3> cell) {
 
 }  // namespace
 
-std::string MortonLayout::to_string() const {
-  std::string s;
-  write(s);
-  return s;
-}
-
-void MortonLayout::write(std::string& s) const {
-  s.clear();
+MortonLayoutInfo MortonLayout::info() const {
+  MortonLayoutInfo i;
   for (int k = 0; k < 3; ++k) {
-    const int axis = order[k];
-    if (axis_bits[axis] == 0) continue;
-    if (!s.empty()) s += "→";
-    s += kAxisName[axis];
-    s += '(';
-    const int b = axis_bits[axis];
-    if (b >= 10) s += static_cast<char>('0' + b / 10);
-    s += static_cast<char>('0' + b % 10);
-    s += ')';
+    i.order[k] = order[k];
+    i.axis_bits[k] = static_cast<std::uint8_t>(axis_bits[k]);
   }
+  return i;
 }
 
 MortonLayout extended_layout(int bits, const Aabb& b, float mean_diameter) {
@@ -119,7 +105,7 @@ MortonGrid morton_grid(const MortonLayout& layout, const Aabb& bounds) {
 
 int choose_bits(const Config& config, bool has_camera, double mu) {
   if (config.bits != Bits::adaptive) return static_cast<int>(config.bits);
-  return has_camera ? bits_for_mean_pixels(mu, config.a, config.b) : 32;
+  return has_camera ? bits_for_mean_pixels(mu, config.pixels_for_32_bits, config.pixels_for_64_bits) : 32;
 }
 
 MortonEncoder::MortonEncoder(const MortonLayout& layout, const Aabb& bounds) {
@@ -147,3 +133,22 @@ MortonEncoder::MortonEncoder(const MortonLayout& layout, const Aabb& bounds) {
 }
 
 }  // namespace viscd::detail
+
+namespace viscd {
+
+std::string format_layout(const MortonLayoutInfo& layout, bool ascii) {
+  static constexpr char kAxisNames[] = "xyz";
+  std::string s;
+  for (int k = 0; k < 3; ++k) {
+    const int axis = layout.order[k];
+    if (axis > 2 || layout.axis_bits[axis] == 0) continue;
+    if (!s.empty()) s += ascii ? "->" : "→";
+    s += kAxisNames[axis];
+    s += '(';
+    s += std::to_string(layout.axis_bits[axis]);
+    s += ')';
+  }
+  return s;
+}
+
+}  // namespace viscd

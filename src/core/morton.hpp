@@ -21,6 +21,7 @@
 
 #include "core/geometry.hpp"
 #include "viscd/config.hpp"
+#include "viscd/frame.hpp"
 
 namespace viscd::detail {
 
@@ -31,10 +32,8 @@ struct MortonLayout {
   /// Code bit position (0 = least significant) of each axis bit, indexed [axis][bit of axis value].
   std::array<std::array<std::int8_t, 32>, 3> position{};
 
-  /// "x(7)→z(6)→y(3)"
-  [[nodiscard]] std::string to_string() const;
-  /// Writes to_string() into `out`, reusing its buffer.
-  void write(std::string& out) const;
+  /// The public summary (axis order and bits per axis) that FrameStats reports.
+  [[nodiscard]] MortonLayoutInfo info() const;
 };
 
 /// The extended layout (docs/architecture.md, "Morton layout"): axes by extent (ties x, y, z); the

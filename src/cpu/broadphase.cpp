@@ -133,8 +133,8 @@ Status LbvhBroadphase::run(std::span<const Sphere> spheres, std::span<const std:
   layout_ = make_layout(layout, bits, extent.bounds, extent.mean_diameter());
   bits_ = bits;
   stats.bits = bits;
-  layout_.write(stats.layout);
-  stats.stage_ms[static_cast<std::size_t>(Stage::layout)] = sw.lap();
+  stats.layout = layout_.info();
+  stats.ms(Stage::layout) = sw.lap();
   switch (bits) {
     case 16:
       return run_keys<std::uint16_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);
@@ -149,7 +149,6 @@ template <class K>
 Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
                                 const Aabb& bounds, int threads, std::size_t pair_memory_cap, std::vector<Pair>& pairs,
                                 FrameStats& stats) {
-  auto ms = [&](Stage s) -> double& { return stats.stage_ms[static_cast<std::size_t>(s)]; };
   Stopwatch sw;
   const std::size_t n = active.size();
   std::vector<K>& key = keys_.get<K>();
@@ -164,16 +163,16 @@ Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const
     key[k] = static_cast<K>(encoder.encode(s.x, s.y, s.z));
     sorted_ids_[k] = active[k];
   });
-  ms(Stage::codes) = sw.lap();
+  stats.ms(Stage::codes) = sw.lap();
 
   // Stage 6: sort.
   radix_sort<K>(std::span<K>(key.data(), n), std::span<std::uint32_t>(sorted_ids_.data(), n), 8 * sizeof(K), threads,
                 scratch_.get<K>());
-  ms(Stage::sort) = sw.lap();
+  stats.ms(Stage::sort) = sw.lap();
 
   // Stage 7: hierarchy, then boxes. Spheres are gathered into sorted order for coherent access.
   build_lbvh<K>(std::span<const K>(key.data(), n), bvh_, threads);
-  ms(Stage::build) = sw.lap();
+  stats.ms(Stage::build) = sw.lap();
   if (sorted_spheres_.size() != n) {
     sorted_spheres_.resize(n);
     leaf_boxes_.resize(n);
@@ -183,7 +182,7 @@ Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const
     leaf_boxes_[p] = conservative_box(sorted_spheres_[p]);
   });
   fit_lbvh(leaf_boxes_, bvh_, threads);
-  ms(Stage::fit) = sw.lap();
+  stats.ms(Stage::fit) = sw.lap();
 #ifdef VISCD_VALIDATE
   {
     const std::string problem = validate_lbvh(bvh_, leaf_boxes_);
@@ -203,7 +202,7 @@ Status LbvhBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const
       });
   if (!found) return found;
   stats.pairs = pairs.size();
-  ms(Stage::query) = sw.lap();
+  stats.ms(Stage::query) = sw.lap();
   return {};
 }
 

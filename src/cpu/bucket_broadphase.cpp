@@ -137,11 +137,6 @@ VISCD_AVX512_FLATTEN void search_group_avx512(const SearchView& v, std::size_t g
 
 }  // namespace
 
-bool keep_order_default() {
-  const char* v = std::getenv("VISCD_KEEP_ORDER");
-  return v == nullptr || std::strcmp(v, "0") != 0;
-}
-
 std::uint64_t BucketBroadphase::memory_bytes() const {
   std::uint64_t b = bytes_of(sorted_ids_) + bytes_of(previous_ids_) + bytes_of(rank_) + bytes_of(lanes_) +
                     bytes_of(bucket_boxes_) + bytes_of(gathered_) + bytes_of(entries_) + bytes_of(merged_) +
@@ -180,8 +175,8 @@ void BucketBroadphase::build_tree(std::span<const Sphere> spheres, std::span<con
   if (bits != bits_) previous_ids_.clear();  // the last order was by codes of another width
   bits_ = bits;
   stats.bits = bits;
-  layout_.write(stats.layout);
-  stats.stage_ms[static_cast<std::size_t>(Stage::layout)] = sw.lap();
+  stats.layout = layout_.info();
+  stats.ms(Stage::layout) = sw.lap();
   double box_sum = 0;
   switch (bits) {
     case 16:
@@ -193,7 +188,7 @@ void BucketBroadphase::build_tree(std::span<const Sphere> spheres, std::span<con
     default:
       box_sum = build_keys<std::uint64_t>(spheres, active, filters, extent.bounds, threads, stats);
   }
-  stats.stage_ms[static_cast<std::size_t>(Stage::build)] += attempt_ms;
+  stats.ms(Stage::build) += attempt_ms;
   fit_tree(active.size(), threads, stats);
   remember_sorted(spheres, active, layout, box_sum);
 }
@@ -201,7 +196,7 @@ void BucketBroadphase::build_tree(std::span<const Sphere> spheres, std::span<con
 void BucketBroadphase::fit_tree(std::size_t n, int threads, FrameStats& stats) {
   Stopwatch sw;
   build_wide_tree(std::span<const Aabb>(bucket_boxes_.data(), (n + kBucket - 1) / kBucket), tree_, threads);
-  stats.stage_ms[static_cast<std::size_t>(Stage::fit)] = sw.lap();
+  stats.ms(Stage::fit) = sw.lap();
 #ifdef VISCD_VALIDATE
   const std::string problem = validate_wide_tree(tree_, bucket_boxes_);
   VISCD_ASSERT(problem.empty(), problem.c_str());
@@ -225,11 +220,11 @@ bool BucketBroadphase::keep_last_order(std::span<const Sphere> spheres, std::spa
     return false;
   Stopwatch sw;
   stats.bits = bits;
-  layout_.write(stats.layout);  // the layout of the codes that ordered the objects
+  stats.layout = layout_.info();  // the layout of the codes that ordered the objects
   // sorted_ids_ holds the last order (the stage 6 of the last sorted frame wrote it).
   const double box_sum = fill_lanes_in_order(spheres, n, filters, threads);
   if (!(box_sum <= (1 + kStaleness) * sorted_box_sum_)) return false;  // moved too much: sort
-  stats.stage_ms[static_cast<std::size_t>(Stage::build)] = sw.lap();
+  stats.ms(Stage::build) = sw.lap();
   fit_tree(n, threads, stats);
   sort_report_.kept = stats.order_kept = true;
   return true;
@@ -326,7 +321,6 @@ template <class K>
 double BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
                                     std::span<const Filter> filters, const Aabb& bounds, int threads,
                                     FrameStats& stats) {
-  auto ms = [&](Stage s) -> double& { return stats.stage_ms[static_cast<std::size_t>(s)]; };
   Stopwatch sw;
   const std::size_t n = active.size();
   std::vector<K>& key = keys_.get<K>();
@@ -376,7 +370,7 @@ double BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<c
         entries_[p] = entry_of(code_of(s), sorted_ids_[p], static_cast<std::uint32_t>(p));
       }
     });
-    ms(Stage::codes) = sw.lap();
+    stats.ms(Stage::codes) = sw.lap();
     reused = sort_nearly_sorted(n, threads, less);
     if (reused) {
       parallel_for(n, threads, [&](std::size_t k) {
@@ -389,21 +383,21 @@ double BucketBroadphase::build_keys(std::span<const Sphere> spheres, std::span<c
     // From scratch: codes in active order, then the radix sort. Values start as the active ids in
     // ascending order and the sort is stable, so ties end up by object id, as above.
     parallel_for(n, threads, [&](std::size_t k) { key[k] = code_of(spheres[active[k]]); });
-    if (!from_last) ms(Stage::codes) = sw.lap();  // else the failed attempt's codes are timed
+    if (!from_last) stats.ms(Stage::codes) = sw.lap();  // else the failed attempt's codes are timed
     for (std::size_t k = 0; k < n; ++k) sorted_ids_[k] = active[k];
     radix_sort<K>(std::span<K>(key.data(), n), std::span<std::uint32_t>(sorted_ids_.data(), n), 8 * sizeof(K), threads,
                   scratch_.get<K>());
   }
   resize_with_headroom(previous_ids_, n);
   std::copy(sorted_ids_.begin(), sorted_ids_.end(), previous_ids_.begin());
-  ms(Stage::sort) = sw.lap();
+  stats.ms(Stage::sort) = sw.lap();
 
   // Stage 7: build gathers the objects into bucket lanes and takes the bucket boxes (fit, the
   // tree over them, follows in build_tree()).
   const double box_sum = reused ? fill_lanes(n, filters, threads,
                                              [&](std::size_t k) -> const Sphere& { return gathered_[entries_[k].at]; })
                                 : fill_lanes_in_order(spheres, n, filters, threads);
-  ms(Stage::build) = sw.lap();
+  stats.ms(Stage::build) = sw.lap();
   return box_sum;
 }
 
@@ -549,7 +543,7 @@ Status BucketBroadphase::find_pairs(std::span<const std::uint32_t> active, bool 
   std::uint64_t work = 0;                                   // bucket pairs whose boxes overlap
   const SearchView view{
       lanes_.data(), bucket_boxes_.data(), &tree_, sorted_ids_.data(), sorted_filters_.data(), filtered, n, &work};
-  const SimdLevel simd = simd_level();
+  const SimdLevel simd = simd_;
   const Status found =
       pairs_.collect(groups, chunks, threads, pair_memory_cap, objects, pairs, [&](std::size_t g, auto& emit) {
         switch (simd) {
@@ -577,7 +571,7 @@ Status BucketBroadphase::find_pairs(std::span<const std::uint32_t> active, bool 
   else if (sorted_work_ != 0 && static_cast<double>(work) > (1 + kStaleness) * static_cast<double>(sorted_work_))
     sort_next_ = true;
   stats.pairs = pairs.size();
-  stats.stage_ms[static_cast<std::size_t>(Stage::query)] = sw.lap();
+  stats.ms(Stage::query) = sw.lap();
   return {};
 }
 

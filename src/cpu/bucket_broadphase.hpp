@@ -44,6 +44,7 @@
 #include "core/morton.hpp"
 #include "cpu/broadphase.hpp"
 #include "cpu/radix_sort.hpp"
+#include "cpu/simd.hpp"
 #include "cpu/wide_tree.hpp"
 #include "viscd/config.hpp"
 #include "viscd/frame.hpp"
@@ -80,9 +81,6 @@ struct SortEntry {
   std::uint64_t key;
   std::uint32_t id, at;
 };
-
-/// Whether keeping the order is on by default: VISCD_KEEP_ORDER=0 turns it off.
-[[nodiscard]] bool keep_order_default();
 
 class BucketBroadphase {
  public:
@@ -123,9 +121,11 @@ class BucketBroadphase {
   [[nodiscard]] const SortReport& sort_report() const { return sort_report_; }
   /// Forget the last frame's order: the next frame sorts from scratch.
   void reset_order() { previous_ids_.clear(); }
-  /// Whether frames may keep the last order (default: on, unless the environment variable
-  /// VISCD_KEEP_ORDER is 0). Off, every frame sorts: for tests of the sort and for measurements.
+  /// Whether frames may keep the last order (Config::keep_order; default on). Off, every frame
+  /// sorts: for tests of the sort and for measurements.
   void set_keep_order(bool on) { keep_order_ = on; }
+  /// The SIMD kernels stage 8 uses (default: the best this CPU has).
+  void set_simd(SimdLevel level) { simd_ = usable_simd_level(level); }
   /// Bytes of every buffer held (capacities).
   [[nodiscard]] std::uint64_t memory_bytes() const;
 
@@ -172,7 +172,8 @@ class BucketBroadphase {
   int bits_ = 32;
   // What keeping the order compares with: the last sorted frame's active set (all objects, or
   // previous_active_), layout kind, summed bucket box size and bucket-pair count (0: unknown).
-  bool keep_order_ = keep_order_default();
+  bool keep_order_ = true;
+  SimdLevel simd_ = best_simd_level();
   bool sort_next_ = true;
   bool previous_all_ = false;
   std::size_t previous_objects_ = 0;

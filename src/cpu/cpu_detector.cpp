@@ -25,7 +25,7 @@ const BucketBroadphase& CpuDetector::unpaired_tree() {
 }  // namespace detail
 
 std::unique_ptr<Detector> make_cpu_detector(const Config& config) {
-  return std::make_unique<detail::CpuDetector>(config);
+  return detail::DetectorAccess::wrap(std::make_unique<detail::CpuDetector>(config));
 }
 
 }  // namespace viscd

@@ -45,6 +45,7 @@ class CpuDetector final : public PipelineDetector {
 
  private:
   void rasterize(const CameraRig& cam, std::span<const Sphere> spheres, int threads) override {
+    raster_.set_simd(simd_level_for(config_.simd));
     raster_.run(cam, spheres, threads, map_);
   }
   Status broadphase(std::span<const Sphere> spheres, std::span<const std::uint32_t> pairable,
@@ -56,6 +57,8 @@ class CpuDetector final : public PipelineDetector {
     std::copy(unpaired.begin(), unpaired.end(), unpaired_ids_.begin());
     resize_with_headroom(unpaired_spheres_, unpaired.size());
     for (std::size_t k = 0; k < unpaired.size(); ++k) unpaired_spheres_[k] = spheres[unpaired[k]];
+    broadphase_.set_keep_order(config_.keep_order);
+    broadphase_.set_simd(simd_level_for(config_.simd));
     return broadphase_.run(spheres, pairable, filters, bits, config_.layout, threads, config_.pair_memory_cap, pairs,
                            stats);
   }

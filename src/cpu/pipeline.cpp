@@ -41,20 +41,18 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
   const Camera* camera = in.camera;
   const bool own_map = !in.id_map.empty();
   if (in.gl_id_texture != 0)
-    return Status::failure("FrameInput::gl_id_texture is for the gl backend; the " + std::string(name()) +
-                           " backend reads the caller's visibility map from FrameInput::id_map");
+    return Status::failure(ErrorKind::unsupported_input,
+                           "FrameInput::gl_id_texture is for the gl backend; the " + std::string(name()) +
+                               " backend reads the caller's visibility map from FrameInput::id_map");
   // Every parallel stage of this frame runs on the caller's executor, or on viscd's pool.
   const ExecutorScope scope(config_.executor);
   const int threads = resolve_threads(config_.threads, config_.executor ? config_.executor->concurrency() : 0);
   const std::size_t n = spheres.size();
   FrameStats& stats = out.stats;
-  std::string layout = std::move(stats.layout);  // keep its buffer: no allocation per frame
   stats = FrameStats{};
-  stats.layout = std::move(layout);
   stats.objects = static_cast<std::uint32_t>(n);
   stats.has_camera = camera != nullptr;
   stats.has_pixels = camera != nullptr || own_map;
-  auto ms = [&](Stage s) -> double& { return stats.stage_ms[static_cast<std::size_t>(s)]; };
   Stopwatch sw;
 
   int bits = 0;
@@ -62,23 +60,23 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
   if (own_map) {
     // The caller's map: no stage 1; counted, then culled exactly as a map of our own.
     map_ = VisibilityMap{};
-    ms(Stage::visibility) = sw.lap();
+    stats.ms(Stage::visibility) = sw.lap();
     if (!count_ids(in.id_map, n, threads, hist_, count_scratch_)) return id_map_error(in.id_map, in.id_map_width, n);
-    ms(Stage::count) = sw.lap();
+    stats.ms(Stage::count) = sw.lap();
     const double scale = map_pixel_scale(camera, in.id_map_width, in.id_map_height);
     bits = cull_and_choose_bits(std::span<const std::uint32_t>(hist_).subspan(1, n), scale, config_, out.pixels,
                                 active_, stats);
-    ms(Stage::cull) = sw.lap();
+    stats.ms(Stage::cull) = sw.lap();
   } else if (camera) {
     const MapSize map = map_size(config_, *camera);
     rig.emplace(*camera, map.width, map.height);
     map_.resize(map.width, map.height, config_.shade);
     rasterize(*rig, spheres, threads);
-    ms(Stage::visibility) = sw.lap();
+    stats.ms(Stage::visibility) = sw.lap();
     count_pixels(map_, n, threads, counts_, hist_, count_scratch_);
-    ms(Stage::count) = sw.lap();
+    stats.ms(Stage::count) = sw.lap();
     bits = cull_and_choose_bits(counts_, rig->pixel_scale, config_, out.pixels, active_, stats);
-    ms(Stage::cull) = sw.lap();
+    stats.ms(Stage::cull) = sw.lap();
   } else {
     map_ = VisibilityMap{};
     out.pixels.clear();
@@ -94,7 +92,7 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     const FilterSplit split = split_by_filters(active_, in.filters, pairable_, unpaired_);
     pairable = split.pairable;
     unpaired = split.unpaired;
-    ms(Stage::cull) += sw.lap();
+    stats.ms(Stage::cull) += sw.lap();
   }
 
   if (Status s = broadphase(spheres, pairable, unpaired, in.filters, bits, threads, out.pairs, stats); !s) return s;
@@ -115,13 +113,13 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     std::atomic_ref<ObjectState>(out.state[p.i]).store(ObjectState::colliding, std::memory_order_relaxed);
     std::atomic_ref<ObjectState>(out.state[p.j]).store(ObjectState::colliding, std::memory_order_relaxed);
   });
-  ms(Stage::query) += sw.lap();
+  stats.ms(Stage::query) += sw.lap();
 
   if (camera && config_.shade) {
     shade(*rig, map_, out.state, threads, out.image);
     out.image_width = map_.width;
     out.image_height = map_.height;
-    ms(Stage::shade) = sw.lap();
+    stats.ms(Stage::shade) = sw.lap();
   } else {
     out.image.clear();
     out.image_width = out.image_height = 0;

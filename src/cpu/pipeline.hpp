@@ -7,13 +7,13 @@
 #include <span>
 #include <vector>
 
+#include "core/backend.hpp"
 #include "core/frame_rules.hpp"
 #include "cpu/visibility.hpp"
-#include "viscd/detector.hpp"
 
 namespace viscd::detail {
 
-class PipelineDetector : public Detector {
+class PipelineDetector : public Backend {
  public:
   [[nodiscard]] std::uint64_t memory_bytes() const final;
   /// The last frame's visibility map (empty without camera, or with the caller's id map); for
@@ -21,7 +21,7 @@ class PipelineDetector : public Detector {
   [[nodiscard]] const VisibilityMap& visibility_map() const { return map_; }
 
  protected:
-  explicit PipelineDetector(const Config& config) : Detector(config) {}
+  explicit PipelineDetector(const Config& config) : Backend(config) {}
   [[nodiscard]] Status run_frame(const FrameInput& input, FrameResult& out) final;
   /// Stage 1 into map_ (already sized).
   virtual void rasterize(const CameraRig& cam, std::span<const Sphere> spheres, int threads) = 0;

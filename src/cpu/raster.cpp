@@ -571,7 +571,7 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
                     keep_background};
   void (*kernel)(const TileJob&, std::uint32_t) = raster_tile_sse2;
 #if VISCD_HAVE_AVX512
-  if (simd_level() == SimdLevel::avx512) kernel = raster_tile_avx512;
+  if (simd_ == SimdLevel::avx512) kernel = raster_tile_avx512;
 #endif
   auto tile_task = [&job, kernel](std::uint32_t t) { kernel(job, t); };
   if (threads_for(tiles * kT * kT, threads) == 1) {

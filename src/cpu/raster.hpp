@@ -13,6 +13,7 @@
 #include <span>
 #include <vector>
 
+#include "cpu/simd.hpp"
 #include "cpu/visibility.hpp"
 
 namespace viscd::detail {
@@ -26,6 +27,9 @@ class TiledRasterizer {
   void run(const CameraRig& cam, std::span<const Sphere> spheres, int threads, VisibilityMap& map);
   /// Bytes of the binning buffers.
   [[nodiscard]] std::uint64_t memory_bytes() const;
+  /// The tile kernel's instruction set (Config::simd; default: the best this CPU has). The
+  /// kernels give the same map bit for bit; below SSE2 the SSE2 kernel runs.
+  void set_simd(SimdLevel level) { simd_ = usable_simd_level(level); }
 
   /// What a tile needs of a sphere, prepared once per frame.
   struct Prepared {
@@ -38,6 +42,7 @@ class TiledRasterizer {
   };
 
  private:
+  SimdLevel simd_ = best_simd_level();
   /// A sphere's rectangle and depth bound, by sphere index.
   struct Bound {
     std::uint16_t x0, y0, x1, y1;

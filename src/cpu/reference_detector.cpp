@@ -27,10 +27,10 @@ class ReferenceDetector final : public PipelineDetector {
     Stopwatch sw;
     const ActiveExtent e = active_extent(spheres, active, threads);
     stats.bits = bits;
-    stats.layout = make_layout(config_.layout, bits, e.bounds, e.mean_diameter()).to_string();
-    stats.stage_ms[static_cast<std::size_t>(Stage::layout)] = sw.lap();
+    stats.layout = make_layout(config_.layout, bits, e.bounds, e.mean_diameter()).info();
+    stats.ms(Stage::layout) = sw.lap();
     const bool complete = brute_force_pairs(spheres, active, pairs, pairs_within_cap(config_.pair_memory_cap), filters);
-    stats.stage_ms[static_cast<std::size_t>(Stage::query)] = sw.lap();
+    stats.ms(Stage::query) = sw.lap();
     if (!complete) return check_pair_cap(pairs.size() + 1, config_.pair_memory_cap, true);
     return {};
   }
@@ -40,7 +40,7 @@ class ReferenceDetector final : public PipelineDetector {
 }  // namespace detail
 
 std::unique_ptr<Detector> make_reference_detector(const Config& config) {
-  return std::make_unique<detail::ReferenceDetector>(config);
+  return detail::DetectorAccess::wrap(std::make_unique<detail::ReferenceDetector>(config));
 }
 
 }  // namespace viscd

@@ -1,9 +1,5 @@
 #include "cpu/simd.hpp"
 
-#include <atomic>
-#include <cstdlib>
-#include <cstring>
-
 namespace viscd::detail {
 namespace {
 
@@ -19,20 +15,6 @@ SimdLevel detect() {
 #endif
 }
 
-SimdLevel from_environment(SimdLevel best) {
-  const char* v = std::getenv("VISCD_SIMD");
-  if (!v) return best;
-  SimdLevel wanted = best;
-  if (std::strcmp(v, "scalar") == 0) wanted = SimdLevel::scalar;
-  if (std::strcmp(v, "sse2") == 0) wanted = SimdLevel::sse2;
-  return wanted < best ? wanted : best;
-}
-
-std::atomic<SimdLevel>& level() {
-  static std::atomic<SimdLevel> l{from_environment(best_simd_level())};
-  return l;
-}
-
 }  // namespace
 
 SimdLevel best_simd_level() {
@@ -40,13 +22,21 @@ SimdLevel best_simd_level() {
   return best;
 }
 
-SimdLevel simd_level() { return level().load(std::memory_order_relaxed); }
-
-SimdLevel set_simd_level(SimdLevel wanted) {
+SimdLevel usable_simd_level(SimdLevel wanted) {
   const SimdLevel best = best_simd_level();
-  const SimdLevel use = wanted < best ? wanted : best;
-  level().store(use, std::memory_order_relaxed);
-  return use;
+  return wanted < best ? wanted : best;
+}
+
+SimdLevel simd_level_for(Simd wanted) {
+  switch (wanted) {
+    case Simd::scalar:
+      return usable_simd_level(SimdLevel::scalar);
+    case Simd::sse2:
+      return usable_simd_level(SimdLevel::sse2);
+    case Simd::best:
+      break;
+  }
+  return best_simd_level();
 }
 
 const char* simd_name(SimdLevel l) {

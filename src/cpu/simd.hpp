@@ -4,8 +4,9 @@
 // machines get the scalar loops. Each kernel is a static member of an instruction-set struct; code
 // that runs the AVX-512 kernels is instantiated with that struct inside a function compiled for
 // AVX-512 (VISCD_AVX512_FLATTEN: everything it calls is inlined into it), and is only entered
-// when simd_level() says the CPU has it. Nothing is compiled for AVX-512 outside such functions.
-// simd_level() also picks the rasterizer's kernels (cpu/raster_tile.hpp), built the same way.
+// when the detector's level (Config::simd, simd_level_for()) is AVX-512 and the CPU has it. Nothing
+// is compiled for AVX-512 outside such functions. The same level picks the rasterizer's kernels
+// (cpu/raster_tile.hpp), built the same way.
 //
 // Exactness: sphere_lanes() performs overlap_exact()'s float operations in its order (sub, mul,
 // add, no FMA: the library is compiled with -ffp-contract=off), and every comparison is an
@@ -24,17 +25,18 @@
 #define VISCD_HAVE_AVX512 0
 #endif
 
+#include "viscd/config.hpp"
+
 namespace viscd::detail {
 
 enum class SimdLevel { scalar, sse2, avx512 };
 
-/// The level stage 8 uses: the best this CPU has, unless set_simd_level() lowered it.
-[[nodiscard]] SimdLevel simd_level();
 /// The best level this CPU (and build) has.
 [[nodiscard]] SimdLevel best_simd_level();
-/// Uses `wanted`, or the best this CPU has when that is lower; returns the level now in use. For
-/// tests and benchmarks (VISCD_SIMD=scalar|sse2|avx512 in the environment does the same at start).
-SimdLevel set_simd_level(SimdLevel wanted);
+/// The level a detector uses: `wanted` (Config::simd), or the best this CPU has when that is lower.
+[[nodiscard]] SimdLevel simd_level_for(Simd wanted);
+/// `wanted`, or the best this CPU has when that is lower.
+[[nodiscard]] SimdLevel usable_simd_level(SimdLevel wanted);
 [[nodiscard]] const char* simd_name(SimdLevel level);
 
 /// 16 lanes of spheres (x, y, z, r) and their conservative half extents h, as arrays of 16.

@@ -252,7 +252,8 @@ Status GlDetector::run_broadphase(std::span<const Sphere> spheres, std::span<con
                                   std::vector<Pair>& pairs, FrameStats& stats) {
   VISCD_ASSERT(bits == 16 || bits == 32 || bits == 64, "Morton width must be 16, 32 or 64");
   if (Status s = validate_spheres(spheres); !s) return s;
-  if (!ctx_->make_current()) return Status::failure("OpenGL: cannot make the detector's context current");
+  if (!ctx_->make_current())
+    return Status::failure(ErrorKind::backend_failure, "OpenGL: cannot make the detector's context current");
   upload_spheres(spheres);
   has_filters_ = false;
   query_copy_ready_ = false;  // a stage test, not a frame: queries see no objects
@@ -268,7 +269,7 @@ Status GlDetector::run_broadphase(std::span<const Sphere> spheres, std::span<con
   const detail::ActiveExtent e = detail::extent_of(spheres, active, 0, active.size());
   const detail::MortonLayout layout = detail::make_layout(config_.layout, bits, e.bounds, e.mean_diameter());
   stats.bits = bits;
-  stats.layout = layout.to_string();
+  stats.layout = layout.info();
   stats.active = n;
   stats.objects = static_cast<std::uint32_t>(spheres.size());
   if (Status s = broadphase(n, static_cast<std::uint32_t>(spheres.size()), layout, e.bounds, pairs, stats); !s)

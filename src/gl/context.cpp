@@ -22,16 +22,18 @@ Result<std::unique_ptr<Context>> Context::create(bool debug) {
   // Client extensions: EGL_EXT_platform_base and EGL_MESA_platform_surfaceless.
   const char* client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
   if (!client || std::string_view(client).find("EGL_MESA_platform_surfaceless") == std::string_view::npos)
-    return R::failure("OpenGL: EGL has no surfaceless platform (EGL_MESA_platform_surfaceless; install libegl-mesa0)");
+    return R::failure(ErrorKind::backend_failure,
+                      "OpenGL: EGL has no surfaceless platform (EGL_MESA_platform_surfaceless; install libegl-mesa0)");
   ctx->display_ = eglGetPlatformDisplayEXT(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
   if (ctx->display_ == EGL_NO_DISPLAY)
-    return R::failure("OpenGL: " + egl_error("eglGetPlatformDisplayEXT(surfaceless)"));
+    return R::failure(ErrorKind::backend_failure, "OpenGL: " + egl_error("eglGetPlatformDisplayEXT(surfaceless)"));
   EGLint major = 0, minor = 0;
   if (!eglInitialize(ctx->display_, &major, &minor)) {
     ctx->display_ = EGL_NO_DISPLAY;
-    return R::failure("OpenGL: " + egl_error("eglInitialize"));
+    return R::failure(ErrorKind::backend_failure, "OpenGL: " + egl_error("eglInitialize"));
   }
-  if (!eglBindAPI(EGL_OPENGL_API)) return R::failure("OpenGL: " + egl_error("eglBindAPI(EGL_OPENGL_API)"));
+  if (!eglBindAPI(EGL_OPENGL_API))
+    return R::failure(ErrorKind::backend_failure, "OpenGL: " + egl_error("eglBindAPI(EGL_OPENGL_API)"));
   const EGLint attribs[] = {EGL_CONTEXT_MAJOR_VERSION,
                             4,
                             EGL_CONTEXT_MINOR_VERSION,
@@ -44,10 +46,11 @@ Result<std::unique_ptr<Context>> Context::create(bool debug) {
   // EGL_KHR_no_config_context: surfaceless contexts need no config.
   ctx->context_ = eglCreateContext(ctx->display_, EGL_NO_CONFIG_KHR, EGL_NO_CONTEXT, attribs);
   if (ctx->context_ == EGL_NO_CONTEXT)
-    return R::failure("OpenGL: " + egl_error("eglCreateContext(OpenGL 4.5 core)") +
-                      ": the driver offers no OpenGL 4.5 core context");
-  if (!ctx->make_current()) return R::failure("OpenGL: " + egl_error("eglMakeCurrent(surfaceless)"));
-  if (epoxy_gl_version() < 45) return R::failure("OpenGL: context is older than 4.5");
+    return R::failure(ErrorKind::backend_failure, "OpenGL: " + egl_error("eglCreateContext(OpenGL 4.5 core)") +
+                                                      ": the driver offers no OpenGL 4.5 core context");
+  if (!ctx->make_current())
+    return R::failure(ErrorKind::backend_failure, "OpenGL: " + egl_error("eglMakeCurrent(surfaceless)"));
+  if (epoxy_gl_version() < 45) return R::failure(ErrorKind::backend_failure, "OpenGL: context is older than 4.5");
   ctx->description_ = std::string(reinterpret_cast<const char*>(glGetString(GL_RENDERER))) + " | " +
                       reinterpret_cast<const char*>(glGetString(GL_VERSION));
   if (debug) {
@@ -65,10 +68,12 @@ Result<std::unique_ptr<Context>> Context::adopt_current() {
   ctx->adopted_ = true;
   const GLubyte* version = glGetString(GL_VERSION);
   if (!version)
-    return R::failure("OpenGL: GlOptions::use_current_context is set, but no OpenGL context is current on this thread");
+    return R::failure(ErrorKind::backend_failure,
+                      "OpenGL: GlOptions::use_current_context is set, but no OpenGL context is current on this thread");
   if (epoxy_gl_version() < 45 || !epoxy_is_desktop_gl())
-    return R::failure(std::string("OpenGL: the current context is ") + reinterpret_cast<const char*>(version) +
-                      "; the gl backend needs OpenGL 4.5 (desktop, core or compatibility)");
+    return R::failure(ErrorKind::backend_failure,
+                      std::string("OpenGL: the current context is ") + reinterpret_cast<const char*>(version) +
+                          "; the gl backend needs OpenGL 4.5 (desktop, core or compatibility)");
   ctx->description_ = std::string(reinterpret_cast<const char*>(glGetString(GL_RENDERER))) + " | " +
                       reinterpret_cast<const char*>(version);
   return ctx;

@@ -5,6 +5,7 @@
 #include <cstring>
 #include <new>
 
+#include "core/brute_queries.hpp"
 #include "core/frame_rules.hpp"
 #include "core/stopwatch.hpp"
 
@@ -15,9 +16,9 @@ Result<std::unique_ptr<GlDetector>> GlDetector::create(const Config& config, con
   using R = Result<std::unique_ptr<GlDetector>>;
   std::unique_ptr<GlDetector> d(new GlDetector(config, options));
   auto ctx = options.use_current_context ? Context::adopt_current() : Context::create(options.debug);
-  if (!ctx) return R::failure(ctx.error());
+  if (!ctx) return R::failure(ctx.status());
   d->ctx_ = std::move(ctx.value());
-  if (Status s = d->init(); !s) return R::failure(s.error());
+  if (Status s = d->init(); !s) return R::failure(s);
   return d;
 }
 
@@ -53,14 +54,14 @@ Status GlDetector::init() {
                             {&shade_, "shade.comp"}};
   for (const Entry& e : computes) {
     auto p = Program::compute(e.name);
-    if (!p) return Status::failure(p.error());
+    if (!p) return p.status();
     *e.program = std::move(p.value());
   }
   auto imp = Program::graphics("gbuffer_impostor.vert", "gbuffer_impostor.frag");
-  if (!imp) return Status::failure(imp.error());
+  if (!imp) return imp.status();
   impostor_ = std::move(imp.value());
   auto mesh = Program::graphics("gbuffer_mesh.vert", "gbuffer_mesh.frag");
-  if (!mesh) return Status::failure(mesh.error());
+  if (!mesh) return mesh.status();
   mesh_ = std::move(mesh.value());
   VISCD_ASSERT(radix_scatter_.local_size() == 256 && radix_hist_.local_size() == 256 && radix_scan_.local_size() == 256,
                "radix sort needs one invocation per 8-bit digit");
@@ -110,7 +111,7 @@ Status GlDetector::gl_errors(const char* where) {
   if (errors.empty()) return {};
   std::string msg = std::string("OpenGL error during ") + where + ": " + errors.front();
   if (errors.size() > 1) msg += " (and " + std::to_string(errors.size() - 1) + " more)";
-  return Status::failure(msg);
+  return Status::failure(ErrorKind::backend_failure, msg);
 }
 
 void GlDetector::upload_spheres(std::span<const Sphere> spheres) {
@@ -189,23 +190,24 @@ Status GlDetector::run_frame(const FrameInput& input, FrameResult& out) {
   try {
     return detect_frame(input, out);
   } catch (const std::bad_alloc&) {
-    return Status::failure(detail::out_of_memory_message(input.spheres.size(), input.camera, config_));
+    return Status::failure(ErrorKind::out_of_memory,
+                           detail::out_of_memory_message(input.spheres.size(), input.camera, config_));
   }
 }
 
 bool GlDetector::query_ray(const Ray& ray, RayHit& hit) {
   read_active_spheres();
-  return brute_ray(query_active_, query_ids_, ray, hit);
+  return detail::brute_ray(query_active_, query_ids_, ray, hit);
 }
 
 void GlDetector::query_ray_all(const Ray& ray, std::vector<RayHit>& hits) {
   read_active_spheres();
-  brute_ray_all(query_active_, query_ids_, ray, hits);
+  detail::brute_ray_all(query_active_, query_ids_, ray, hits);
 }
 
 void GlDetector::query_overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices) {
   read_active_spheres();
-  brute_overlap(query_active_, query_ids_, sphere, indices);
+  detail::brute_overlap(query_active_, query_ids_, sphere, indices);
 }
 
 void GlDetector::read_active_spheres() {
@@ -232,19 +234,19 @@ Status GlDetector::detect_frame(const FrameInput& in, FrameResult& out) {
   const std::uint64_t max_objects =
       std::min<std::uint64_t>((std::uint64_t{1} << 29) - 1, std::uint64_t{max_groups_} * VISCD_WG_SIZE);
   if (in.spheres.size() > max_objects)
-    return Status::failure("the gl backend handles at most " + std::to_string(max_objects) +
-                           " objects on this driver (GL_MAX_COMPUTE_WORK_GROUP_COUNT = " + std::to_string(max_groups_) +
-                           " groups of " + std::to_string(VISCD_WG_SIZE) + "); the frame has " +
-                           std::to_string(in.spheres.size()) + ": use the cpu backend");
-  if (!ctx_->make_current()) return Status::failure("OpenGL: cannot make the detector's context current");
+    return Status::failure(ErrorKind::unsupported_input,
+                           "the gl backend handles at most " + std::to_string(max_objects) +
+                               " objects on this driver (GL_MAX_COMPUTE_WORK_GROUP_COUNT = " +
+                               std::to_string(max_groups_) + " groups of " + std::to_string(VISCD_WG_SIZE) +
+                               "); the frame has " + std::to_string(in.spheres.size()) + ": use the cpu backend");
+  if (!ctx_->make_current())
+    return Status::failure(ErrorKind::backend_failure, "OpenGL: cannot make the detector's context current");
   if (Status s = gl_errors("an earlier call"); !s) return s;
   const auto n_all = static_cast<std::uint32_t>(in.spheres.size());
   const bool has_camera = in.camera != nullptr;
   const bool callers_map = !in.id_map.empty() || in.gl_id_texture != 0;
   FrameStats& stats = out.stats;
-  std::string layout_text = std::move(stats.layout);  // keep its buffer: no allocation per frame
   stats = FrameStats{};
-  stats.layout = std::move(layout_text);
   stats.objects = n_all;
   stats.has_camera = has_camera;
 
@@ -266,9 +268,9 @@ Status GlDetector::detect_frame(const FrameInput& in, FrameResult& out) {
   mark_colliding(static_cast<std::uint32_t>(out.pairs.size()));
   read_states_and_pixels(n_all, has_pixels_, out);
   shade(out);
-  const double layout_ms = stats.stage_ms[static_cast<std::size_t>(Stage::layout)];
+  const double layout_ms = stats.ms(Stage::layout);
   read_timers(stats);
-  stats.stage_ms[static_cast<std::size_t>(Stage::layout)] = layout_ms;
+  stats.ms(Stage::layout) = layout_ms;
   return gl_errors("detect()");
 }
 
@@ -383,8 +385,8 @@ GlDetector::LayoutChoice GlDetector::choose_layout(std::uint32_t objects, bool h
   // border cell, so the codes are valid keys and the pairs stay exact.
   choice.layout = detail::make_layout(config_.layout, bits, choice.bounds, mean_diameter);
   stats.bits = bits;
-  choice.layout.write(stats.layout);
-  stats.stage_ms[static_cast<std::size_t>(Stage::layout)] = sw.lap();
+  stats.layout = choice.layout.info();
+  stats.ms(Stage::layout) = sw.lap();
   return choice;
 }
 
@@ -408,10 +410,11 @@ Status GlDetector::id_check(const FrameInput& in) const {
   if (!in.id_map.empty()) return detail::id_map_error(in.id_map, in.id_map_width, in.spheres.size());
   const std::uint32_t first = frame_info_.id_check.y;
   const auto w = static_cast<std::uint32_t>(in.id_map_width);
-  return Status::failure("FrameInput::gl_id_texture: texel (" + std::to_string(first % w) + ", " +
-                         std::to_string(first / w) + ") and " + std::to_string(bad - 1) +
-                         " more hold ids above the frame's " + std::to_string(in.spheres.size()) +
-                         " objects (an id is an object index + 1, 0 is background)");
+  return Status::failure(ErrorKind::invalid_input, "FrameInput::gl_id_texture: texel (" + std::to_string(first % w) +
+                                                       ", " + std::to_string(first / w) + ") and " +
+                                                       std::to_string(bad - 1) + " more hold ids above the frame's " +
+                                                       std::to_string(in.spheres.size()) +
+                                                       " objects (an id is an object index + 1, 0 is background)");
 }
 
 void GlDetector::mark_colliding(std::uint32_t pairs) {
@@ -441,8 +444,8 @@ void GlDetector::read_states_and_pixels(std::uint32_t objects, bool has_pixels, 
 
 Result<std::unique_ptr<Detector>> make_gl_detector(const Config& config, const GlOptions& options) {
   auto d = gl::GlDetector::create(config, options);
-  if (!d) return Result<std::unique_ptr<Detector>>::failure(d.error());
-  return std::unique_ptr<Detector>(std::move(d.value()));
+  if (!d) return Result<std::unique_ptr<Detector>>::failure(d.status());
+  return detail::DetectorAccess::wrap(std::move(d.value()));
 }
 
 std::uint64_t gl::GlDetector::memory_bytes() const {
@@ -467,12 +470,13 @@ std::uint64_t gl::GlDetector::memory_bytes() const {
 
 Result<unsigned> make_gl_id_texture(int width, int height) {
   using R = Result<unsigned>;
-  if (Status s = validate_map_size(width, height); !s) return R::failure(s.error());
+  if (Status s = validate_map_size(width, height); !s) return R::failure(s);
   if (width < 1 || height < 1)
-    return R::failure("an id texture of " + std::to_string(width) + "x" + std::to_string(height) +
-                      " texels: both sides must be at least 1");
+    return R::failure(ErrorKind::invalid_input, "an id texture of " + std::to_string(width) + "x" +
+                                                    std::to_string(height) + " texels: both sides must be at least 1");
   if (!glGetString(GL_VERSION) || epoxy_gl_version() < 45)
-    return R::failure("make_gl_id_texture: no OpenGL 4.5 context is current on this thread");
+    return R::failure(ErrorKind::backend_failure,
+                      "make_gl_id_texture: no OpenGL 4.5 context is current on this thread");
   GLuint t = 0;
   glCreateTextures(GL_TEXTURE_2D, 1, &t);
   glTextureStorage2D(t, 1, GL_R32UI, width, height);
@@ -480,14 +484,14 @@ Result<unsigned> make_gl_id_texture(int width, int height) {
   glTextureParameteri(t, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
   if (const GLenum e = glGetError(); e != GL_NO_ERROR) {
     glDeleteTextures(1, &t);
-    return R::failure("make_gl_id_texture: OpenGL error " + std::to_string(e));
+    return R::failure(ErrorKind::backend_failure, "make_gl_id_texture: OpenGL error " + std::to_string(e));
   }
   return t;
 }
 
 Result<std::string> gl_device() {
   auto ctx = gl::Context::create(false);
-  if (!ctx) return Result<std::string>::failure(ctx.error());
+  if (!ctx) return Result<std::string>::failure(ctx.status());
   return ctx.value()->description();
 }
 

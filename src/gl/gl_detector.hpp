@@ -24,6 +24,7 @@
 #include <span>
 #include <vector>
 
+#include "core/backend.hpp"
 #include "core/geometry.hpp"
 #include "core/lbvh.hpp"
 #include "core/morton.hpp"
@@ -36,7 +37,7 @@
 
 namespace viscd::gl {
 
-class GlDetector final : public Detector {
+class GlDetector final : public detail::Backend {
  public:
   [[nodiscard]] static Result<std::unique_ptr<GlDetector>> create(const Config& config, const GlOptions& options);
   ~GlDetector() override;
@@ -84,7 +85,7 @@ class GlDetector final : public Detector {
   void read_active_spheres();
 
  private:
-  GlDetector(const Config& config, const GlOptions& options) : Detector(config), options_(options) {}
+  GlDetector(const Config& config, const GlOptions& options) : Backend(config), options_(options) {}
   [[nodiscard]] Status init();
   [[nodiscard]] Status gl_errors(const char* where);
   void upload_spheres(std::span<const Sphere> spheres);

@@ -39,7 +39,9 @@ std::string program_log(GLuint p) {
 
 Result<Shader> compile(GLenum stage, std::string_view name, std::string_view defines) {
   const std::string_view src = find_shader(name);
-  if (src.empty()) return Result<Shader>::failure("OpenGL: no embedded shader named '" + std::string(name) + "'");
+  if (src.empty())
+    return Result<Shader>::failure(ErrorKind::backend_failure,
+                                   "OpenGL: no embedded shader named '" + std::string(name) + "'");
   const std::string text = with_defines(src, defines);
   Shader s(glCreateShader(stage));
   const char* ptr = text.c_str();
@@ -48,8 +50,8 @@ Result<Shader> compile(GLenum stage, std::string_view name, std::string_view def
   GLint ok = GL_FALSE;
   glGetShaderiv(s.get(), GL_COMPILE_STATUS, &ok);
   if (ok != GL_TRUE)
-    return Result<Shader>::failure("OpenGL: shader " + std::string(name) + " does not compile:\n" +
-                                   shader_log(s.get()));
+    return Result<Shader>::failure(ErrorKind::backend_failure, "OpenGL: shader " + std::string(name) +
+                                                                   " does not compile:\n" + shader_log(s.get()));
   return s;
 }
 
@@ -61,8 +63,8 @@ Result<ProgramHandle> link(std::initializer_list<GLuint> shaders, std::string_vi
   glGetProgramiv(p.get(), GL_LINK_STATUS, &ok);
   for (GLuint s : shaders) glDetachShader(p.get(), s);
   if (ok != GL_TRUE)
-    return Result<ProgramHandle>::failure("OpenGL: program " + std::string(what) + " does not link:\n" +
-                                          program_log(p.get()));
+    return Result<ProgramHandle>::failure(ErrorKind::backend_failure, "OpenGL: program " + std::string(what) +
+                                                                          " does not link:\n" + program_log(p.get()));
   return p;
 }
 
@@ -70,9 +72,9 @@ Result<ProgramHandle> link(std::initializer_list<GLuint> shaders, std::string_vi
 
 Result<Program> Program::compute(std::string_view name, std::string_view defines) {
   auto s = compile(GL_COMPUTE_SHADER, name, defines);
-  if (!s) return Result<Program>::failure(s.error());
+  if (!s) return Result<Program>::failure(s.status());
   auto p = link({s.value().get()}, name);
-  if (!p) return Result<Program>::failure(p.error());
+  if (!p) return Result<Program>::failure(p.status());
   Program prog;
   prog.handle_ = std::move(p.value());
   GLint size[3] = {1, 1, 1};
@@ -84,11 +86,11 @@ Result<Program> Program::compute(std::string_view name, std::string_view defines
 
 Result<Program> Program::graphics(std::string_view vert, std::string_view frag, std::string_view defines) {
   auto v = compile(GL_VERTEX_SHADER, vert, defines);
-  if (!v) return Result<Program>::failure(v.error());
+  if (!v) return Result<Program>::failure(v.status());
   auto f = compile(GL_FRAGMENT_SHADER, frag, defines);
-  if (!f) return Result<Program>::failure(f.error());
+  if (!f) return Result<Program>::failure(f.status());
   auto p = link({v.value().get(), f.value().get()}, std::string(vert) + " + " + std::string(frag));
-  if (!p) return Result<Program>::failure(p.error());
+  if (!p) return Result<Program>::failure(p.status());
   Program prog;
   prog.handle_ = std::move(p.value());
   prog.read_uniforms();

@@ -48,10 +48,11 @@ Status GlDetector::render_visibility(std::uint32_t objects) {
                                                         static_cast<std::uint32_t>(max_counter_buffer_bytes_) / 4);
     if (objects > limit)
       return Status::failure(
+          ErrorKind::unsupported_input,
           "atomic_uint counting supports at most " + std::to_string(limit) +
-          " objects on this driver (GL_MAX_FRAGMENT_ATOMIC_COUNTERS = " + std::to_string(max_fragment_counters_) +
-          ", GL_MAX_ATOMIC_COUNTER_BUFFER_SIZE = " + std::to_string(max_counter_buffer_bytes_) +
-          " bytes); the frame has " + std::to_string(objects) + ": use the ssbo counter mode");
+              " objects on this driver (GL_MAX_FRAGMENT_ATOMIC_COUNTERS = " + std::to_string(max_fragment_counters_) +
+              ", GL_MAX_ATOMIC_COUNTER_BUFFER_SIZE = " + std::to_string(max_counter_buffer_bytes_) +
+              " bytes); the frame has " + std::to_string(objects) + ": use the ssbo counter mode");
   }
   stage_begin(Stage::visibility);
   ensure_map(rig_->map_w, rig_->map_h);
@@ -76,9 +77,10 @@ Status GlDetector::count_callers_map(const FrameInput& in) {
     ids = ids_tex_.get();
   } else {
     if (glIsTexture(ids) != GL_TRUE)
-      return Status::failure("FrameInput::gl_id_texture = " + std::to_string(ids) +
-                             " is not a texture of the detector's OpenGL context (GlOptions::use_current_context "
-                             "makes the detector use the caller's)");
+      return Status::failure(ErrorKind::invalid_input,
+                             "FrameInput::gl_id_texture = " + std::to_string(ids) +
+                                 " is not a texture of the detector's OpenGL context (GlOptions::use_current_context "
+                                 "makes the detector use the caller's)");
     GLint tw = 0, th = 0, format = 0;
     glGetTextureLevelParameteriv(ids, 0, GL_TEXTURE_WIDTH, &tw);
     glGetTextureLevelParameteriv(ids, 0, GL_TEXTURE_HEIGHT, &th);
@@ -86,13 +88,16 @@ Status GlDetector::count_callers_map(const FrameInput& in) {
     if (format != GL_R32UI) {
       char hex[16];
       std::snprintf(hex, sizeof hex, "0x%04x", static_cast<unsigned>(format));
-      return Status::failure("FrameInput::gl_id_texture = " + std::to_string(ids) +
-                             ": expected an R32UI texture (object index + 1 per texel); its internal format is " + hex);
+      return Status::failure(ErrorKind::invalid_input,
+                             "FrameInput::gl_id_texture = " + std::to_string(ids) +
+                                 ": expected an R32UI texture (object index + 1 per texel); its internal format is " +
+                                 hex);
     }
     if (tw != w || th != h)
-      return Status::failure("FrameInput::gl_id_texture = " + std::to_string(ids) + " is " + std::to_string(tw) + "x" +
-                             std::to_string(th) + " texels, but id_map_width x id_map_height is " + std::to_string(w) +
-                             "x" + std::to_string(h));
+      return Status::failure(ErrorKind::invalid_input, "FrameInput::gl_id_texture = " + std::to_string(ids) + " is " +
+                                                           std::to_string(tw) + "x" + std::to_string(th) +
+                                                           " texels, but id_map_width x id_map_height is " +
+                                                           std::to_string(w) + "x" + std::to_string(h));
   }
   stage_begin(Stage::count);
   // Always the ssbo counter: it checks every id against N, which a caller's map needs.
@@ -209,7 +214,7 @@ Status GlDetector::count_pixels(GLuint ids, int w, int h, std::uint32_t n, GlCou
     if (!count_atomic_ || count_atomic_n_ != n) {
       auto p = Program::graphics("fullscreen.vert", "count_atomic.frag",
                                  "#define VISCD_AC_COUNT " + std::to_string(n) + "\n");
-      if (!p) return Status::failure(p.error());
+      if (!p) return p.status();
       count_atomic_ = std::move(p.value());
       count_atomic_n_ = n;
     }
@@ -287,7 +292,8 @@ std::vector<std::uint32_t> GlDetector::read_id_map() {
 Result<std::vector<std::uint32_t>> GlDetector::count_id_map(std::span<const std::uint32_t> ids, int width, int height,
                                                             std::uint32_t objects) {
   using R = Result<std::vector<std::uint32_t>>;
-  if (!ctx_->make_current()) return R::failure("OpenGL: cannot make the detector's context current");
+  if (!ctx_->make_current())
+    return R::failure(ErrorKind::backend_failure, "OpenGL: cannot make the detector's context current");
   VISCD_ASSERT(ids.size() == static_cast<std::size_t>(width) * static_cast<std::size_t>(height), "id map size");
   ensure_map(width, height);
   const std::size_t w = static_cast<std::size_t>(width), h = static_cast<std::size_t>(height);
@@ -296,11 +302,10 @@ Result<std::vector<std::uint32_t>> GlDetector::count_id_map(std::span<const std:
   glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
   glTextureSubImage2D(ids_tex_.get(), 0, 0, 0, width, height, GL_RED_INTEGER, GL_UNSIGNED_INT, bottom_up.data());
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
-  if (Status s = count_pixels(ids_tex_.get(), width, height, objects, options_.counter); !s)
-    return R::failure(s.error());
+  if (Status s = count_pixels(ids_tex_.get(), width, height, objects, options_.counter); !s) return R::failure(s);
   std::vector<std::uint32_t> counts(objects);
   if (objects) glGetNamedBufferSubData(counts_.get(), 0, 4 * static_cast<GLsizeiptr>(objects), counts.data());
-  if (Status s = gl_errors("count_id_map()"); !s) return R::failure(s.error());
+  if (Status s = gl_errors("count_id_map()"); !s) return R::failure(s);
   return counts;
 }
 

@@ -107,11 +107,11 @@ Result<std::string> slurp(const std::filesystem::path& path) {
   using R = Result<std::string>;
   const std::string name = printable(path.string(), 200);
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) return R::failure(name + ": cannot open for reading: " + reason(errno));
+  if (fd < 0) return R::failure(ErrorKind::io_failure, name + ": cannot open for reading: " + reason(errno));
   struct stat st {};
   if (::fstat(fd, &st) == 0 && S_ISDIR(st.st_mode)) {
     ::close(fd);
-    return R::failure(name + ": is a folder, expected a file");
+    return R::failure(ErrorKind::invalid_input, name + ": is a folder, expected a file");
   }
   std::string text;
   if (S_ISREG(st.st_mode) && st.st_size > 0) text.reserve(static_cast<std::size_t>(st.st_size));
@@ -123,7 +123,7 @@ Result<std::string> slurp(const std::filesystem::path& path) {
       if (errno == EINTR) continue;
       const int e = errno;
       ::close(fd);
-      return R::failure(name + ": read error: " + reason(e));
+      return R::failure(ErrorKind::io_failure, name + ": read error: " + reason(e));
     }
     text.append(buf, static_cast<std::size_t>(got));
   }
@@ -201,7 +201,7 @@ SpheresResult parse_xyzr(std::string_view text, std::string_view source) {
     out.push_back(s);
     return true;
   });
-  if (!error.empty()) return SpheresResult::failure(error);
+  if (!error.empty()) return SpheresResult::failure(ErrorKind::invalid_input, error);
   return out;
 }
 
@@ -270,19 +270,19 @@ Result<SphereTable> parse_sphere_table(std::string_view text, std::string_view s
     if (with_filters) out.filters.push_back(f);
     return true;
   });
-  if (!error.empty()) return R::failure(error);
+  if (!error.empty()) return R::failure(ErrorKind::invalid_input, error);
   return out;
 }
 
 SpheresResult parse_csv(std::string_view text, std::string_view source) {
   auto table = parse_sphere_table(text, source);
-  if (!table) return SpheresResult::failure(table.error());
+  if (!table) return SpheresResult::failure(table.status());
   return std::move(table.value().spheres);
 }
 
 SpheresResult read_spheres(const std::filesystem::path& path) {
   auto text = slurp(path);
-  if (!text) return SpheresResult::failure(text.error());
+  if (!text) return SpheresResult::failure(text.status());
   if (path.extension() == ".csv") return parse_csv(text.value(), path.string());
   return parse_xyzr(text.value(), path.string());
 }
@@ -290,10 +290,10 @@ SpheresResult read_spheres(const std::filesystem::path& path) {
 Result<SphereTable> read_sphere_table(const std::filesystem::path& path) {
   using R = Result<SphereTable>;
   auto text = slurp(path);
-  if (!text) return R::failure(text.error());
+  if (!text) return R::failure(text.status());
   if (path.extension() == ".csv") return parse_sphere_table(text.value(), path.string());
   auto spheres = parse_xyzr(text.value(), path.string());
-  if (!spheres) return R::failure(spheres.error());
+  if (!spheres) return R::failure(spheres.status());
   return SphereTable{std::move(spheres.value()), {}};
 }
 
@@ -328,9 +328,12 @@ Result<Camera> parse_camera(std::string_view text, std::string_view source) {
       const auto colon = what.find(": ");
       if (colon != std::string::npos) what.erase(0, colon + 2);
     }
-    return Result<Camera>::failure(printable(source, 200) + at + ": invalid JSON: " + printable(what, 200));
+    return Result<Camera>::failure(ErrorKind::invalid_input,
+                                   printable(source, 200) + at + ": invalid JSON: " + printable(what, 200));
   }
-  auto fail = [&](const std::string& m) { return Result<Camera>::failure(printable(source, 200) + ": " + m); };
+  auto fail = [&](const std::string& m) {
+    return Result<Camera>::failure(ErrorKind::invalid_input, printable(source, 200) + ": " + m);
+  };
   if (!j.is_object()) return fail("expected a JSON object {\"eye\": [x,y,z], ...}");
   Camera c;
   for (auto it = j.begin(); it != j.end(); ++it) {
@@ -392,7 +395,7 @@ Result<Camera> parse_camera(std::string_view text, std::string_view source) {
 
 Result<Camera> read_camera(const std::filesystem::path& path) {
   auto text = slurp(path);
-  if (!text) return Result<Camera>::failure(text.error());
+  if (!text) return Result<Camera>::failure(text.status());
   return parse_camera(text.value(), path.string());
 }
 
@@ -440,14 +443,15 @@ Result<AtomicFile> AtomicFile::create(const std::filesystem::path& path) {
     const fs::path target = fs::weakly_canonical(dest, ec);
     if (!ec) dest = target;
   }
-  if (fs::is_directory(dest, ec)) return R::failure(name + ": is a folder, expected a file name");
-  if (dest.filename().empty()) return R::failure(name + ": expected a file name");
+  if (fs::is_directory(dest, ec))
+    return R::failure(ErrorKind::invalid_input, name + ": is a folder, expected a file name");
+  if (dest.filename().empty()) return R::failure(ErrorKind::invalid_input, name + ": expected a file name");
   const fs::path dir = dest.has_parent_path() ? dest.parent_path() : fs::path(".");
   fs::create_directories(dir, ec);
-  if (ec) return R::failure(name + ": cannot create its folder: " + ec.message());
+  if (ec) return R::failure(ErrorKind::io_failure, name + ": cannot create its folder: " + ec.message());
   std::string tmpl = (dir / ("." + dest.filename().string() + ".tmp-XXXXXX")).string();
   const int fd = ::mkostemp(tmpl.data(), O_CLOEXEC);
-  if (fd < 0) return R::failure(name + ": cannot open for writing: " + reason(errno));
+  if (fd < 0) return R::failure(ErrorKind::io_failure, name + ": cannot open for writing: " + reason(errno));
   // mkostemp creates the file private (0600); give it the mode an ordinary new file would get.
   const mode_t mask = ::umask(0);
   ::umask(mask);
@@ -455,7 +459,7 @@ Result<AtomicFile> AtomicFile::create(const std::filesystem::path& path) {
     const int e = errno;
     ::close(fd);
     ::unlink(tmpl.c_str());
-    return R::failure(name + ": cannot set the file mode: " + reason(e));
+    return R::failure(ErrorKind::io_failure, name + ": cannot set the file mode: " + reason(e));
   }
   auto state = std::make_unique<State>();
   state->path = dest;
@@ -466,13 +470,13 @@ Result<AtomicFile> AtomicFile::create(const std::filesystem::path& path) {
 
 Status AtomicFile::write(std::string_view bytes) {
   State& st = *state_;
-  if (!st.error.empty()) return Status::failure(st.error);
+  if (!st.error.empty()) return Status::failure(ErrorKind::io_failure, st.error);
   while (!bytes.empty()) {
     const ssize_t put = ::write(st.fd, bytes.data(), bytes.size());
     if (put < 0) {
       if (errno == EINTR) continue;
       st.error = printable(st.path.string(), 200) + ": write failed: " + reason(errno);
-      return Status::failure(st.error);
+      return Status::failure(ErrorKind::io_failure, st.error);
     }
     bytes.remove_prefix(static_cast<std::size_t>(put));
   }
@@ -481,7 +485,7 @@ Status AtomicFile::write(std::string_view bytes) {
 
 Status AtomicFile::commit() {
   State& st = *state_;
-  if (!st.error.empty()) return Status::failure(st.error);
+  if (!st.error.empty()) return Status::failure(ErrorKind::io_failure, st.error);
   if (st.committed) return {};
   const std::string name = printable(st.path.string(), 200);
   const bool synced = ::fsync(st.fd) == 0 || errno == EINVAL;  // EINVAL: a file system without fsync
@@ -493,7 +497,7 @@ Status AtomicFile::commit() {
   if (synced && !closed) st.error = name + ": write failed: " + reason(close_errno);
   if (st.error.empty() && ::rename(st.temporary.c_str(), st.path.c_str()) != 0)
     st.error = name + ": cannot replace the file: " + reason(errno);
-  if (!st.error.empty()) return Status::failure(st.error);
+  if (!st.error.empty()) return Status::failure(ErrorKind::io_failure, st.error);
   st.committed = true;
   return {};
 }
@@ -503,7 +507,7 @@ namespace {
 template <class F>
 Status write_whole(const std::filesystem::path& path, F&& fill) {
   auto f = AtomicFile::create(path);
-  if (!f) return Status::failure(f.error());
+  if (!f) return f.status();
   if (Status s = fill(f.value()); !s) return s;
   return f.value().commit();
 }
@@ -556,7 +560,7 @@ std::string stats_json(const FrameStats& st, std::string_view backend) {
   j["mean_pixels"] =
       st.has_pixels || st.has_camera ? nlohmann::ordered_json(st.mean_pixels) : nlohmann::ordered_json(nullptr);
   j["bits"] = st.bits;
-  j["layout"] = st.layout;
+  j["layout"] = format_layout(st.layout);
   j["pairs"] = st.pairs;
   nlohmann::ordered_json ms;
   for (std::size_t s = 0; s < kStageCount; ++s) ms[std::string(stage_name(static_cast<Stage>(s)))] = st.stage_ms[s];
@@ -567,7 +571,8 @@ std::string stats_json(const FrameStats& st, std::string_view backend) {
 
 Status write_png(AtomicFile& out, std::span<const std::uint8_t> rgba, int width, int height) {
   if (width < 1 || height < 1 || rgba.size() != static_cast<std::size_t>(width) * height * 4)
-    return Status::failure(printable(out.path().string(), 200) + ": image size does not match its pixels");
+    return Status::failure(ErrorKind::invalid_input,
+                           printable(out.path().string(), 200) + ": image size does not match its pixels");
   struct Sink {
     AtomicFile* file;
     Status status;
@@ -577,7 +582,7 @@ Status write_png(AtomicFile& out, std::span<const std::uint8_t> rgba, int width,
     if (k->status.ok()) k->status = k->file->write({static_cast<const char*>(data), static_cast<std::size_t>(size)});
   };
   if (!stbi_write_png_to_func(put, &sink, width, height, 4, rgba.data(), width * 4))
-    return Status::failure(printable(out.path().string(), 200) + ": cannot encode the PNG");
+    return Status::failure(ErrorKind::io_failure, printable(out.path().string(), 200) + ": cannot encode the PNG");
   return sink.status;
 }
 

@@ -116,7 +116,8 @@ Result<SceneKind> parse_scene_kind(std::string_view name) {
   if (name == "ring") return SceneKind::ring;
   if (name == "box") return SceneKind::box;
   if (name == "clusters") return SceneKind::clusters;
-  return Result<SceneKind>::failure("unknown scene '" + std::string(name) + "': expected ring, box or clusters");
+  return Result<SceneKind>::failure(ErrorKind::invalid_input,
+                                    "unknown scene '" + std::string(name) + "': expected ring, box or clusters");
 }
 
 std::string_view scene_kind_name(SceneKind kind) {
@@ -154,8 +155,9 @@ Result<Camera> camera_preset(std::string_view name, const Scene& scene, int widt
     const double a = 2.0 * std::numbers::pi * scene.time() / 20.0;
     set(static_cast<float>(1.3 * R * std::cos(a)), 0.6f * R, static_cast<float>(1.3 * R * std::sin(a)), 0, 0, 0);
   } else {
-    return Result<Camera>::failure("unknown camera preset '" + std::string(name) +
-                                   "': expected zoom-out, zoom-in, orbit or a .json file");
+    return Result<Camera>::failure(
+        ErrorKind::invalid_input,
+        "unknown camera preset '" + std::string(name) + "': expected zoom-out, zoom-in, orbit or a .json file");
   }
   c.near_plane = 0.05f * rm;
   c.far_plane = 8 * R + 100 * rm;

@@ -35,6 +35,7 @@ TEST_P(ConformanceFrames, PairMemoryCapIsAnError) {
   st = detector_->detect(dense, nullptr, f);
   ASSERT_FALSE(st.ok()) << "4950 pairs over a cap of one byte less";
   EXPECT_FALSE(st.error().empty());
+  EXPECT_EQ(st.kind(), ErrorKind::pair_cap) << error_kind_name(st.kind());
 
   // Far over the cap (and over the gl backend's initial pair buffer).
   const std::vector<Sphere> denser(500, Sphere{1, 2, 3, 1});  // 124750 pairs
@@ -43,6 +44,7 @@ TEST_P(ConformanceFrames, PairMemoryCapIsAnError) {
   st = detector_->detect(denser, nullptr, f);
   ASSERT_FALSE(st.ok()) << "124750 pairs over a cap of 1000";
   EXPECT_FALSE(st.error().empty());
+  EXPECT_EQ(st.kind(), ErrorKind::pair_cap) << error_kind_name(st.kind());
 
   // With a camera: culling off, so the count is the whole scene's.
   const CameraScene scene = camera_scene(300, 5);
@@ -57,6 +59,7 @@ TEST_P(ConformanceFrames, PairMemoryCapIsAnError) {
   st = detector_->detect(cloud, &cam, f);
   ASSERT_FALSE(st.ok()) << pairs << " pairs with a camera over a cap of one pair less";
   EXPECT_FALSE(st.error().empty());
+  EXPECT_EQ(st.kind(), ErrorKind::pair_cap) << error_kind_name(st.kind());
   c.pair_memory_cap = pairs * sizeof(Pair);
   detector_->set_config(c);
   st = detector_->detect(cloud, &cam, f);
@@ -99,6 +102,7 @@ TEST_P(ConformanceFrames, InvalidSpheresAreErrors) {
           EXPECT_FALSE(st.ok()) << backend() << " accepted " << what << " at " << at << " of " << n
                                 << (camera ? " with a camera" : "");
           EXPECT_FALSE(st.error().empty()) << what;
+          EXPECT_EQ(st.kind(), ErrorKind::invalid_input) << what << ": " << error_kind_name(st.kind());
         }
       }
     }
@@ -131,6 +135,7 @@ TEST_P(ConformanceFrames, InvalidCameraIsAnError) {
     const Status st = detector_->detect(s, &camera, f);
     EXPECT_FALSE(st.ok()) << backend() << " accepted a camera with " << what;
     EXPECT_FALSE(st.error().empty()) << what;
+    EXPECT_EQ(st.kind(), ErrorKind::invalid_input) << what << ": " << error_kind_name(st.kind());
   }
   // A map of W x 0 pixels.
   Config c;

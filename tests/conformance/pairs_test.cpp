@@ -185,8 +185,8 @@ TEST_P(ConformancePairs, CullingWithACamera) {
       int bits;
     } widths[] = {{4 * mu, 8 * mu, 16}, {mu / 4, 4 * mu, 32}, {mu / 8, mu / 4, 64}};
     for (const auto& w : widths) {
-      c.a = w.a;
-      c.b = w.b;
+      c.pixels_for_32_bits = w.a;
+      c.pixels_for_64_bits = w.b;
       detector_->set_config(c);
       check(s, "adaptive width " + std::to_string(w.bits), &cam);
       EXPECT_EQ(frame_.stats.bits, w.bits);

@@ -14,21 +14,21 @@ namespace {
 Aabb flat_world() { return Aabb{{-100, -3, -90}, {100, 3, 90}}; }
 
 TEST(MortonLayout, ReproducesPaperTable2) {
-  EXPECT_EQ(extended_layout(16, flat_world(), 1.0f).to_string(), "x(7)→z(6)→y(3)");
-  EXPECT_EQ(extended_layout(32, flat_world(), 1.0f).to_string(), "x(15)→z(14)→y(3)");
-  EXPECT_EQ(extended_layout(64, flat_world(), 1.0f).to_string(), "x(31)→z(30)→y(3)");
+  EXPECT_EQ(format_layout(extended_layout(16, flat_world(), 1.0f).info()), "x(7)→z(6)→y(3)");
+  EXPECT_EQ(format_layout(extended_layout(32, flat_world(), 1.0f).info()), "x(15)→z(14)→y(3)");
+  EXPECT_EQ(format_layout(extended_layout(64, flat_world(), 1.0f).info()), "x(31)→z(30)→y(3)");
 }
 
 TEST(MortonLayout, SmallestAxisCapFollowsDiameter) {
   // y spread = 4.0 diameters exactly: ceil(log2 4) = 2 bits.
-  EXPECT_EQ(extended_layout(32, Aabb{{0, 0, 0}, {100, 4, 50}}, 1.0f).to_string(), "x(15)→z(15)→y(2)");
+  EXPECT_EQ(format_layout(extended_layout(32, Aabb{{0, 0, 0}, {100, 4, 50}}, 1.0f).info()), "x(15)→z(15)→y(2)");
   // Thinner than one object: 1 bit (the cap's floor).
-  EXPECT_EQ(extended_layout(32, Aabb{{0, 0, 0}, {100, 0.5f, 50}}, 1.0f).to_string(), "x(16)→z(15)→y(1)");
+  EXPECT_EQ(format_layout(extended_layout(32, Aabb{{0, 0, 0}, {100, 0.5f, 50}}, 1.0f).info()), "x(16)→z(15)→y(1)");
   // A cube: ceil(log2(1e6)) = 20 bits for the last axis; at 1e9 the m/3 = 21 cap applies.
-  EXPECT_EQ(extended_layout(64, Aabb{{0, 0, 0}, {1e6f, 1e6f, 1e6f}}, 1.0f).to_string(), "x(22)→y(22)→z(20)");
-  EXPECT_EQ(extended_layout(64, Aabb{{0, 0, 0}, {1e9f, 1e9f, 1e9f}}, 1.0f).to_string(), "x(22)→y(21)→z(21)");
+  EXPECT_EQ(format_layout(extended_layout(64, Aabb{{0, 0, 0}, {1e6f, 1e6f, 1e6f}}, 1.0f).info()), "x(22)→y(22)→z(20)");
+  EXPECT_EQ(format_layout(extended_layout(64, Aabb{{0, 0, 0}, {1e9f, 1e9f, 1e9f}}, 1.0f).info()), "x(22)→y(21)→z(21)");
   // Ties order x, y, z.
-  EXPECT_EQ(extended_layout(16, Aabb{{0, 0, 0}, {8, 8, 8}}, 1.0f).to_string(), "x(7)→y(6)→z(3)");
+  EXPECT_EQ(format_layout(extended_layout(16, Aabb{{0, 0, 0}, {8, 8, 8}}, 1.0f).info()), "x(7)→y(6)→z(3)");
 }
 
 TEST(MortonLayout, DegenerateExtents) {
@@ -42,9 +42,9 @@ TEST(MortonLayout, DegenerateExtents) {
 }
 
 TEST(MortonLayout, PlainLayouts) {
-  EXPECT_EQ(plain_layout(16).to_string(), "x(5)→y(5)→z(5)");
-  EXPECT_EQ(plain_layout(32).to_string(), "x(10)→y(10)→z(10)");
-  EXPECT_EQ(plain_layout(64).to_string(), "x(21)→y(21)→z(21)");
+  EXPECT_EQ(format_layout(plain_layout(16).info()), "x(5)→y(5)→z(5)");
+  EXPECT_EQ(format_layout(plain_layout(32).info()), "x(10)→y(10)→z(10)");
+  EXPECT_EQ(format_layout(plain_layout(64).info()), "x(21)→y(21)→z(21)");
 }
 
 TEST(MortonLayout, HandWorkedBitPositions16) {

@@ -23,14 +23,14 @@ TEST(Allocation, SteadyStateFramesAllocateNothing) {
   const Camera cam = camera_preset("zoom-out", scene, 640, 360).value();
   SerialExecutor serial;
   // Without a camera the counted frames keep the last order (the broadphase's steady path); with
-  // keeping switched off (VISCD_KEEP_ORDER=0, read when a detector is made), and with a camera
+  // keeping switched off (Config::keep_order), and with a camera
   // (objects cross lambda, so the active set changes), they sort from the last frame's order.
   for (const bool keep : {true, false}) {
-    if (!keep) setenv("VISCD_KEEP_ORDER", "0", 1);
     for (const bool with_camera : {false, true}) {
       for (Bits bits : {Bits::adaptive, Bits::b16, Bits::b64}) {
         Config c;
         c.bits = bits;
+        c.keep_order = keep;
         c.shade = with_camera;
         // The caller's executor on one of the runs, viscd's pool on the others.
         if (bits == Bits::b16) c.executor = &serial;
@@ -52,7 +52,6 @@ TEST(Allocation, SteadyStateFramesAllocateNothing) {
       }
     }
   }
-  unsetenv("VISCD_KEEP_ORDER");
 }
 
 TEST(Allocation, SteadyStateFramesWithFiltersAndEventsAllocateNothing) {

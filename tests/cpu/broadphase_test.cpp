@@ -33,8 +33,9 @@ void check_exact(const std::vector<Sphere>& spheres, const std::string& what) {
   for (const Variant& v : kVariants) {
     Config c = test::config_bits(v.bits, v.layout);
     c.threads = v.threads;
-    detail::CpuDetector det(c);
-    FrameResult f = test::run_frame(det, spheres);
+    auto owner = make_cpu_detector(c);
+    const auto& det = detail::backend_as<detail::CpuDetector>(*owner);
+    FrameResult f = test::run_frame(*owner, spheres);
     ASSERT_TRUE(same_pairs(f.pairs, want))
         << what << ", m=" << static_cast<int>(v.bits) << (v.layout == Layout::plain ? " plain" : " extended");
     EXPECT_EQ(f.stats.pairs, want.size());

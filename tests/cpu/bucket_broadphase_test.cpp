@@ -46,19 +46,15 @@ void check_frame(detail::BucketBroadphase& bp, const std::vector<Sphere>& s, con
   ASSERT_EQ(sorted_ids, active) << what << ": not a permutation of the active set";
 }
 
-// Runs f(name) with stage 8 on each instruction set this CPU has (cpu/simd.hpp), then restores it.
+// Runs f(name, level) for each instruction set this CPU has (cpu/simd.hpp).
 template <class F>
 void for_each_simd_level(F&& f) {
-  const detail::SimdLevel before = detail::simd_level();
-  for (detail::SimdLevel l : {detail::SimdLevel::scalar, detail::SimdLevel::sse2, detail::SimdLevel::avx512}) {
-    if (detail::set_simd_level(l) != l) continue;  // not on this CPU
-    f(std::string(detail::simd_name(l)));
-  }
-  detail::set_simd_level(before);
+  for (detail::SimdLevel l : {detail::SimdLevel::scalar, detail::SimdLevel::sse2, detail::SimdLevel::avx512})
+    if (detail::usable_simd_level(l) == l) f(std::string(detail::simd_name(l)), l);  // else not on this CPU
 }
 
 TEST(BucketBroadphase, CountsAroundBucketMultiples) {
-  for_each_simd_level([](const std::string& simd) {
+  for_each_simd_level([](const std::string& simd, detail::SimdLevel level) {
     // 16^2 and 16^3 buckets are where the tree over the buckets gains a level.
     for (std::size_t n :
          {0u, 1u, 2u, 3u, 15u, 16u, 17u, 31u, 32u, 33u, 47u, 48u, 49u, 255u, 256u, 257u, 4095u, 4096u, 4097u, 65537u}) {
@@ -67,6 +63,7 @@ TEST(BucketBroadphase, CountsAroundBucketMultiples) {
         // 65537 objects, 4097 buckets, once: the brute-force oracle is O(n^2).
         if (n > 5000 && (bits != 32 || simd != detail::simd_name(detail::best_simd_level()))) continue;
         detail::BucketBroadphase bp;
+        bp.set_simd(level);
         check_frame(bp, s, all_of(n), bits, simd + ", n = " + std::to_string(n) + ", m = " + std::to_string(bits));
       }
     }
@@ -74,9 +71,10 @@ TEST(BucketBroadphase, CountsAroundBucketMultiples) {
 }
 
 TEST(BucketBroadphase, DenseAndDegenerateSets) {
-  for_each_simd_level([](const std::string& simd) {
+  for_each_simd_level([](const std::string& simd, detail::SimdLevel level) {
     SCOPED_TRACE(simd);
     detail::BucketBroadphase bp;
+    bp.set_simd(level);
     // Everything overlaps everything: one bucket's all-pairs path and the cross path at once.
     check_frame(bp, std::vector<Sphere>(70, Sphere{1, 2, 3, 0.5f}), all_of(70), 32, "identical");
     check_frame(bp, std::vector<Sphere>(70, Sphere{1, 2, 3, 0}), all_of(70), 16, "identical points");

@@ -131,7 +131,7 @@ TEST(IdMap, HandWorked) {
     // Adaptive m from mu: a = 1, b = 2 puts mu = 3 at 64 bits.
     c.culling = true;
     c.lambda = 0;
-    c.a = 1, c.b = 2;
+    c.pixels_for_32_bits = 1, c.pixels_for_64_bits = 2;
     d->set_config(c);
     EXPECT_EQ(detect_map(*d, s, map, 4, 3).stats.bits, 64);
   }
@@ -142,7 +142,7 @@ void check_own_map_given_back(const std::vector<Sphere>& s, const Camera& cam, C
   for (Factory make : kBackends) {
     auto d = make(c);
     const FrameResult own = test::run_frame(*d, s, &cam);
-    const detail::VisibilityMap& map = static_cast<detail::PipelineDetector&>(*d).visibility_map();
+    const detail::VisibilityMap& map = detail::backend_as<detail::PipelineDetector>(*d).visibility_map();
     const std::vector<std::uint32_t> ids(map.ids.begin(), map.ids.end());
     const int w = map.width, h = map.height;
     auto fresh = make(c);  // another detector: no state of the first frame
@@ -211,6 +211,7 @@ TEST(IdMap, Errors) {
     st = d->detect(in, out);
     ASSERT_FALSE(st.ok());
     EXPECT_NE(st.error().find("gl_id_texture"), std::string::npos) << st.error();
+    EXPECT_EQ(st.kind(), ErrorKind::unsupported_input) << st.error();
     in.id_map = good;
     st = d->detect(in, out);
     ASSERT_FALSE(st.ok());

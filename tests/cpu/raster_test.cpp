@@ -54,12 +54,13 @@ Oracle reference(const CameraRig& rig, std::span<const Sphere> s) {
 // Runs the tiled rasterizer with `threads` and compares with the oracle; the message names the
 // first differing pixel.
 ::testing::AssertionResult matches_at_level(const Oracle& want, const CameraRig& rig, std::span<const Sphere> s,
-                                            int threads = 2) {
+                                            detail::SimdLevel level, int threads = 2) {
   VisibilityMap got;
   got.resize(rig.map_w, rig.map_h, false);
   std::fill(got.ids.begin(), got.ids.end(), 0xDEADu);  // stale content must be overwritten
   std::fill(got.depth.begin(), got.depth.end(), -7.0f);
   TiledRasterizer r;
+  r.set_simd(level);
   r.run(rig, s, threads, got);
   for (std::size_t i = 0; i < got.ids.size(); ++i) {
     if (got.ids[i] != want.map.ids[i] ||
@@ -87,18 +88,15 @@ Oracle reference(const CameraRig& rig, std::span<const Sphere> s) {
 // it has it: the bounds and the tile kernel).
 ::testing::AssertionResult matches(const Oracle& want, const CameraRig& rig, std::span<const Sphere> s,
                                    int threads = 2) {
-  const detail::SimdLevel was = detail::simd_level();
   ::testing::AssertionResult result = ::testing::AssertionSuccess();
   for (detail::SimdLevel level : {detail::SimdLevel::sse2, detail::SimdLevel::avx512}) {
     if (level > detail::best_simd_level()) continue;
-    detail::set_simd_level(level);
-    result = matches_at_level(want, rig, s, threads);
+    result = matches_at_level(want, rig, s, level, threads);
     if (!result) {
       result << " (" << detail::simd_name(level) << " kernels)";
       break;
     }
   }
-  detail::set_simd_level(was);
   return result;
 }
 

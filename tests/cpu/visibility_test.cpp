@@ -27,7 +27,9 @@ Camera camera_at(float ex, float ey, float ez, float tx, float ty, float tz, int
   return c;
 }
 
-const detail::VisibilityMap& map_of(Detector& d) { return static_cast<detail::PipelineDetector&>(d).visibility_map(); }
+const detail::VisibilityMap& map_of(Detector& d) {
+  return detail::backend_as<detail::PipelineDetector>(d).visibility_map();
+}
 
 // Runs cpu and reference on the same frame and checks ids, counts, active set and pairs.
 void check_against_reference(const std::vector<Sphere>& s, const Camera& cam, Config c, const std::string& what) {
@@ -155,7 +157,7 @@ TEST(Visibility, MeanPixelsAndBitsAtTheThresholds) {
   const Camera cam = camera_at(0, 0, 0, 0, 0, -1, 20, 10);
   auto bits_for = [&](float a, float b) {
     Config c;
-    c.a = a, c.b = b;
+    c.pixels_for_32_bits = a, c.pixels_for_64_bits = b;
     const FrameResult f = test::run_frame(*make_cpu_detector(c), s, &cam);
     EXPECT_DOUBLE_EQ(f.stats.mean_pixels, 100.0);
     return f.stats.bits;

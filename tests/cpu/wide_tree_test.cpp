@@ -137,11 +137,11 @@ TEST(SimdKernels, EveryInstructionSetGivesTheScalarBits) {
 }
 
 TEST(SimdKernels, LevelCanBeLoweredButNotRaised) {
-  const detail::SimdLevel before = detail::simd_level();
-  EXPECT_EQ(detail::set_simd_level(detail::SimdLevel::scalar), detail::SimdLevel::scalar);
-  EXPECT_EQ(detail::simd_level(), detail::SimdLevel::scalar);
-  EXPECT_EQ(detail::set_simd_level(detail::SimdLevel::avx512), detail::best_simd_level());
-  detail::set_simd_level(before);
+  EXPECT_EQ(detail::usable_simd_level(detail::SimdLevel::scalar), detail::SimdLevel::scalar);
+  EXPECT_EQ(detail::usable_simd_level(detail::SimdLevel::avx512), detail::best_simd_level());
+  EXPECT_EQ(detail::simd_level_for(Simd::scalar), detail::SimdLevel::scalar);
+  EXPECT_EQ(detail::simd_level_for(Simd::sse2), detail::usable_simd_level(detail::SimdLevel::sse2));
+  EXPECT_EQ(detail::simd_level_for(Simd::best), detail::best_simd_level());
 }
 
 }  // namespace

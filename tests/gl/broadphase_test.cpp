@@ -24,7 +24,7 @@ Case all_active(std::vector<Sphere> s) {
 }
 
 // Runs both broadphases and compares everything observable.
-void check(gl::GlDetector& gl, const Case& c, int bits, Layout layout = Layout::extended) {
+void check(test::GlUnderTest& gl, const Case& c, int bits, Layout layout = Layout::extended) {
   SCOPED_TRACE("n = " + std::to_string(c.active.size()) + ", m = " + std::to_string(bits));
   Config cfg = gl.config();
   cfg.layout = layout;
@@ -143,9 +143,9 @@ TEST(GlBroadphase, PairBufferOverflowGrowsAndReruns) {
   o.initial_pair_capacity = 64;
   VISCD_GL_OR_SKIP(gl, Config{}, o);
   // Recreate a detector so that the capacity starts small.
-  auto fresh = gl::GlDetector::create(Config{}, GlOptions{.debug = true, .initial_pair_capacity = 64});
+  auto fresh = test::GlUnderTest::create(Config{}, GlOptions{.debug = true, .initial_pair_capacity = 64});
   ASSERT_TRUE(fresh.ok()) << fresh.error();
-  gl::GlDetector& d = *fresh.value();
+  test::GlUnderTest& d = *fresh.value();
   ASSERT_EQ(d.pair_capacity(), 64u);
   const Case c = all_active(random_spheres_by_edge(2000, 12.0f, 0.3f, 0.9f, 5));
   std::vector<Pair> brute;

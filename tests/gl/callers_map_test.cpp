@@ -45,7 +45,7 @@ FrameInput texture_input(std::span<const Sphere> s, const Camera* cam, GLuint te
 
 // Frames from the texture and from the same map as an array (reference backend) agree: pixels,
 // states, pairs, m.
-void expect_same_as_reference(gl::GlDetector& gl, GLuint tex, const std::vector<std::uint32_t>& ids, int w, int h,
+void expect_same_as_reference(test::GlUnderTest& gl, GLuint tex, const std::vector<std::uint32_t>& ids, int w, int h,
                               const std::vector<Sphere>& spheres, const Camera* cam, const Config& cfg) {
   const FrameInput in = texture_input(spheres, cam, tex, w, h);
   FrameResult a;
@@ -166,9 +166,9 @@ TEST(GlCallersMap, TheCallersOwnContext) {
   o.use_current_context = true;
   Config cfg;
   cfg.lambda = 30;
-  auto made = gl::GlDetector::create(cfg, o);
+  auto made = test::GlUnderTest::create(cfg, o);
   ASSERT_TRUE(made.ok()) << made.error();
-  gl::GlDetector& gl = *made.value();
+  test::GlUnderTest& gl = *made.value();
   // The engine's texture, in the engine's context, read by the detector directly.
   const std::vector<Sphere> s = random_spheres_by_edge(500, 10.0f, 0.2f, 0.8f, 9);
   const std::vector<std::uint32_t> ids = banded_map(200, 120, 500);
@@ -185,7 +185,7 @@ TEST(GlCallersMap, TheCallersOwnContext) {
   // Without a current context there is nothing to adopt.
   std::string error;
   std::thread([&] {
-    auto none = gl::GlDetector::create(cfg, o);
+    auto none = test::GlUnderTest::create(cfg, o);
     error = none.ok() ? "" : none.error();
   }).join();
   EXPECT_NE(error.find("no OpenGL context is current"), std::string::npos) << error;

@@ -45,7 +45,7 @@ std::vector<Pair> reference_pairs(std::span<const Sphere> spheres, const std::ve
 }
 
 // One frame through gl, checked against the reference (and brute force) over its active set.
-void check_frame(gl::GlDetector& gl, std::span<const Sphere> spheres, const Camera* cam, FrameResult& out,
+void check_frame(test::GlUnderTest& gl, std::span<const Sphere> spheres, const Camera* cam, FrameResult& out,
                  const std::string& what) {
   SCOPED_TRACE(what);
   const Status s = gl.detect(spheres, cam, out);
@@ -233,9 +233,9 @@ TEST(GlDefaultMode, CullingTogglesEveryFrame) {
 
 TEST(GlDefaultMode, PairBufferOverflowGrowsAndReruns) {
   VISCD_GL_OR_SKIP(gl);  // skips when there is no context at all
-  auto fresh = gl::GlDetector::create(Config{}, GlOptions{.debug = true, .initial_pair_capacity = 16});
+  auto fresh = test::GlUnderTest::create(Config{}, GlOptions{.debug = true, .initial_pair_capacity = 16});
   ASSERT_TRUE(fresh.ok()) << fresh.error();
-  gl::GlDetector& d = *fresh.value();
+  test::GlUnderTest& d = *fresh.value();
   FrameResult out;
   const std::vector<Sphere> sparse = random_spheres_by_edge(1500, 2000.0f, 0.1f, 0.2f, 31);
   check_frame(d, sparse, nullptr, out, "sparse (sync: first frame)");

@@ -75,11 +75,12 @@ TEST(GlFrame, CountsFromTheSameIdMapAreExact) {
     Config cfg;
     cfg.map_width = 256;
     cfg.map_height = 144;
-    detail::CpuDetector cpu(cfg);
+    auto cpu_owner = make_cpu_detector(cfg);
+    Detector& cpu = *cpu_owner;
     const Camera cam = small_camera(scene, "zoom-out");
     FrameResult out;
     ASSERT_TRUE(cpu.detect(scene.spheres(), &cam, out).ok());
-    const auto& map = cpu.visibility_map();
+    const auto& map = detail::backend_as<detail::CpuDetector>(cpu).visibility_map();
     auto counts = gl->count_id_map(map.ids, map.width, map.height, 1500);
     ASSERT_TRUE(counts.ok()) << counts.error();
     EXPECT_TRUE(counts.value() == histogram(map.ids, 1500)) << "mode " << static_cast<int>(mode);
@@ -115,12 +116,13 @@ void compare_counts(GlGeometry geometry, const char* preset, std::uint32_t n, do
   Scene scene = ring_scene(n);
   scene.step(0.25f);
   const Camera cam = small_camera(scene, preset);
-  detail::CpuDetector cpu(cfg);
+  auto cpu_owner = make_cpu_detector(cfg);
+  Detector& cpu = *cpu_owner;
   FrameResult a, b;
   ASSERT_TRUE(gl->detect(scene.spheres(), &cam, a).ok());
   ASSERT_TRUE(cpu.detect(scene.spheres(), &cam, b).ok());
   const auto gl_ids = gl->read_id_map();
-  const auto& cpu_ids = cpu.visibility_map().ids;
+  const auto& cpu_ids = detail::backend_as<detail::CpuDetector>(cpu).visibility_map().ids;
   ASSERT_EQ(gl_ids.size(), cpu_ids.size());
   std::size_t differ = 0;
   for (std::size_t i = 0; i < gl_ids.size(); ++i) differ += gl_ids[i] != cpu_ids[i];
@@ -240,8 +242,8 @@ TEST(GlFrame, TimersArriveOneFrameLate) {
   FrameResult out;
   ASSERT_TRUE(gl->detect(scene.spheres(), &cam, out).ok());
   ASSERT_TRUE(gl->detect(scene.spheres(), &cam, out).ok());
-  EXPECT_GT(out.stats.stage_ms[static_cast<std::size_t>(Stage::visibility)], 0.0);
-  EXPECT_GT(out.stats.stage_ms[static_cast<std::size_t>(Stage::sort)], 0.0);
+  EXPECT_GT(out.stats.ms(Stage::visibility), 0.0);
+  EXPECT_GT(out.stats.ms(Stage::sort), 0.0);
   EXPECT_GT(out.stats.total_ms(), 0.0);
 }
 
@@ -261,12 +263,12 @@ TEST(GlFrame, SingleFrameWaitsForEveryStageTime) {
   ASSERT_GT(out.stats.active, 0u);
   for (Stage st : {Stage::visibility, Stage::count, Stage::cull, Stage::codes, Stage::sort, Stage::build, Stage::fit,
                    Stage::query, Stage::shade})
-    EXPECT_GT(out.stats.stage_ms[static_cast<std::size_t>(st)], 0.0) << stage_name(st);
+    EXPECT_GT(out.stats.ms(st), 0.0) << stage_name(st);
 }
 
 TEST(GlFrame, DetectOverflowingPairBufferReturnsEveryPair) {
   VISCD_GL_OR_SKIP(gl);  // skips when there is no context at all
-  auto fresh = gl::GlDetector::create(Config{}, GlOptions{.debug = true, .initial_pair_capacity = 16});
+  auto fresh = test::GlUnderTest::create(Config{}, GlOptions{.debug = true, .initial_pair_capacity = 16});
   ASSERT_TRUE(fresh.ok()) << fresh.error();
   const std::vector<Sphere> s = random_spheres_by_edge(1500, 10.0f, 0.3f, 0.8f, 21);
   auto ref = make_reference_detector();

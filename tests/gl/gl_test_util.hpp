@@ -11,14 +11,58 @@
 #include <string>
 #include <vector>
 
+#include "core/backend.hpp"
 #include "gl/gl_detector.hpp"
 #include "viscd/scene.hpp"
 #include "viscd/viscd.hpp"
 
 namespace viscd::test {
 
+/// A gl detector as the tests drive it: the public Detector for frames and queries, and its
+/// backend (gl::GlDetector) for the stage access that only tests use.
+class GlUnderTest {
+ public:
+  explicit GlUnderTest(std::unique_ptr<Detector> d)
+      : detector_(std::move(d)), gl_(&detail::backend_as<gl::GlDetector>(*detector_)) {}
+  [[nodiscard]] static Result<std::unique_ptr<GlUnderTest>> create(const Config& config, const GlOptions& options) {
+    auto d = make_gl_detector(config, options);
+    if (!d) return Result<std::unique_ptr<GlUnderTest>>::failure(d.status());
+    return std::make_unique<GlUnderTest>(std::move(d.value()));
+  }
+  Detector& detector() { return *detector_; }
+  gl::GlDetector& backend() { return *gl_; }
+
+  [[nodiscard]] Status detect(const FrameInput& in, FrameResult& out) { return detector_->detect(in, out); }
+  [[nodiscard]] Status detect(std::span<const Sphere> s, const Camera* c, FrameResult& out) {
+    return detector_->detect(s, c, out);
+  }
+  void wait_for_stage_times(FrameStats& stats) { detector_->wait_for_stage_times(stats); }
+  [[nodiscard]] const Config& config() const { return detector_->config(); }
+  void set_config(const Config& c) { detector_->set_config(c); }
+  void set_options(const GlOptions& o) { gl_->set_options(o); }
+  [[nodiscard]] const std::string& device() const { return gl_->device(); }
+  [[nodiscard]] std::uint32_t pair_capacity() const { return gl_->pair_capacity(); }
+  [[nodiscard]] std::uint64_t mid_frame_waits() const { return gl_->mid_frame_waits(); }
+  [[nodiscard]] Status run_broadphase(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
+                                      std::vector<Pair>& pairs, FrameStats& stats) {
+    return gl_->run_broadphase(spheres, active, bits, pairs, stats);
+  }
+  [[nodiscard]] std::vector<std::uint64_t> read_sorted_codes() { return gl_->read_sorted_codes(); }
+  [[nodiscard]] std::vector<std::uint32_t> read_sorted_ids() { return gl_->read_sorted_ids(); }
+  void read_tree(detail::Lbvh& bvh, std::vector<detail::Aabb>& leaf_boxes) { gl_->read_tree(bvh, leaf_boxes); }
+  [[nodiscard]] std::vector<std::uint32_t> read_id_map() { return gl_->read_id_map(); }
+  [[nodiscard]] Result<std::vector<std::uint32_t>> count_id_map(std::span<const std::uint32_t> ids, int width,
+                                                                int height, std::uint32_t objects) {
+    return gl_->count_id_map(ids, width, height, objects);
+  }
+
+ private:
+  std::unique_ptr<Detector> detector_;
+  gl::GlDetector* gl_;
+};
+
 struct GlHolder {
-  std::unique_ptr<gl::GlDetector> detector;
+  std::unique_ptr<GlUnderTest> detector;
   std::string error;
 };
 
@@ -27,7 +71,7 @@ inline GlHolder& gl_holder() {
     GlHolder g;
     GlOptions o;
     o.debug = true;  // every GL error makes the call fail with the driver's message
-    auto d = gl::GlDetector::create(Config{}, o);
+    auto d = GlUnderTest::create(Config{}, o);
     if (d) {
       g.detector = std::move(d.value());
       std::fprintf(stderr, "[gl] device: %s\n", g.detector->device().c_str());
@@ -41,7 +85,7 @@ inline GlHolder& gl_holder() {
 
 /// The shared detector with `config` and `options` (debug always on), or nullptr after
 /// GTEST_SKIP-worthy failure (the caller skips).
-inline gl::GlDetector* gl_detector(const Config& config = {}, GlOptions options = {}) {
+inline GlUnderTest* gl_detector(const Config& config = {}, GlOptions options = {}) {
   GlHolder& h = gl_holder();
   if (!h.detector) return nullptr;
   options.debug = true;
@@ -50,8 +94,8 @@ inline gl::GlDetector* gl_detector(const Config& config = {}, GlOptions options 
   return h.detector.get();
 }
 
-#define VISCD_GL_OR_SKIP(var, ...)                               \
-  gl::GlDetector* var = ::viscd::test::gl_detector(__VA_ARGS__); \
+#define VISCD_GL_OR_SKIP(var, ...)                                           \
+  ::viscd::test::GlUnderTest* var = ::viscd::test::gl_detector(__VA_ARGS__); \
   if (!var) GTEST_SKIP() << "no OpenGL 4.5 context: " << ::viscd::test::gl_holder().error
 
 /// A preset camera over a small 256 x 144 screen, which keeps llvmpipe frames fast.

@@ -860,7 +860,7 @@ FrameStats sample_stats(bool has_camera) {
   st.has_camera = has_camera;
   st.mean_pixels = has_camera ? 87.5 : 0.0;
   st.bits = 16;
-  st.layout = "x(7)→z(6)→y(3)";
+  st.layout = MortonLayoutInfo{.order = {0, 2, 1}, .axis_bits = {7, 3, 6}};  // x(7)→z(6)→y(3)
   st.pairs = 4321;
   for (std::size_t s = 0; s < kStageCount; ++s) st.stage_ms[s] = 0.25 * static_cast<double>(s + 1);
   return st;
@@ -1117,6 +1117,42 @@ TEST(WritePairsCsv, StreamsManyBlocksExactly) {
   }
   ASSERT_TRUE(write_pairs_csv(dir / "p.csv", pairs).ok());
   EXPECT_EQ(read_file(dir / "p.csv"), want.str());
+}
+
+}  // namespace
+}  // namespace viscd
+
+namespace viscd {
+namespace {
+
+// The tools' environment knobs (the library itself reads none).
+TEST(Environment, MapsVariablesOntoConfig) {
+  unsetenv("VISCD_SIMD");
+  unsetenv("VISCD_KEEP_ORDER");
+  Config c;
+  ASSERT_TRUE(apply_environment(c).ok());
+  EXPECT_EQ(c.simd, Simd::best);
+  EXPECT_TRUE(c.keep_order);
+  setenv("VISCD_SIMD", "scalar", 1);
+  setenv("VISCD_KEEP_ORDER", "0", 1);
+  ASSERT_TRUE(apply_environment(c).ok());
+  EXPECT_EQ(c.simd, Simd::scalar);
+  EXPECT_FALSE(c.keep_order);
+  setenv("VISCD_SIMD", "sse2", 1);
+  setenv("VISCD_KEEP_ORDER", "1", 1);
+  ASSERT_TRUE(apply_environment(c).ok());
+  EXPECT_EQ(c.simd, Simd::sse2);
+  EXPECT_TRUE(c.keep_order);
+  setenv("VISCD_SIMD", "avx9\n", 1);
+  Status s = apply_environment(c);
+  EXPECT_EQ(s.kind(), ErrorKind::invalid_input);
+  EXPECT_NE(s.error().find("VISCD_SIMD=avx9\\n"), std::string::npos) << s.error();
+  unsetenv("VISCD_SIMD");
+  setenv("VISCD_KEEP_ORDER", "yes", 1);
+  s = apply_environment(c);
+  EXPECT_EQ(s.kind(), ErrorKind::invalid_input);
+  EXPECT_NE(s.error().find("VISCD_KEEP_ORDER"), std::string::npos) << s.error();
+  unsetenv("VISCD_KEEP_ORDER");
 }
 
 }  // namespace

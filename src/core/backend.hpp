@@ -1,0 +1,91 @@
+#pragma once
+// The internal interface every backend implements. The public viscd::Detector is a handle on one
+// Backend: detect() checks the input rules every backend shares (core/frame_rules.hpp), calls
+// run_frame(), then computes the contact events and keeps what the queries need, so that every
+// backend treats them alike. A backend adds only its own stages.
+//
+//   reference  cpu/reference_detector.cpp  brute force, the test oracle
+//   cpu        cpu/cpu_detector.hpp        tiled rasterizer + bucket broadphase on all cores
+//   gl         gl/gl_detector.hpp          OpenGL 4.5 compute shaders
+//
+// (After Jolt's split of BroadPhase, what callers see, from BroadPhaseQuadTree, what implements it.)
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include "viscd/config.hpp"
+#include "viscd/detector.hpp"
+#include "viscd/frame.hpp"
+#include "viscd/result.hpp"
+#include "viscd/types.hpp"
+
+namespace viscd::detail {
+
+class Backend {
+ public:
+  explicit Backend(const Config& config) : config_(config) {}
+  virtual ~Backend() = default;
+  Backend(const Backend&) = delete;
+  Backend& operator=(const Backend&) = delete;
+
+  /// "reference", "cpu", "gl".
+  [[nodiscard]] virtual std::string_view name() const = 0;
+  /// Detector::memory_bytes().
+  [[nodiscard]] virtual std::uint64_t memory_bytes() const = 0;
+  /// Detector::wait_for_stage_times(); backends that time stages on the host do nothing.
+  virtual void wait_for_stage_times(FrameStats& stats) { (void)stats; }
+
+  /// One frame, after Detector::detect() checked the shared input rules (spheres, camera, map
+  /// sizes, filter count, id map size, Config::threads): writes pairs, states, pixels, image and
+  /// stats. Applies `input.filters` to the pairs. Returns ErrorKind::unsupported_input for input
+  /// this backend does not take. detect() turns std::bad_alloc into ErrorKind::out_of_memory.
+  [[nodiscard]] virtual Status run_frame(const FrameInput& input, FrameResult& out) = 0;
+
+  /// Queries on the last successful frame (called only after one; the ray is valid: finite, a
+  /// non-zero direction, max_t >= 0; the sphere passes validate_spheres). A backend that answers
+  /// them from structures of its own overrides all three and answers_queries(); the others get
+  /// brute force over a copy of the active spheres that detect() keeps after each frame.
+  [[nodiscard]] virtual bool answers_queries() const { return false; }
+  [[nodiscard]] virtual bool query_ray(const Ray& ray, RayHit& hit);
+  virtual void query_ray_all(const Ray& ray, std::vector<RayHit>& hits);
+  virtual void query_overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices);
+
+  [[nodiscard]] const Config& config() const { return config_; }
+  void set_config(const Config& config) { config_ = config; }
+
+ protected:
+  Config config_;
+
+ private:
+  friend class viscd::Detector;
+  std::vector<Pair> previous_pairs_;  // the contact events' previous frame (empty: none)
+  bool queries_ready_ = false;        // the last detect() succeeded
+  // The active objects of the last frame, for the brute-force queries.
+  std::vector<Sphere> query_spheres_;
+  std::vector<std::uint32_t> query_ids_;
+};
+
+/// The one way from a backend to the public handle and back (factories, tests, tools).
+struct DetectorAccess {
+  [[nodiscard]] static std::unique_ptr<Detector> wrap(std::unique_ptr<Backend> backend) {
+    return std::unique_ptr<Detector>(new Detector(std::move(backend)));
+  }
+  [[nodiscard]] static Backend& backend(Detector& d) { return *d.backend_; }
+  [[nodiscard]] static const Backend& backend(const Detector& d) { return *d.backend_; }
+};
+
+/// A detector's backend as its concrete type (tests and tools that inspect a backend's stages);
+/// the detector must run that backend.
+template <class T>
+[[nodiscard]] T& backend_as(Detector& d) {
+  return dynamic_cast<T&>(DetectorAccess::backend(d));
+}
+template <class T>
+[[nodiscard]] const T& backend_as(const Detector& d) {
+  return dynamic_cast<const T&>(DetectorAccess::backend(d));
+}
+
+}  // namespace viscd::detail
