@@ -8,13 +8,20 @@
 // is compiled for AVX-512 outside such functions. The same level picks the rasterizer's kernels
 // (cpu/raster_tile.hpp), built the same way.
 //
+// The ray queries' slab tests against 16 lanes or 16 children (ray_lanes(), ray_children(), at the
+// end) are here too; they run in double, two lanes at a time with SSE2 (every x86-64 has it), so
+// they are compiled for the baseline and not dispatched.
+//
 // Exactness: sphere_lanes() performs overlap_exact()'s float operations in its order (sub, mul,
 // add, no FMA: the library is compiled with -ffp-contract=off), and every comparison is an
 // ordered <=, false on NaN, as in C++. So each level gives the same bits as the scalar test.
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 
 #include "core/geometry.hpp"
+#include "viscd/types.hpp"
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define VISCD_HAVE_AVX512 1
@@ -177,5 +184,117 @@ struct SimdAvx512 {
   }
 };
 #endif
+
+// ---- ray queries: slab tests in double, two lanes at a time with SSE2 ----
+
+// A ray prepared for slab tests against boxes widened by ray_box_margin(), in double (see there).
+// Along an axis the widened slab [lo - margin, hi + margin] is entered at (lo - (o + margin)) / d
+// and left at (hi - (o - margin)) / d for d > 0 (the other way round for d < 0); along an axis
+// with d = 0 the origin must lie in the slab.
+struct RaySetup {
+  double lo_shift[3], hi_shift[3], inv[3];  // o + margin, o - margin, 1 / d
+  bool flat[3], negative[3];
+  explicit RaySetup(const Ray& r) {
+    const double margin = ray_box_margin(r.origin);
+    for (int k = 0; k < 3; ++k) {
+      lo_shift[k] = double{r.origin[k]} + margin;
+      hi_shift[k] = double{r.origin[k]} - margin;
+      flat[k] = r.dir[k] == 0;
+      negative[k] = r.dir[k] < 0;
+      inv[k] = flat[k] ? 0.0 : 1.0 / double{r.dir[k]};
+    }
+  }
+};
+
+// Where the segment t in [0, t_hi] enters the widened box; false when it misses it.
+// (Used by the builds without SSE2; the SSE2 ones test two boxes at a time with slab2().)
+[[maybe_unused]] inline bool ray_box(const RaySetup& q, const Aabb& b, double t_hi, double& t_enter) {
+  const float lo[3] = {b.lo.x, b.lo.y, b.lo.z}, hi[3] = {b.hi.x, b.hi.y, b.hi.z};
+  double t0 = 0, t1 = t_hi;
+  for (int k = 0; k < 3; ++k) {
+    const double a = (double{lo[k]} - q.lo_shift[k]) * q.inv[k], c = (double{hi[k]} - q.hi_shift[k]) * q.inv[k];
+    if (q.flat[k]) {
+      if (double{lo[k]} > q.lo_shift[k] || double{hi[k]} < q.hi_shift[k]) return false;
+    } else {
+      t0 = std::max(t0, q.negative[k] ? c : a);
+      t1 = std::min(t1, q.negative[k] ? a : c);
+    }
+  }
+  t_enter = t0;
+  return t0 <= t1;
+}
+
+#if defined(__SSE2__)
+// One axis of the slab test of ray_box() on two boxes at once ([lo, hi] per lane, in double):
+// narrows [t0, t1], or along an axis the ray does not move, clears `inside` where the origin
+// lies outside the widened slab.
+inline void slab2(const RaySetup& q, int k, __m128d lo, __m128d hi, __m128d& t0, __m128d& t1, __m128d& inside) {
+  if (q.flat[k]) {
+    inside = _mm_and_pd(
+        inside, _mm_and_pd(_mm_cmple_pd(lo, _mm_set1_pd(q.lo_shift[k])), _mm_cmpge_pd(hi, _mm_set1_pd(q.hi_shift[k]))));
+    return;
+  }
+  const __m128d inv = _mm_set1_pd(q.inv[k]);
+  const __m128d a = _mm_mul_pd(_mm_sub_pd(lo, _mm_set1_pd(q.lo_shift[k])), inv);
+  const __m128d e = _mm_mul_pd(_mm_sub_pd(hi, _mm_set1_pd(q.hi_shift[k])), inv);
+  t0 = _mm_max_pd(t0, q.negative[k] ? e : a);
+  t1 = _mm_min_pd(t1, q.negative[k] ? a : e);
+}
+
+// Two floats into two doubles (the 64-bit load reads through a may_alias type).
+inline __m128d two_doubles(const float* f) {
+  return _mm_cvtps_pd(_mm_castsi128_ps(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(f))));
+}
+#endif
+
+// The lanes of a bucket whose conservative boxes (centre -/+ h, in double) the segment t in
+// [0, t_hi] meets, widened as ray_box(): only those need the exact test. Padding lanes (NaN) fail.
+template <Lanes16 L>
+inline std::uint32_t ray_lanes(const RaySetup& q, const L& b, double t_hi) {
+  std::uint32_t mask = 0;
+#if defined(__SSE2__)
+  const float* axis[3] = {b.x, b.y, b.z};
+  for (std::uint32_t l = 0; l < 16; l += 2) {
+    const __m128d h = two_doubles(b.h + l);
+    __m128d t0 = _mm_setzero_pd(), t1 = _mm_set1_pd(t_hi);
+    __m128d inside = _mm_cmpeq_pd(h, h);  // all set, but NaN lanes clear
+    for (int k = 0; k < 3; ++k) {
+      const __m128d c = two_doubles(axis[k] + l);
+      slab2(q, k, _mm_sub_pd(c, h), _mm_add_pd(c, h), t0, t1, inside);
+    }
+    mask |= static_cast<std::uint32_t>(_mm_movemask_pd(_mm_and_pd(inside, _mm_cmple_pd(t0, t1)))) << l;
+  }
+#else
+  for (std::uint32_t l = 0; l < 16; ++l) {
+    const float h = b.h[l];
+    const Aabb box{{b.x[l] - h, b.y[l] - h, b.z[l] - h}, {b.x[l] + h, b.y[l] + h, b.z[l] + h}};
+    double te = 0;
+    if (!std::isnan(h) && ray_box(q, box, t_hi, te)) mask |= 1u << l;
+  }
+#endif
+  return mask;
+}
+
+// The children of a wide node whose boxes the segment t in [0, t_hi] meets, widened as ray_box();
+// t_enter[l] is where it enters child l's box (set for every lane). Empty children fail.
+template <class N>
+inline std::uint32_t ray_children(const RaySetup& q, const N& n, double t_hi, double* t_enter) {
+  std::uint32_t mask = 0;
+#if defined(__SSE2__)
+  const float* lo_axis[3] = {n.lo_x, n.lo_y, n.lo_z};
+  const float* hi_axis[3] = {n.hi_x, n.hi_y, n.hi_z};
+  for (std::uint32_t l = 0; l < 16; l += 2) {
+    __m128d t0 = _mm_setzero_pd(), t1 = _mm_set1_pd(t_hi);
+    __m128d inside = _mm_castsi128_pd(_mm_set1_epi32(-1));
+    for (int k = 0; k < 3; ++k) slab2(q, k, two_doubles(lo_axis[k] + l), two_doubles(hi_axis[k] + l), t0, t1, inside);
+    _mm_storeu_pd(t_enter + l, t0);
+    mask |= static_cast<std::uint32_t>(_mm_movemask_pd(_mm_and_pd(inside, _mm_cmple_pd(t0, t1)))) << l;
+  }
+#else
+  for (std::uint32_t l = 0; l < 16; ++l)
+    if (ray_box(q, n.child(l), t_hi, t_enter[l])) mask |= 1u << l;
+#endif
+  return mask;
+}
 
 }  // namespace viscd::detail
