@@ -30,7 +30,8 @@
 
 #include "bench_util.hpp"
 #include "core/morton.hpp"
-#include "cpu/broadphase.hpp"
+#include "cpu/morton_order.hpp"
+#include "karras/karras_lbvh.hpp"
 #include "cpu/parallel.hpp"
 #include "cpu/radix_sort.hpp"
 #include "cpu/simd.hpp"
@@ -479,7 +480,7 @@ struct TraversalCount {
   std::uint64_t leaf_hits = 0;  // leaves whose box overlaps: candidates for the exact test
 };
 
-// A counting replica of detail::for_each_overlap_after (cpu/lbvh_build.hpp): same order, same pruning.
+// A counting replica of detail::for_each_overlap_after (karras/karras_lbvh.hpp): same order, same pruning.
 void count_traversal(const detail::Lbvh& bvh, std::uint32_t p, const detail::Aabb& box, TraversalCount& c) {
   if (bvh.leaves < 2) return;
   std::vector<std::uint32_t> stack;
@@ -542,7 +543,7 @@ int run_tree_stats(const Options& opt) {
     Scene scene = make_scene(opt, n);
     std::vector<std::uint32_t> active(n);
     std::iota(active.begin(), active.end(), 0u);
-    detail::LbvhBroadphase broadphase;
+    detail::KarrasBroadphase broadphase;
     std::vector<Pair> pairs;
     std::vector<double> query_ms;
     for (int f = 0; f < opt.warmup + opt.frames; ++f) {

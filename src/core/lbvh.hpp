@@ -1,6 +1,9 @@
 #pragma once
-// Linear BVH over sorted Morton keys: the tree every backend builds (stage 7) and its validation.
-// The CPU build, fit and traversal are cpu/lbvh_build.hpp; the gl backend's are its shaders.
+// The paper's linear BVH over sorted Morton keys, one leaf per object: the tree the gl backend
+// builds in stage 7 (its shaders lbvh_build.comp and lbvh_fit.comp), its node layout as the host
+// reads it back, and its validation. The cpu backend builds another tree (a 16-wide tree over
+// buckets of 16 objects: cpu/wide_tree.hpp); the same Karras tree on the CPU, the model the gl
+// tree is tested against, is karras/karras_lbvh.hpp (not part of the library).
 //
 // Build: Karras 2012, "Maximizing Parallelism in the Construction of BVHs, Octrees, and k-d
 // Trees" (HPG), one independent task per internal node. n leaves (sorted positions 0..n-1) and

@@ -7,7 +7,8 @@
 namespace viscd::detail {
 
 std::uint64_t BucketBroadphase::memory_bytes() const {
-  std::uint64_t b = order_.memory_bytes() + buckets_.memory_bytes() + keep_order_.memory_bytes() + pairs_.memory_bytes();
+  std::uint64_t b =
+      order_.memory_bytes() + buckets_.memory_bytes() + keep_order_.memory_bytes() + pairs_.memory_bytes();
   for (const auto& level : tree_.level) b += bytes_of(level);
   return b;
 }
@@ -40,10 +41,10 @@ void BucketBroadphase::build_tree(std::span<const Sphere> spheres, std::span<con
   Stopwatch sw;
   const std::size_t n = active.size();
   const std::span<const std::uint32_t> ids = order_.sorted_ids();
-  const double box_sum =
-      order_.gathered()
-          ? buckets_.fill(n, ids, filters, threads, [&](std::size_t k) -> const Sphere& { return order_.gathered_sphere(k); })
-          : buckets_.fill_in_order(spheres, n, ids, filters, threads);
+  const double box_sum = order_.gathered()
+                             ? buckets_.fill(n, ids, filters, threads,
+                                             [&](std::size_t k) -> const Sphere& { return order_.gathered_sphere(k); })
+                             : buckets_.fill_in_order(spheres, n, ids, filters, threads);
   stats.ms(Stage::build) = sw.lap() + attempt_ms;
   fit_tree(n, threads, stats);
   keep_order_.remember_sorted(spheres.size(), active, layout, box_sum);

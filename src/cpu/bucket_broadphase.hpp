@@ -21,10 +21,10 @@
 #include <span>
 #include <vector>
 
-#include "cpu/broadphase.hpp"
 #include "cpu/buckets.hpp"
 #include "cpu/keep_order.hpp"
 #include "cpu/morton_order.hpp"
+#include "cpu/pair_collector.hpp"
 #include "cpu/simd.hpp"
 #include "cpu/wide_tree.hpp"
 #include "viscd/config.hpp"

@@ -101,7 +101,8 @@ void BucketBroadphase::overlap(const Sphere& sphere, std::span<const std::uint32
     // Padding lanes hold NaN centres: overlap_mask() never sets their bits.
     for (std::uint32_t m = SimdBaseline::sphere_lanes(buckets_.lanes()[b], sphere.x, sphere.y, sphere.z, sphere.r); m;
          m &= m - 1) {
-      const std::uint32_t id = order_.sorted_ids()[std::size_t{b} * kBucket + static_cast<std::uint32_t>(std::countr_zero(m))];
+      const std::uint32_t id =
+          order_.sorted_ids()[std::size_t{b} * kBucket + static_cast<std::uint32_t>(std::countr_zero(m))];
       out.push_back(ids.empty() ? id : ids[id]);
     }
   };

@@ -129,8 +129,8 @@ Status search_buckets(const BucketSearchInput& in, SimdLevel simd, int threads, 
   const std::size_t groups = (buckets + kWide - 1) / kWide;
   const std::size_t chunks = threads_for(n, threads) == 1 ? 1 : std::min<std::size_t>(groups, 8 * threads);
   bucket_pairs = 0;
-  const SearchView view{in.lanes.data(), in.boxes.data(), in.tree,     in.ids.data(), in.filters.data(),
-                        !in.filters.empty(), n,           &bucket_pairs};
+  const SearchView view{in.lanes.data(),   in.boxes.data(),     in.tree, in.ids.data(),
+                        in.filters.data(), !in.filters.empty(), n,       &bucket_pairs};
   return collector.collect(groups, chunks, threads, pair_memory_cap, in.objects, pairs, [&](std::size_t g, auto& emit) {
     switch (simd) {
 #if VISCD_HAVE_AVX512

@@ -11,10 +11,11 @@
 #include <span>
 #include <vector>
 
-#include "cpu/broadphase.hpp"
 #include "cpu/buckets.hpp"
+#include "cpu/pair_collector.hpp"
 #include "cpu/simd.hpp"
 #include "cpu/wide_tree.hpp"
+#include "viscd/detector.hpp"
 #include "viscd/result.hpp"
 #include "viscd/types.hpp"
 
@@ -23,11 +24,11 @@ namespace viscd::detail {
 /// What stage 8 searches.
 struct BucketSearchInput {
   std::span<const BucketLanes> lanes;
-  std::span<const Aabb> boxes;               ///< per bucket
-  const WideTree* tree;                      ///< over the bucket boxes
-  std::span<const std::uint32_t> ids;        ///< sorted position -> object id
-  std::span<const Filter> filters;           ///< in sorted order; empty: no filters
-  std::uint32_t objects;                     ///< ids are below this
+  std::span<const Aabb> boxes;         ///< per bucket
+  const WideTree* tree;                ///< over the bucket boxes
+  std::span<const std::uint32_t> ids;  ///< sorted position -> object id
+  std::span<const Filter> filters;     ///< in sorted order; empty: no filters
+  std::uint32_t objects;               ///< ids are below this
 };
 
 /// Finds every pair (sorted, in `pairs`) with the kernels of `simd`, collected through

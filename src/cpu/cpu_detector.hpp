@@ -8,7 +8,8 @@
 
 namespace viscd::detail {
 
-/// The fast CPU backend: tiled rasterizer + bucketed LBVH broadphase on all cores (Config::executor).
+/// The fast CPU backend: a tiled sphere rasterizer (cpu/raster.hpp) and the bucket broadphase
+/// (cpu/bucket_broadphase.hpp) on all cores (Config::executor).
 ///
 /// Queries search the last frame's tree. Active objects that the filters left out of the tree
 /// (they pair with nothing) are kept aside (a copy of their spheres) and get a tree of their own
@@ -21,8 +22,9 @@ class CpuDetector final : public PipelineDetector {
     return raster_.memory_bytes() + broadphase_.memory_bytes() + unpaired_tree_.memory_bytes() +
            bytes_of(unpaired_spheres_) + bytes_of(unpaired_ids_) + bytes_of(iota_);
   }
-  /// The broadphase of the last frame (tree, codes), for tests.
-  [[nodiscard]] const BucketBroadphase& lbvh() const { return broadphase_; }
+  /// The broadphase of the last frame (its 16-wide tree over buckets, the sorted objects and codes),
+  /// for tests.
+  [[nodiscard]] const BucketBroadphase& bucket_broadphase() const { return broadphase_; }
 
  protected:
   [[nodiscard]] bool answers_queries() const override { return true; }

@@ -1,15 +1,28 @@
 #include "cpu/morton_order.hpp"
 
 #include <algorithm>
+#include <array>
 
 #include "core/stopwatch.hpp"
-#include "cpu/broadphase.hpp"
 #include "cpu/buckets.hpp"
 #include "cpu/grow.hpp"
 #include "cpu/parallel.hpp"
 #include "viscd/assert.hpp"
 
 namespace viscd::detail {
+
+ActiveExtent active_extent(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int threads) {
+  // Partial extents per chunk, merged in chunk order: the same for every executor.
+  constexpr std::size_t kMaxChunks = 64;
+  std::array<ActiveExtent, kMaxChunks> part{};
+  const std::size_t n = active.size();
+  const std::size_t chunks = std::min<std::size_t>(kMaxChunks, static_cast<std::size_t>(threads_for(n, threads)));
+  for_chunks(n, chunks,
+             [&](std::size_t b, std::size_t e, std::size_t c) { part[c] = extent_of(spheres, active, b, e); });
+  ActiveExtent all;
+  for (std::size_t c = 0; c < chunks; ++c) all.merge(part[c]);
+  return all;
+}
 
 std::uint64_t MortonOrder::memory_bytes() const {
   std::uint64_t b = bytes_of(sorted_ids_) + bytes_of(previous_ids_) + bytes_of(rank_) + bytes_of(gathered_) +
@@ -19,8 +32,8 @@ std::uint64_t MortonOrder::memory_bytes() const {
   return b;
 }
 
-void MortonOrder::sort(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
-                       Layout layout, int threads, FrameStats& stats) {
+void MortonOrder::sort(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits, Layout layout,
+                       int threads, FrameStats& stats) {
   VISCD_ASSERT(bits == 16 || bits == 32 || bits == 64, "Morton width must be 16, 32 or 64");
   Stopwatch sw;
   const ActiveExtent extent = active_extent(spheres, active, threads);

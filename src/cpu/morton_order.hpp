@@ -15,6 +15,7 @@
 #include <span>
 #include <vector>
 
+#include "core/frame_rules.hpp"
 #include "core/morton.hpp"
 #include "cpu/nearly_sorted.hpp"
 #include "cpu/radix_sort.hpp"
@@ -23,6 +24,11 @@
 #include "viscd/types.hpp"
 
 namespace viscd::detail {
+
+/// Stage 4's input: the extent of the active centres and their mean diameter, in parallel
+/// chunks (core's extent_of, merged in chunk order: the same for every thread count).
+[[nodiscard]] ActiveExtent active_extent(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                                         int threads);
 
 /// How a frame's stages 5-6 went (for tests and the bench).
 struct SortReport {

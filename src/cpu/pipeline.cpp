@@ -5,8 +5,9 @@
 #include <new>
 #include <optional>
 
+#include "core/morton.hpp"
 #include "core/stopwatch.hpp"
-#include "cpu/broadphase.hpp"
+#include "cpu/pair_collector.hpp"
 #include "cpu/parallel.hpp"
 
 namespace viscd::detail {

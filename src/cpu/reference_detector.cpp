@@ -2,7 +2,8 @@
 // Deliberately simple; every other backend is tested against it.
 
 #include "core/stopwatch.hpp"
-#include "cpu/broadphase.hpp"
+#include "cpu/brute_force.hpp"
+#include "cpu/morton_order.hpp"
 #include "cpu/pipeline.hpp"
 
 namespace viscd {

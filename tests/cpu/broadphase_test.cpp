@@ -40,7 +40,7 @@ void check_exact(const std::vector<Sphere>& spheres, const std::string& what) {
         << what << ", m=" << static_cast<int>(v.bits) << (v.layout == Layout::plain ? " plain" : " extended");
     EXPECT_EQ(f.stats.pairs, want.size());
     EXPECT_EQ(f.stats.bits, static_cast<int>(v.bits));
-    const auto& bp = det.lbvh();
+    const auto& bp = det.bucket_broadphase();
     ASSERT_EQ(detail::validate_wide_tree(bp.tree(), bp.leaf_boxes()), "") << what;
     // States: colliding iff in a pair; nothing culled without a camera.
     std::vector<char> in_pair(spheres.size(), 0);

@@ -9,7 +9,7 @@
 #include <numeric>
 #include <random>
 
-#include "cpu/broadphase.hpp"
+#include "cpu/brute_force.hpp"
 #include "cpu/bucket_broadphase.hpp"
 #include "cpu/simd.hpp"
 #include "test_util.hpp"

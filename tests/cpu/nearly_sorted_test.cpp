@@ -26,7 +26,8 @@ std::vector<SortEntry> nearly(std::size_t n, int jitter, std::size_t far, unsign
   std::vector<SortEntry> e(n);
   for (std::size_t k = 0; k < n; ++k) {
     const long long key = static_cast<long long>(k) * 10 + (jitter ? j(rng) : 0);
-    e[k] = {static_cast<std::uint64_t>(std::max(0ll, key)), static_cast<std::uint32_t>(k), static_cast<std::uint32_t>(k)};
+    e[k] = {static_cast<std::uint64_t>(std::max(0ll, key)), static_cast<std::uint32_t>(k),
+            static_cast<std::uint32_t>(k)};
   }
   for (std::size_t f = 0; f < far && n; ++f) e[at(rng)].key = static_cast<std::uint64_t>(at(rng)) * 10 + 5;
   return e;

@@ -1,11 +1,13 @@
-// Stages 5-8 of the gl backend against the cpu backend's LbvhBroadphase and brute force, on
+// Stages 5-8 of the gl backend against the cpu backend's KarrasBroadphase and brute force, on
 // identical inputs (same spheres, same active set, same m): codes and sorted order exactly,
 // the copied-back tree valid, pairs exactly equal.
 #include <algorithm>
 #include <numeric>
 #include <random>
 
-#include "cpu/broadphase.hpp"
+#include "cpu/morton_order.hpp"
+#include "cpu/brute_force.hpp"
+#include "karras/karras_lbvh.hpp"
 #include "gl_test_util.hpp"
 
 namespace viscd::test {
@@ -34,7 +36,7 @@ void check(test::GlUnderTest& gl, const Case& c, int bits, Layout layout = Layou
   const Status s = gl.run_broadphase(c.spheres, c.active, bits, gl_pairs, gl_stats);
   ASSERT_TRUE(s.ok()) << s.error();
 
-  detail::LbvhBroadphase cpu;
+  detail::KarrasBroadphase cpu;
   std::vector<Pair> cpu_pairs;
   FrameStats cpu_stats;
   ASSERT_TRUE(cpu.run(c.spheres, c.active, bits, layout, 1, 0, cpu_pairs, cpu_stats).ok());

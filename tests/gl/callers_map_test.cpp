@@ -6,7 +6,7 @@
 
 #include <thread>
 
-#include "cpu/broadphase.hpp"
+#include "cpu/brute_force.hpp"
 #include "gl_test_util.hpp"
 #include "test_util.hpp"
 

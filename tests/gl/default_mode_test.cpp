@@ -5,7 +5,7 @@
 // culling toggling, zero and one active objects, pair-buffer overflow.
 #include <algorithm>
 
-#include "cpu/broadphase.hpp"
+#include "cpu/brute_force.hpp"
 #include "gl_test_util.hpp"
 
 namespace viscd::test {

@@ -5,7 +5,7 @@
 #include <utility>
 #include <vector>
 
-#include "cpu/broadphase.hpp"
+#include "cpu/brute_force.hpp"
 #include "cpu/cpu_detector.hpp"
 #include "gl_test_util.hpp"
 #include "viscd/io.hpp"

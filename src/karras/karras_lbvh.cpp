@@ -1,12 +1,16 @@
-#include "cpu/lbvh_build.hpp"
+#include "karras/karras_lbvh.hpp"
 
 #include <algorithm>
 #include <bit>
 
+#include "core/stopwatch.hpp"
 #include "cpu/grow.hpp"
+#include "cpu/morton_order.hpp"
 #include "cpu/parallel.hpp"
+#include "viscd/assert.hpp"
 
 namespace viscd::detail {
+
 namespace {
 
 // Length of the common prefix of the keys at sorted positions i and j, ties split by position;
@@ -120,6 +124,99 @@ void fit_lbvh(std::span<const Aabb> leaf_boxes, Lbvh& bvh, int threads) {
       node = bvh.parent[node];
     }
   });
+}
+
+std::uint64_t KarrasBroadphase::memory_bytes() const {
+  std::uint64_t b = bytes_of(sorted_ids_) + bytes_of(sorted_spheres_) + bytes_of(leaf_boxes_) + bytes_of(bvh_.nodes) +
+                    bytes_of(bvh_.parent) + bytes_of(bvh_.leaf_parent) + bytes_of(bvh_.arrivals) +
+                    pairs_.memory_bytes();
+  keys_.for_each([&](const auto& v) { b += bytes_of(v); });
+  scratch_.for_each([&](const auto& s) { b += bytes_of(s.keys) + bytes_of(s.values); });
+  return b;
+}
+
+std::vector<std::uint64_t> KarrasBroadphase::sorted_codes() const { return keys_.widened(bits_, sorted_ids_.size()); }
+
+Status KarrasBroadphase::run(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
+                             Layout layout, int threads, std::size_t pair_memory_cap, std::vector<Pair>& pairs,
+                             FrameStats& stats) {
+  VISCD_ASSERT(bits == 16 || bits == 32 || bits == 64, "Morton width must be 16, 32 or 64");
+  Stopwatch sw;
+  const ActiveExtent extent = active_extent(spheres, active, threads);
+  layout_ = make_layout(layout, bits, extent.bounds, extent.mean_diameter());
+  bits_ = bits;
+  stats.bits = bits;
+  stats.layout = layout_.info();
+  stats.ms(Stage::layout) = sw.lap();
+  switch (bits) {
+    case 16:
+      return run_keys<std::uint16_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);
+    case 32:
+      return run_keys<std::uint32_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);
+    default:
+      return run_keys<std::uint64_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);
+  }
+}
+
+template <class K>
+Status KarrasBroadphase::run_keys(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                                  const Aabb& bounds, int threads, std::size_t pair_memory_cap,
+                                  std::vector<Pair>& pairs, FrameStats& stats) {
+  Stopwatch sw;
+  const std::size_t n = active.size();
+  std::vector<K>& key = keys_.get<K>();
+  if (key.size() < n) key.resize(n);
+  if (sorted_ids_.size() != n) sorted_ids_.resize(n);
+
+  // Stage 5: codes. Values start as active object ids in ascending order, so the stable sort
+  // breaks key ties by object index.
+  const MortonEncoder encoder(layout_, bounds);
+  parallel_for(n, threads, [&](std::size_t k) {
+    const Sphere& s = spheres[active[k]];
+    key[k] = static_cast<K>(encoder.encode(s.x, s.y, s.z));
+    sorted_ids_[k] = active[k];
+  });
+  stats.ms(Stage::codes) = sw.lap();
+
+  // Stage 6: sort.
+  radix_sort<K>(std::span<K>(key.data(), n), std::span<std::uint32_t>(sorted_ids_.data(), n), 8 * sizeof(K), threads,
+                scratch_.get<K>());
+  stats.ms(Stage::sort) = sw.lap();
+
+  // Stage 7: hierarchy, then boxes. Spheres are gathered into sorted order for coherent access.
+  build_lbvh<K>(std::span<const K>(key.data(), n), bvh_, threads);
+  stats.ms(Stage::build) = sw.lap();
+  if (sorted_spheres_.size() != n) {
+    sorted_spheres_.resize(n);
+    leaf_boxes_.resize(n);
+  }
+  parallel_for(n, threads, [&](std::size_t p) {
+    sorted_spheres_[p] = spheres[sorted_ids_[p]];
+    leaf_boxes_[p] = conservative_box(sorted_spheres_[p]);
+  });
+  fit_lbvh(leaf_boxes_, bvh_, threads);
+  stats.ms(Stage::fit) = sw.lap();
+#ifdef VISCD_VALIDATE
+  {
+    const std::string problem = validate_lbvh(bvh_, leaf_boxes_);
+    VISCD_ASSERT(problem.empty(), problem.c_str());
+  }
+#endif
+
+  // Stage 8: each leaf p looks for partners q > p only, so each pair is found once.
+  const std::size_t chunks = threads_for(n, threads) == 1 ? 1 : std::min<std::size_t>(n, 8 * threads);
+  const std::uint32_t objects = n ? active.back() + 1 : 0;  // active is ascending
+  const Status found =
+      pairs_.collect(n, chunks, threads, pair_memory_cap, objects, pairs, [&](std::size_t p, auto& emit) {
+        const Sphere& a = sorted_spheres_[p];
+        for_each_overlap_after(bvh_, static_cast<std::uint32_t>(p), leaf_boxes_[p], [&](std::uint32_t q) {
+          if (overlap_exact(a, sorted_spheres_[q])) emit(sorted_ids_[p], sorted_ids_[q]);
+        });
+      });
+  if (!found) return found;
+  stats.pairs = pairs.size();
+  stats.ms(Stage::query) = sw.lap();
+  return {};
 }
 
 }  // namespace viscd::detail

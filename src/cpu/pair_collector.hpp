@@ -1,6 +1,6 @@
 #pragma once
-// Stages 4-8 over an active set: Morton layout, codes, radix sort, Karras build, fit, query.
-// Exact: the result equals brute force over the active set for every m (tests/cpu/).
+// Stage 8's output on the CPU: the pairs found by parallel tasks, each chunk into a list of its
+// own, with the pair cap enforced while searching, then sorted by (i, j) in two local passes.
 
 #include <algorithm>
 #include <atomic>
@@ -10,21 +10,11 @@
 #include <vector>
 
 #include "core/frame_rules.hpp"
-#include "core/morton.hpp"
-#include "cpu/lbvh_build.hpp"
 #include "cpu/parallel.hpp"
-#include "cpu/radix_sort.hpp"
-#include "viscd/config.hpp"
-#include "viscd/detector.hpp"
-#include "viscd/frame.hpp"
 #include "viscd/result.hpp"
 #include "viscd/types.hpp"
 
 namespace viscd::detail {
-
-/// The extent of the active set, in parallel chunks (core's extent_of, merged in chunk order).
-[[nodiscard]] ActiveExtent active_extent(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
-                                         int threads);
 
 /// Writes the pairs of per-chunk lists (keys i << 32 | j, i < j < objects) into `out` sorted by
 /// (i, j), with up to `threads` threads: O(pairs + objects / 1024 per list). `offsets` and
@@ -115,48 +105,5 @@ class PairCollector {
   std::vector<std::uint32_t> offsets_;
   std::vector<Pair> scratch_;
 };
-
-/// The LBVH broadphase. Keeps every buffer between frames: after the first frame of a given size,
-/// run() allocates nothing unless the pair count grows. Not thread-safe.
-class LbvhBroadphase {
- public:
-  /// Finds all overlapping pairs among spheres[active[k]] (active ascending) with m-bit codes.
-  /// Writes sorted pairs, stats.bits, stats.layout and the stage times of stages 4-8.
-  /// Fails only when the pairs would exceed pair_memory_cap bytes (0 = no cap).
-  [[nodiscard]] Status run(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
-                           Layout layout, int threads, std::size_t pair_memory_cap, std::vector<Pair>& pairs,
-                           FrameStats& stats);
-
-  /// Inspection for tests: the last frame's tree, leaf boxes and sorted object ids.
-  [[nodiscard]] const Lbvh& tree() const { return bvh_; }
-  [[nodiscard]] std::span<const Aabb> leaf_boxes() const { return leaf_boxes_; }
-  [[nodiscard]] std::span<const std::uint32_t> sorted_objects() const { return sorted_ids_; }
-  [[nodiscard]] const MortonLayout& layout() const { return layout_; }
-  /// Bytes of every buffer held (capacities).
-  [[nodiscard]] std::uint64_t memory_bytes() const;
-  /// Sorted codes of the last frame, widened to 64 bits.
-  [[nodiscard]] std::vector<std::uint64_t> sorted_codes() const;
-
- private:
-  template <class K>
-  Status run_keys(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, const Aabb& bounds,
-                  int threads, std::size_t pair_memory_cap, std::vector<Pair>& pairs, FrameStats& stats);
-
-  MortonLayout layout_;
-  int bits_ = 32;
-  PerWidth<KeyVector> keys_;
-  PerWidth<RadixScratch> scratch_;
-  std::vector<std::uint32_t> sorted_ids_;
-  std::vector<Sphere> sorted_spheres_;
-  std::vector<Aabb> leaf_boxes_;
-  Lbvh bvh_;
-  PairCollector pairs_;
-};
-
-/// O(n^2) brute force over the active set: the oracle. Pairs come out sorted. Stops and returns
-/// false when there are more than `max_pairs`. `filters`: empty, or one per sphere, and then only
-/// pairs with pair_passes_filter() count.
-bool brute_force_pairs(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, std::vector<Pair>& pairs,
-                       std::size_t max_pairs = SIZE_MAX, std::span<const Filter> filters = {});
 
 }  // namespace viscd::detail

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <random>
 
-#include "cpu/lbvh_build.hpp"
+#include "karras/karras_lbvh.hpp"
 
 namespace viscd::detail {
 namespace {
