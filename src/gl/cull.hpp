@@ -27,9 +27,9 @@ class Culling {
   [[nodiscard]] Status init();
   /// Sizes the flags and scan buffers for `objects` objects.
   void reserve(std::uint32_t objects);
-  /// Stage 3 over `objects` objects: reads FrameData::counts (when pixels are counted), writes
-  /// FrameData::pixels, states, active, FrameInfo.active_count and the other sums, and
-  /// DispatchArgs.
+  /// Stage 3 over `objects` objects: reads FrameData::counts and writes FrameData::pixels when
+  /// pixels are counted; writes FrameData::states, active, FrameInfo's active count, visible
+  /// count, pixel total and filter OR, and DispatchArgs.
   void cull(std::uint32_t objects);
   /// Writes DispatchArgs from FrameInfo.active_count (one invocation on the GPU).
   void write_dispatch_args();

@@ -19,8 +19,8 @@
 //      diameter sum, pixel total), which the host read with that frame's pair count. Every
 //      pass after culling is sized by this frame's active count n through indirect dispatch
 //      (DispatchArgs, written on the GPU from FrameInfo), and reads n from FrameInfo. The
-//      first frame, and a frame whose N or camera presence differs from the previous frame's,
-//      run as sync_layout.
+//      first frame, and a frame whose N, or whether it counts pixels (a camera or the caller's
+//      map), differs from the previous frame's, run as sync_layout.
 //   sync_layout = true: one wait after stage 4's bounds passes for this frame's FrameInfo; m and
 //      the layout are then exactly the cpu backend's (bit-identical codes).
 // In both modes the frame ends with one wait, for FrameInfo (the pair count: grow the pair

@@ -2,8 +2,9 @@
 // Stage 4 of the gl backend: the Morton width m and layout. The GPU measures the active centres'
 // bounds and diameter sum into FrameInfo; the host chooses m and the layout with core's rules
 // (core/morton.hpp, as the cpu backend) from this frame's FrameInfo (a mid-frame wait:
-// GlOptions::sync_layout, a first frame, or a change of N or camera presence) or from the
-// previous frame's, which the final wait of that frame read anyway (the default mode: no wait).
+// GlOptions::sync_layout, a first frame, or a change of N or of whether pixels are counted) or
+// from the previous frame's, which the final wait of that frame read anyway (the default mode:
+// no wait).
 // This part keeps those previous-frame values and counts the mid-frame waits.
 
 #include <cstdint>
@@ -50,7 +51,7 @@ class LayoutChooser {
   /// count, active count and mu into stats, and kept as the next frame's layout inputs.
   void remember(std::uint32_t objects, bool has_pixels, const shader::FrameInfo& info, FrameStats& stats);
   /// Frames so far that waited mid-frame for their own FrameInfo (sync_layout, a first frame,
-  /// or a change of N or camera presence); default-mode frames do not count.
+  /// or a change of N or of whether pixels are counted); default-mode frames do not count.
   [[nodiscard]] std::uint64_t mid_frame_waits() const { return mid_frame_waits_; }
   /// Bytes held by the part's buffers (Detector::memory_bytes()).
   [[nodiscard]] std::uint64_t buffer_bytes() const { return static_cast<std::uint64_t>(partials_.size()); }

@@ -3,7 +3,7 @@
 // broadphase over a given active set, the sorted codes and ids, the tree, the pair capacity, the
 // mid-frame wait count, the id map, counting a given map, changing GlOptions on a live detector,
 // the device string. It is a friend of GlDetector, so that the backend's own interface stays the
-// Backend's. Each call makes the detector's context current first, as a frame does.
+// Backend's. Each call that uses GL makes the detector's context current first, as a frame does.
 
 #include <cstdint>
 #include <span>
@@ -30,7 +30,7 @@ class GlInspector {
   void set_options(const GlOptions& options);
   /// "llvmpipe (LLVM 15.0.6, 256 bits) | 4.5 (Core Profile) Mesa 22.3.6"
   [[nodiscard]] const std::string& device() const;
-  /// Frames so far that waited mid-frame for their own FrameInfo (LayoutChooser).
+  /// Frames so far that waited mid-frame for their own FrameInfo (LayoutChooser::mid_frame_waits).
   [[nodiscard]] std::uint64_t mid_frame_waits() const;
   /// Pairs the pair buffer holds now (Broadphase).
   [[nodiscard]] std::uint32_t pair_capacity() const;
