@@ -134,4 +134,13 @@ void Program::dispatch(std::uint64_t n) const {
   glDispatchCompute(groups_for(n), 1, 1);
 }
 
+Status build_compute_programs(std::initializer_list<std::pair<Program*, const char*>> programs) {
+  for (const auto& [program, name] : programs) {
+    auto p = Program::compute(name);
+    if (!p) return p.status();
+    *program = std::move(p.value());
+  }
+  return {};
+}
+
 }  // namespace viscd::gl

@@ -2,6 +2,7 @@
 // Shader programs built from the embedded sources, every compile and link checked with its log.
 
 #include <array>
+#include <initializer_list>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -47,5 +48,9 @@ class Program {
   GLuint local_size_ = 1;
   std::vector<std::pair<std::string, GLint>> uniforms_;  // active uniforms: name, location
 };
+
+/// Builds compute programs without defines: each `*first` from the embedded shader named
+/// `second`, in the order given; stops at the first that fails and returns its error.
+[[nodiscard]] Status build_compute_programs(std::initializer_list<std::pair<Program*, const char*>> programs);
 
 }  // namespace viscd::gl

@@ -1,11 +1,16 @@
-// Stages 1, 2 and 9 of the gl backend: G-buffer pass, pixel counting, deferred shading.
+// Stages 1, 2 and 9 of the gl backend (visibility.hpp): the G-buffer pass, pixel counting (also
+// on the caller's map), deferred shading.
+#include "gl/visibility.hpp"
+
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
 #include <string>
 
-#include "gl/gl_detector.hpp"
-#include "gl/shader_sources.hpp"
+#include "core/frame_rules.hpp"
+#include "core/visibility.hpp"
+#include "viscd/assert.hpp"
 
 namespace viscd::gl {
 namespace {
@@ -29,8 +34,30 @@ void dispatch_over_map(GLuint program, int w, int h) {
 
 }  // namespace
 
-void GlDetector::set_camera_uniforms(const Program& prog) const {
-  const detail::CameraRig& rig = *rig_;
+Status Visibility::init() {
+  if (Status s = build_compute_programs({{&count_, "count.comp"}, {&shade_, "shade.comp"}}); !s) return s;
+  auto imp = Program::graphics("gbuffer_impostor.vert", "gbuffer_impostor.frag");
+  if (!imp) return imp.status();
+  impostor_ = std::move(imp.value());
+  auto mesh = Program::graphics("gbuffer_mesh.vert", "gbuffer_mesh.frag");
+  if (!mesh) return mesh.status();
+  mesh_ = std::move(mesh.value());
+  GLuint name = 0;
+  glCreateVertexArrays(1, &name);
+  empty_vao_ = VertexArray(name);
+  glCreateFramebuffers(1, &name);
+  empty_fbo_ = Framebuffer(name);
+  glCreateSamplers(1, &name);
+  nearest_ = Sampler(name);
+  glSamplerParameteri(name, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glSamplerParameteri(name, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  glGetIntegerv(GL_MAX_FRAGMENT_ATOMIC_COUNTERS, &max_fragment_counters_);
+  glGetIntegerv(GL_MAX_ATOMIC_COUNTER_BUFFER_SIZE, &max_counter_buffer_bytes_);
+  return {};
+}
+
+void Visibility::set_camera_uniforms(const Program& prog) const {
+  const detail::CameraRig& rig = *frame_.rig;
   const GLuint p = prog.get();
   glProgramUniform3f(p, prog.uniform("u_eye"), rig.eye.x, rig.eye.y, rig.eye.z);
   glProgramUniform3f(p, prog.uniform("u_forward"), rig.forward.x, rig.forward.y, rig.forward.z);
@@ -41,7 +68,7 @@ void GlDetector::set_camera_uniforms(const Program& prog) const {
   if (prog.has_uniform("u_map")) glProgramUniform2i(p, prog.uniform("u_map"), rig.map_w, rig.map_h);  // impostor only
 }
 
-Status GlDetector::render_visibility(std::uint32_t objects) {
+Status Visibility::render(std::uint32_t objects) {
   if (options_.counter == GlCounter::atomic_uint) {
     // Checked before any work so that the error is clean.
     const std::uint32_t limit = std::min<std::uint32_t>(static_cast<std::uint32_t>(max_fragment_counters_),
@@ -54,17 +81,17 @@ Status GlDetector::render_visibility(std::uint32_t objects) {
               ", GL_MAX_ATOMIC_COUNTER_BUFFER_SIZE = " + std::to_string(max_counter_buffer_bytes_) +
               " bytes); the frame has " + std::to_string(objects) + ": use the ssbo counter mode");
   }
-  stage_begin(Stage::visibility);
-  ensure_map(rig_->map_w, rig_->map_h);
+  timers_.begin(Stage::visibility);
+  ensure_map(frame_.rig->map_w, frame_.rig->map_h);
   draw_gbuffer(objects);
-  stage_end(Stage::visibility);
-  stage_begin(Stage::count);
+  timers_.end(Stage::visibility);
+  timers_.begin(Stage::count);
   if (Status s = count_pixels(ids_tex_.get(), map_w_, map_h_, objects, options_.counter); !s) return s;
-  stage_end(Stage::count);
+  timers_.end(Stage::count);
   return {};
 }
 
-Status GlDetector::count_callers_map(const FrameInput& in) {
+Status Visibility::count_callers_map(const FrameInput& in) {
   const int w = in.id_map_width, h = in.id_map_height;
   const auto objects = static_cast<std::uint32_t>(in.spheres.size());
   GLuint ids = in.gl_id_texture;
@@ -99,15 +126,28 @@ Status GlDetector::count_callers_map(const FrameInput& in) {
                                                            " texels, but id_map_width x id_map_height is " +
                                                            std::to_string(w) + "x" + std::to_string(h));
   }
-  stage_begin(Stage::count);
+  timers_.begin(Stage::count);
   // Always the ssbo counter: it checks every id against N, which a caller's map needs.
   const Status s = count_pixels(ids, w, h, objects, GlCounter::ssbo);
-  stage_end(Stage::count);
+  timers_.end(Stage::count);
   return s;
 }
 
+Status Visibility::id_check(const FrameInput& in, const shader::FrameInfo& info) {
+  const std::uint32_t bad = info.id_check.x;
+  if (bad == 0) return {};
+  if (!in.id_map.empty()) return detail::id_map_error(in.id_map, in.id_map_width, in.spheres.size());
+  const std::uint32_t first = info.id_check.y;
+  const auto w = static_cast<std::uint32_t>(in.id_map_width);
+  return Status::failure(ErrorKind::invalid_input, "FrameInput::gl_id_texture: texel (" + std::to_string(first % w) +
+                                                       ", " + std::to_string(first / w) + ") and " +
+                                                       std::to_string(bad - 1) + " more hold ids above the frame's " +
+                                                       std::to_string(in.spheres.size()) +
+                                                       " objects (an id is an object index + 1, 0 is background)");
+}
+
 // The G-buffer: ids (R32UI), view depth (R32F), normal (RGBA32F) and a D32F depth buffer.
-void GlDetector::ensure_map(int w, int h) {
+void Visibility::ensure_map(int w, int h) {
   if (w == map_w_ && h == map_h_ && gbuffer_) return;
   map_w_ = w;
   map_h_ = h;
@@ -131,7 +171,7 @@ void GlDetector::ensure_map(int w, int h) {
 }
 
 // A UV sphere of 16 stacks x 32 slices (960 triangles), vertices on the unit sphere.
-void GlDetector::make_mesh() {
+void Visibility::make_mesh() {
   constexpr int kStacks = 16, kSlices = 32;
   std::vector<float> v;
   std::vector<GLuint> idx;
@@ -167,8 +207,8 @@ void GlDetector::make_mesh() {
 
 // Stage 1: instanced draw of every sphere, ids ascending; depth test LESS keeps the nearest hit
 // and, on equal depth, the first drawn (smaller id), GL's primitive order guarantee.
-void GlDetector::draw_gbuffer(std::uint32_t n) {
-  const detail::CameraRig& rig = *rig_;
+void Visibility::draw_gbuffer(std::uint32_t n) {
+  const detail::CameraRig& rig = *frame_.rig;
   const GLuint zero_id[4] = {0, 0, 0, 0};
   const float far_depth[4] = {rig.far_plane, 0, 0, 0};
   const float zero[4] = {0, 0, 0, 0};
@@ -183,7 +223,7 @@ void GlDetector::draw_gbuffer(std::uint32_t n) {
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
   glDisable(GL_CULL_FACE);  // a camera inside a sphere sees its back faces (CameraRig hit())
-  spheres_.bind_storage(VISCD_BIND_SPHERES);
+  frame_.spheres.bind_storage(VISCD_BIND_SPHERES);
   if (options_.geometry == GlGeometry::mesh) {
     if (!mesh_vao_) make_mesh();
     set_camera_uniforms(mesh_);
@@ -201,11 +241,12 @@ void GlDetector::draw_gbuffer(std::uint32_t n) {
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
 }
 
-// Stage 2 from an id texture into counts_[0..n).
-Status GlDetector::count_pixels(GLuint ids, int w, int h, std::uint32_t n, GlCounter mode) {
-  counts_.reserve(4 * static_cast<GLsizeiptr>(n));
+// Stage 2 from an id texture into FrameData::counts[0..n).
+Status Visibility::count_pixels(GLuint ids, int w, int h, std::uint32_t n, GlCounter mode) {
+  frame_.counts.reserve(4 * static_cast<GLsizeiptr>(n));
   const GLuint zero = 0;
-  glClearNamedBufferSubData(counts_.get(), GL_R32UI, 0, counts_.size(), GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
+  glClearNamedBufferSubData(frame_.counts.get(), GL_R32UI, 0, frame_.counts.size(), GL_RED_INTEGER, GL_UNSIGNED_INT,
+                            &zero);
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
   glBindTextureUnit(VISCD_UNIT_IDS, ids);
   glBindSampler(VISCD_UNIT_IDS, nearest_.get());
@@ -219,7 +260,7 @@ Status GlDetector::count_pixels(GLuint ids, int w, int h, std::uint32_t n, GlCou
       count_atomic_n_ = n;
     }
     // The counts buffer is the atomic counter buffer: no copy afterwards.
-    glBindBufferRange(GL_ATOMIC_COUNTER_BUFFER, VISCD_BIND_ATOMIC_COUNTERS, counts_.get(), 0,
+    glBindBufferRange(GL_ATOMIC_COUNTER_BUFFER, VISCD_BIND_ATOMIC_COUNTERS, frame_.counts.get(), 0,
                       4 * static_cast<GLsizeiptr>(n));
     glBindFramebuffer(GL_FRAMEBUFFER, empty_fbo_.get());
     glViewport(0, 0, w, h);
@@ -228,8 +269,8 @@ Status GlDetector::count_pixels(GLuint ids, int w, int h, std::uint32_t n, GlCou
     glDrawArrays(GL_TRIANGLES, 0, 3);
     glBindFramebuffer(GL_FRAMEBUFFER, 0);
   } else {
-    counts_.bind_storage(VISCD_BIND_COUNTS);
-    info_.bind_storage(VISCD_BIND_INFO);
+    frame_.counts.bind_storage(VISCD_BIND_COUNTS);
+    frame_.info.bind_storage(VISCD_BIND_INFO);
     glProgramUniform2i(count_.get(), count_.uniform("u_map"), w, h);
     glProgramUniform1ui(count_.get(), count_.uniform("u_n"), n);
     dispatch_over_map(count_.get(), w, h);
@@ -241,13 +282,13 @@ Status GlDetector::count_pixels(GLuint ids, int w, int h, std::uint32_t n, GlCou
 
 // Stage 9: the shared shading model and state colours (core/visibility.hpp, viscd/types.hpp),
 // as the cpu backend's shade().
-void GlDetector::shade(FrameResult& out) {
-  if (!rig_ || !config_.shade) {
+void Visibility::shade(FrameResult& out) {
+  if (!frame_.rig || !config_.shade) {
     out.image.clear();
     out.image_width = out.image_height = 0;
     return;
   }
-  stage_begin(Stage::shade);
+  timers_.begin(Stage::shade);
   const std::size_t pixels = static_cast<std::size_t>(map_w_) * static_cast<std::size_t>(map_h_);
   image_.reserve(4 * static_cast<GLsizeiptr>(pixels));
   const detail::ShadingModel& model = detail::shading_model();
@@ -255,7 +296,8 @@ void GlDetector::shade(FrameResult& out) {
   glProgramUniform2i(p, shade_.uniform("u_map"), map_w_, map_h_);
   glProgramUniform3f(p, shade_.uniform("u_light"), model.light.x, model.light.y, model.light.z);
   glProgramUniform3f(p, shade_.uniform("u_terms"), model.ambient, model.diffuse, model.rim);
-  glProgramUniform3f(p, shade_.uniform("u_view"), -rig_->forward.x, -rig_->forward.y, -rig_->forward.z);
+  glProgramUniform3f(p, shade_.uniform("u_view"), -frame_.rig->forward.x, -frame_.rig->forward.y,
+                     -frame_.rig->forward.z);
   float colours[12];
   const Rgb8 c[4] = {state_colour(ObjectState::colliding), state_colour(ObjectState::free),
                      state_colour(ObjectState::culled), kBackgroundColour};
@@ -267,19 +309,26 @@ void GlDetector::shade(FrameResult& out) {
   glProgramUniform3fv(p, shade_.uniform("u_colour"), 4, colours);
   glBindTextureUnit(VISCD_UNIT_IDS, ids_tex_.get());
   glBindTextureUnit(VISCD_UNIT_NORMAL, normal_tex_.get());
-  states_.bind_storage(VISCD_BIND_STATE);
+  frame_.states.bind_storage(VISCD_BIND_STATE);
   image_.bind_storage(VISCD_BIND_IMAGE);
   dispatch_over_map(p, map_w_, map_h_);
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
-  stage_end(Stage::shade);
+  timers_.end(Stage::shade);
   out.image.resize(4 * pixels);
   glGetNamedBufferSubData(image_.get(), 0, static_cast<GLsizeiptr>(out.image.size()), out.image.data());
   out.image_width = map_w_;
   out.image_height = map_h_;
 }
 
-std::vector<std::uint32_t> GlDetector::read_id_map() {
-  (void)ctx_->make_current();
+std::uint64_t Visibility::memory_bytes() const {
+  std::uint64_t b = 0;
+  for (const Buffer* buf : {&image_, &mesh_vbo_, &mesh_ibo_}) b += static_cast<std::uint64_t>(buf->size());
+  // G-buffer: R32UI ids, R32F depth, RGBA32F normals, 32-bit float z-buffer.
+  b += static_cast<std::uint64_t>(map_w_) * static_cast<std::uint64_t>(map_h_) * (4 + 4 + 16 + 4);
+  return b;
+}
+
+std::vector<std::uint32_t> Visibility::read_id_map() {
   const std::size_t w = static_cast<std::size_t>(map_w_), h = static_cast<std::size_t>(map_h_);
   std::vector<std::uint32_t> bottom_up(w * h), ids(w * h);
   if (!ids_tex_ || ids.empty()) return ids;
@@ -289,11 +338,9 @@ std::vector<std::uint32_t> GlDetector::read_id_map() {
   return ids;
 }
 
-Result<std::vector<std::uint32_t>> GlDetector::count_id_map(std::span<const std::uint32_t> ids, int width, int height,
+Result<std::vector<std::uint32_t>> Visibility::count_id_map(std::span<const std::uint32_t> ids, int width, int height,
                                                             std::uint32_t objects) {
   using R = Result<std::vector<std::uint32_t>>;
-  if (!ctx_->make_current())
-    return R::failure(ErrorKind::backend_failure, "OpenGL: cannot make the detector's context current");
   VISCD_ASSERT(ids.size() == static_cast<std::size_t>(width) * static_cast<std::size_t>(height), "id map size");
   ensure_map(width, height);
   const std::size_t w = static_cast<std::size_t>(width), h = static_cast<std::size_t>(height);
@@ -304,8 +351,7 @@ Result<std::vector<std::uint32_t>> GlDetector::count_id_map(std::span<const std:
   glMemoryBarrier(GL_ALL_BARRIER_BITS);
   if (Status s = count_pixels(ids_tex_.get(), width, height, objects, options_.counter); !s) return R::failure(s);
   std::vector<std::uint32_t> counts(objects);
-  if (objects) glGetNamedBufferSubData(counts_.get(), 0, 4 * static_cast<GLsizeiptr>(objects), counts.data());
-  if (Status s = gl_errors("count_id_map()"); !s) return R::failure(s);
+  if (objects) glGetNamedBufferSubData(frame_.counts.get(), 0, 4 * static_cast<GLsizeiptr>(objects), counts.data());
   return counts;
 }
 

@@ -33,7 +33,7 @@ void check(test::GlUnderTest& gl, const Case& c, int bits, Layout layout = Layou
   gl.set_config(cfg);
   std::vector<Pair> gl_pairs;
   FrameStats gl_stats;
-  const Status s = gl.run_broadphase(c.spheres, c.active, bits, gl_pairs, gl_stats);
+  const Status s = gl.inspect().run_broadphase(c.spheres, c.active, bits, gl_pairs, gl_stats);
   ASSERT_TRUE(s.ok()) << s.error();
 
   detail::KarrasBroadphase cpu;
@@ -42,17 +42,17 @@ void check(test::GlUnderTest& gl, const Case& c, int bits, Layout layout = Layou
   ASSERT_TRUE(cpu.run(c.spheres, c.active, bits, layout, 1, 0, cpu_pairs, cpu_stats).ok());
   EXPECT_EQ(gl_stats.layout, cpu_stats.layout);
 
-  const std::vector<std::uint64_t> codes = gl.read_sorted_codes();
+  const std::vector<std::uint64_t> codes = gl.inspect().read_sorted_codes();
   const std::vector<std::uint64_t> cpu_codes = cpu.sorted_codes();
   ASSERT_EQ(codes.size(), cpu_codes.size());
   EXPECT_TRUE(codes == cpu_codes) << "sorted Morton codes differ";
-  const std::vector<std::uint32_t> ids = gl.read_sorted_ids();
+  const std::vector<std::uint32_t> ids = gl.inspect().read_sorted_ids();
   EXPECT_TRUE(std::equal(ids.begin(), ids.end(), cpu.sorted_objects().begin(), cpu.sorted_objects().end()))
       << "sorted order differs";
 
   detail::Lbvh tree;
   std::vector<detail::Aabb> leaf_boxes;
-  gl.read_tree(tree, leaf_boxes);
+  gl.inspect().read_tree(tree, leaf_boxes);
   EXPECT_EQ(detail::validate_lbvh(tree, leaf_boxes), "");
   // Leaf boxes are conservative_box() bit for bit.
   for (std::size_t p = 0; p < leaf_boxes.size(); ++p) {
@@ -148,13 +148,13 @@ TEST(GlBroadphase, PairBufferOverflowGrowsAndReruns) {
   auto fresh = test::GlUnderTest::create(Config{}, GlOptions{.debug = true, .initial_pair_capacity = 64});
   ASSERT_TRUE(fresh.ok()) << fresh.error();
   test::GlUnderTest& d = *fresh.value();
-  ASSERT_EQ(d.pair_capacity(), 64u);
+  ASSERT_EQ(d.inspect().pair_capacity(), 64u);
   const Case c = all_active(random_spheres_by_edge(2000, 12.0f, 0.3f, 0.9f, 5));
   std::vector<Pair> brute;
   detail::brute_force_pairs(c.spheres, c.active, brute);
   ASSERT_GT(brute.size(), 64u);
   check(d, c, 32);
-  EXPECT_GE(d.pair_capacity(), brute.size());
+  EXPECT_GE(d.inspect().pair_capacity(), brute.size());
 }
 
 TEST(GlBroadphase, PairMemoryCapIsAnError) {
@@ -165,7 +165,7 @@ TEST(GlBroadphase, PairMemoryCapIsAnError) {
   const Case c = all_active(std::vector<Sphere>(20, Sphere{0, 0, 0, 1}));
   std::vector<Pair> pairs;
   FrameStats stats;
-  const Status s = gl->run_broadphase(c.spheres, c.active, 32, pairs, stats);
+  const Status s = gl->inspect().run_broadphase(c.spheres, c.active, 32, pairs, stats);
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.error().find("190 colliding pairs"), std::string::npos) << s.error();
 }

@@ -75,7 +75,7 @@ TEST(GlDefaultMode, MovingRingWithCameraAndCullingEveryFrame) {
   p.seed = 17;
   Scene scene = Scene::make(p);
   const Camera cam = small_camera(scene, "orbit");
-  const std::uint64_t waits0 = gl->mid_frame_waits();
+  const std::uint64_t waits0 = gl->inspect().mid_frame_waits();
   FrameResult out;
   for (int f = 0; f < 10; ++f) {
     scene.step(1.0f / 60.0f);
@@ -85,7 +85,7 @@ TEST(GlDefaultMode, MovingRingWithCameraAndCullingEveryFrame) {
     EXPECT_LT(out.stats.active, 3000u);  // culling did cull
   }
   // At most the first frame waited mid-frame (another test may have left the same N behind).
-  EXPECT_LE(gl->mid_frame_waits() - waits0, 1u);
+  EXPECT_LE(gl->inspect().mid_frame_waits() - waits0, 1u);
 }
 
 TEST(GlDefaultMode, LayoutIsThePreviousFramesAndReportedAsUsed) {
@@ -98,16 +98,16 @@ TEST(GlDefaultMode, LayoutIsThePreviousFramesAndReportedAsUsed) {
   ASSERT_TRUE(ref->detect(a, nullptr, ra).ok());
   ASSERT_TRUE(ref->detect(b, nullptr, rb).ok());
   ASSERT_NE(ra.stats.layout, rb.stats.layout);
-  gl->set_options(GlOptions{.debug = true, .sync_layout = true});
+  gl->inspect().set_options(GlOptions{.debug = true, .sync_layout = true});
   check_frame(*gl, a, nullptr, g, "a, sync");
   EXPECT_EQ(g.stats.layout, ra.stats.layout);
-  gl->set_options(GlOptions{.debug = true});
-  const std::uint64_t waits = gl->mid_frame_waits();
+  gl->inspect().set_options(GlOptions{.debug = true});
+  const std::uint64_t waits = gl->inspect().mid_frame_waits();
   check_frame(*gl, b, nullptr, g, "b after a, default");
   EXPECT_EQ(g.stats.layout, ra.stats.layout) << "the default mode uses the previous frame's layout";
   check_frame(*gl, b, nullptr, g, "b after b, default");
   EXPECT_EQ(g.stats.layout, rb.stats.layout);
-  EXPECT_EQ(gl->mid_frame_waits(), waits) << "the default mode waited mid-frame";
+  EXPECT_EQ(gl->inspect().mid_frame_waits(), waits) << "the default mode waited mid-frame";
 }
 
 TEST(GlDefaultMode, ObjectsJumpFarOutsideThePreviousBounds) {
@@ -240,13 +240,13 @@ TEST(GlDefaultMode, PairBufferOverflowGrowsAndReruns) {
   const std::vector<Sphere> sparse = random_spheres_by_edge(1500, 2000.0f, 0.1f, 0.2f, 31);
   check_frame(d, sparse, nullptr, out, "sparse (sync: first frame)");
   ASSERT_LE(out.pairs.size(), 16u);
-  ASSERT_EQ(d.pair_capacity(), 16u);
-  const std::uint64_t waits = d.mid_frame_waits();
+  ASSERT_EQ(d.inspect().pair_capacity(), 16u);
+  const std::uint64_t waits = d.inspect().mid_frame_waits();
   const std::vector<Sphere> dense = random_spheres_by_edge(1500, 10.0f, 0.3f, 0.8f, 32);
   check_frame(d, dense, nullptr, out, "dense (default mode, overflows)");
   EXPECT_GT(out.pairs.size(), 16u);
-  EXPECT_GE(d.pair_capacity(), out.pairs.size());
-  EXPECT_EQ(d.mid_frame_waits(), waits);
+  EXPECT_GE(d.inspect().pair_capacity(), out.pairs.size());
+  EXPECT_EQ(d.inspect().mid_frame_waits(), waits);
   check_frame(d, dense, nullptr, out, "dense again");
 }
 

@@ -81,7 +81,7 @@ TEST(GlFrame, CountsFromTheSameIdMapAreExact) {
     FrameResult out;
     ASSERT_TRUE(cpu.detect(scene.spheres(), &cam, out).ok());
     const auto& map = detail::backend_as<detail::CpuDetector>(cpu).visibility_map();
-    auto counts = gl->count_id_map(map.ids, map.width, map.height, 1500);
+    auto counts = gl->inspect().count_id_map(map.ids, map.width, map.height, 1500);
     ASSERT_TRUE(counts.ok()) << counts.error();
     EXPECT_TRUE(counts.value() == histogram(map.ids, 1500)) << "mode " << static_cast<int>(mode);
   }
@@ -121,7 +121,7 @@ void compare_counts(GlGeometry geometry, const char* preset, std::uint32_t n, do
   FrameResult a, b;
   ASSERT_TRUE(gl->detect(scene.spheres(), &cam, a).ok());
   ASSERT_TRUE(cpu.detect(scene.spheres(), &cam, b).ok());
-  const auto gl_ids = gl->read_id_map();
+  const auto gl_ids = gl->inspect().read_id_map();
   const auto& cpu_ids = detail::backend_as<detail::CpuDetector>(cpu).visibility_map().ids;
   ASSERT_EQ(gl_ids.size(), cpu_ids.size());
   std::size_t differ = 0;
@@ -210,7 +210,7 @@ TEST(GlFrame, ScreenshotHasThePapersColours) {
   // Classify pixels by hue against the paper's three colours: red, blue, yellow.
   const std::uint8_t colours[3][3] = {{220, 40, 40}, {50, 90, 230}, {235, 200, 40}};
   int found[3] = {0, 0, 0};
-  const auto ids = gl->read_id_map();
+  const auto ids = gl->inspect().read_id_map();
   for (std::size_t i = 0; i < ids.size(); ++i) {
     const std::uint8_t* px = &out.image[4 * i];
     if (ids[i] == 0) {
@@ -277,7 +277,7 @@ TEST(GlFrame, DetectOverflowingPairBufferReturnsEveryPair) {
   ASSERT_TRUE(ref->detect(s, nullptr, b).ok());
   ASSERT_GT(b.pairs.size(), 16u);
   EXPECT_TRUE(a.pairs == b.pairs);
-  EXPECT_GE(fresh.value()->pair_capacity(), b.pairs.size());
+  EXPECT_GE(fresh.value()->inspect().pair_capacity(), b.pairs.size());
 }
 
 TEST(GlFrame, SteadyStateManyFrames) {

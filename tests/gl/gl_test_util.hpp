@@ -13,24 +13,27 @@
 
 #include "core/backend.hpp"
 #include "gl/gl_detector.hpp"
+#include "gl/test_access.hpp"
 #include "viscd/scene.hpp"
 #include "viscd/viscd.hpp"
 
 namespace viscd::test {
 
-/// A gl detector as the tests drive it: the public Detector for frames and queries, and its
-/// backend (gl::GlDetector) for the stage access that only tests use.
+/// A gl detector as the tests drive it: the public Detector for frames and queries, and a
+/// gl::GlInspector on its backend for the stage access that only tests use.
 class GlUnderTest {
  public:
   explicit GlUnderTest(std::unique_ptr<Detector> d)
-      : detector_(std::move(d)), gl_(&detail::backend_as<gl::GlDetector>(*detector_)) {}
+      : detector_(std::move(d)), inspector_(detail::backend_as<gl::GlDetector>(*detector_)) {}
   [[nodiscard]] static Result<std::unique_ptr<GlUnderTest>> create(const Config& config, const GlOptions& options) {
     auto d = make_gl_detector(config, options);
     if (!d) return Result<std::unique_ptr<GlUnderTest>>::failure(d.status());
     return std::make_unique<GlUnderTest>(std::move(d.value()));
   }
   Detector& detector() { return *detector_; }
-  gl::GlDetector& backend() { return *gl_; }
+  /// The backend's parts: run_broadphase, read_sorted_codes, read_tree, count_id_map, ...
+  gl::GlInspector& inspect() { return inspector_; }
+  [[nodiscard]] const gl::GlInspector& inspect() const { return inspector_; }
 
   [[nodiscard]] Status detect(const FrameInput& in, FrameResult& out) { return detector_->detect(in, out); }
   [[nodiscard]] Status detect(std::span<const Sphere> s, const Camera* c, FrameResult& out) {
@@ -39,26 +42,10 @@ class GlUnderTest {
   void wait_for_stage_times(FrameStats& stats) { detector_->wait_for_stage_times(stats); }
   [[nodiscard]] const Config& config() const { return detector_->config(); }
   void set_config(const Config& c) { detector_->set_config(c); }
-  void set_options(const GlOptions& o) { gl_->set_options(o); }
-  [[nodiscard]] const std::string& device() const { return gl_->device(); }
-  [[nodiscard]] std::uint32_t pair_capacity() const { return gl_->pair_capacity(); }
-  [[nodiscard]] std::uint64_t mid_frame_waits() const { return gl_->mid_frame_waits(); }
-  [[nodiscard]] Status run_broadphase(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
-                                      std::vector<Pair>& pairs, FrameStats& stats) {
-    return gl_->run_broadphase(spheres, active, bits, pairs, stats);
-  }
-  [[nodiscard]] std::vector<std::uint64_t> read_sorted_codes() { return gl_->read_sorted_codes(); }
-  [[nodiscard]] std::vector<std::uint32_t> read_sorted_ids() { return gl_->read_sorted_ids(); }
-  void read_tree(detail::Lbvh& bvh, std::vector<detail::Aabb>& leaf_boxes) { gl_->read_tree(bvh, leaf_boxes); }
-  [[nodiscard]] std::vector<std::uint32_t> read_id_map() { return gl_->read_id_map(); }
-  [[nodiscard]] Result<std::vector<std::uint32_t>> count_id_map(std::span<const std::uint32_t> ids, int width,
-                                                                int height, std::uint32_t objects) {
-    return gl_->count_id_map(ids, width, height, objects);
-  }
 
  private:
   std::unique_ptr<Detector> detector_;
-  gl::GlDetector* gl_;
+  gl::GlInspector inspector_;
 };
 
 struct GlHolder {
@@ -74,7 +61,7 @@ inline GlHolder& gl_holder() {
     auto d = GlUnderTest::create(Config{}, o);
     if (d) {
       g.detector = std::move(d.value());
-      std::fprintf(stderr, "[gl] device: %s\n", g.detector->device().c_str());
+      std::fprintf(stderr, "[gl] device: %s\n", g.detector->inspect().device().c_str());
     } else {
       g.error = d.error();
     }
@@ -90,7 +77,7 @@ inline GlUnderTest* gl_detector(const Config& config = {}, GlOptions options = {
   if (!h.detector) return nullptr;
   options.debug = true;
   h.detector->set_config(config);
-  h.detector->set_options(options);
+  h.detector->inspect().set_options(options);
   return h.detector.get();
 }
 

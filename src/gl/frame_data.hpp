@@ -1,0 +1,58 @@
+#pragma once
+// The per-frame GPU data that several parts of the gl backend share: the spheres, the FrameInfo
+// and DispatchArgs blocks, the per-object buffers one stage leaves for the next, and what this
+// frame's input decided (camera, map scale, filters). A GlDetector owns one FrameData; its parts
+// (visibility, culling, layout, broadphase, readback) hold it by reference, so that a buffer
+// written by one stage is read by the next without a copy and without either part owning both.
+
+#include <cstdint>
+#include <optional>
+#include <span>
+
+#include "core/visibility.hpp"
+#include "gl/objects.hpp"
+#include "gl/program.hpp"
+#include "viscd/types.hpp"
+
+namespace viscd::gl {
+
+struct FrameData {
+  // Buffers; their contents are declared in shaders/shared/layout.h.
+  Buffer spheres;   ///< vec4 (x, y, z, r) per object, uploaded each frame; read by stages 1, 4, 5, 7 and queries
+  Buffer filters;   ///< uvec2 (group, mask) per object, uploaded in frames with filters; stages 3 and 8
+  Buffer counts;    ///< uint per object: map pixels counted by stage 2, read by stage 3
+  Buffer pixels;    ///< float per object: screen pixels written by stage 3, read back
+  Buffer states;    ///< uint per object (ObjectState): stage 3 writes free / culled, stage 8 colliding; 9 reads
+  Buffer active;    ///< uint per object in the tree: its index, ascending (stage 3 writes, 4 and 5 read)
+  Buffer info;      ///< shader::FrameInfo: the frame's counts, bounds and sums
+  Buffer dispatch;  ///< shader::DispatchArgs: work-group counts written on the GPU from FrameInfo.active_count
+
+  // This frame's input, set when the frame begins (GlDetector::begin_frame; a stage test,
+  // GlInspector::run_broadphase, sets has_filters alone).
+  std::optional<detail::CameraRig> rig;  ///< the camera over its map; nullopt without a camera
+  double pixel_scale = 1.0;              ///< screen pixels per map pixel (1 without a camera)
+  bool has_pixels = false;               ///< pixels are counted (a camera, or the caller's map)
+  bool has_filters = false;              ///< FrameInput::filters were given
+
+  /// Uploads the spheres into `spheres`, growing it as needed.
+  void upload_spheres(std::span<const Sphere> s) {
+    spheres.reserve(static_cast<GLsizeiptr>(s.size_bytes()));
+    if (!s.empty()) glNamedBufferSubData(spheres.get(), 0, static_cast<GLsizeiptr>(s.size_bytes()), s.data());
+  }
+  /// Dispatches `p` with the work-group count at `offset` (bytes) in `dispatch`.
+  void dispatch_indirect(const Program& p, GLintptr offset) const {
+    glUseProgram(p.get());
+    glBindBuffer(GL_DISPATCH_INDIRECT_BUFFER, dispatch.get());
+    glDispatchComputeIndirect(offset);
+  }
+  /// Bytes held by the buffers, for Detector::memory_bytes(). `filters` is not among them: the
+  /// backend's memory figure has never counted it.
+  [[nodiscard]] std::uint64_t buffer_bytes() const {
+    std::uint64_t b = 0;
+    for (const Buffer* buf : {&spheres, &counts, &pixels, &states, &active, &info, &dispatch})
+      b += static_cast<std::uint64_t>(buf->size());
+    return b;
+  }
+};
+
+}  // namespace viscd::gl

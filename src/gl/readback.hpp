@@ -1,0 +1,50 @@
+#pragma once
+// What the gl backend reads back to the host: each frame's pairs, states and pixels, and, for
+// the queries (ray_cast, ray_cast_all, overlap), the frame's spheres and states, read once on
+// the first query after a frame, so that frames nobody queries read nothing more. The queries
+// then search the active spheres by brute force with core's functions.
+
+#include <cstdint>
+#include <vector>
+
+#include "gl/context.hpp"
+#include "gl/frame_data.hpp"
+#include "gl/objects.hpp"
+#include "viscd/frame.hpp"
+#include "viscd/types.hpp"
+
+namespace viscd::gl {
+
+class Readback {
+ public:
+  /// `ctx`: the detector's context, made current by the first query after a frame.
+  Readback(FrameData& frame, const Context& ctx) : frame_(frame), ctx_(ctx) {}
+
+  /// The spheres and states on the GPU are now those of a frame of `objects` objects (0 for a
+  /// stage test, which queries must not see): the query copy is out of date.
+  void begin_frame(std::uint32_t objects);
+  /// The first `count` pairs of `sorted` (uvec2 x = j, y = i) into `pairs` as Pair {i, j}.
+  void read_pairs(const Buffer& sorted, std::uint32_t count, std::vector<Pair>& pairs);
+  /// FrameData::states into out.state, and with `has_pixels` FrameData::pixels into out.pixels
+  /// (cleared without).
+  void read_states_and_pixels(std::uint32_t objects, bool has_pixels, FrameResult& out);
+  /// The queries of Backend over the last frame's active objects.
+  [[nodiscard]] bool ray(const Ray& ray, RayHit& hit);
+  void ray_all(const Ray& ray, std::vector<RayHit>& hits);
+  void overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices);
+
+ private:
+  /// Reads the last frame's spheres and states back once per frame and keeps the active ones.
+  void read_active_spheres();
+
+  FrameData& frame_;
+  const Context& ctx_;
+  std::vector<std::uint32_t> state_words_;  // the states as the GPU holds them, one uint each
+  // The last frame's active spheres for queries, read back on the first query after it.
+  bool query_copy_ready_ = false;
+  std::uint32_t query_objects_ = 0;  // N of the last frame
+  std::vector<Sphere> query_all_, query_active_;
+  std::vector<std::uint32_t> query_ids_;
+};
+
+}  // namespace viscd::gl
