@@ -25,9 +25,12 @@
 #include <string>
 #include <vector>
 
-#include "common.hpp"
+#include "commands.hpp"
+#include "exit_codes.hpp"
+#include "options.hpp"
 #include "view_orbit.hpp"
 #include "viscd/gl.hpp"
+#include "viscd/io.hpp"
 
 namespace viscd::app {
 namespace {

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Command-line tests of the `viscd` tool: exit codes, outputs and messages of `pairs`, `query` and
-# `run`.
+# `run`, and the backend choice (--backend auto, gl without OpenGL).
 # Usage: VISCD=/path/to/viscd bash tests/apps/cli_test.sh WORKDIR
 set -euo pipefail
 
@@ -364,6 +364,37 @@ expect_rc 0 pairs --help
 expect_in "$W/out" "--id-map" "pairs --help"
 expect_in "$W/out" "group" "pairs --help"
 pass
+
+# ----------------------------------------------------------------------------------------------
+# Which backend runs: --backend auto says which it picked and why; a gl that cannot start is an
+# error outside the viewer. __EGL_VENDOR_LIBRARY_FILENAMES naming no file leaves libglvnd with no
+# EGL driver, which stands in for a machine without OpenGL.
+NO_EGL=/nonexistent/viscd-no-egl-vendor.json
+
+step "--backend auto says on stderr which backend it picked and why, and runs it"
+expect_rc 0 pairs --spheres "$W/four.xyzr" --out "$W/pairs_auto.csv" --backend auto
+expect_file_equals "$W/pairs_auto.csv" "$EXPECTED_PAIRS" "pairs with --backend auto"
+expect_in "$W/err" "viscd: backend auto -> " "the auto message"
+grep -qE "backend auto -> (gl: hardware OpenGL: |cpu: no OpenGL 4.5 context \(|cpu: the only OpenGL is a software renderer, )" \
+  "$W/err" || { show pairs auto; fail "the auto message names neither gl on hardware nor why cpu"; }
+pass
+
+step "without OpenGL: auto -> cpu naming the reason; --backend gl fails (exit 1) naming it; --quiet is quiet"
+__EGL_VENDOR_LIBRARY_FILENAMES=$NO_EGL run pairs --spheres "$W/four.xyzr" --out "$W/pairs_noegl.csv" --backend auto
+if [[ "$rc" -eq 0 ]] && grep -q "backend auto -> cpu: no OpenGL 4.5 context (" "$W/err"; then
+  expect_file_equals "$W/pairs_noegl.csv" "$EXPECTED_PAIRS" "pairs after auto -> cpu"
+  REASON="$(sed -n 's/.*no OpenGL 4.5 context (\(.*\))$/\1/p' "$W/err" | head -n 1)"
+  [[ -n "$REASON" ]] || { show pairs auto; fail "the auto message gives no reason"; }
+  __EGL_VENDOR_LIBRARY_FILENAMES=$NO_EGL run pairs --spheres "$W/four.xyzr" --out "$W/pairs_noegl_gl.csv" --backend gl
+  [[ "$rc" -eq 1 ]] || { show pairs gl; fail "--backend gl without OpenGL exited $rc, expected 1"; }
+  expect_in "$W/err" "viscd: error: $REASON" "--backend gl without OpenGL"
+  [[ ! -e "$W/pairs_noegl_gl.csv" ]] || fail "a pairs run whose backend did not start wrote its output"
+  __EGL_VENDOR_LIBRARY_FILENAMES=$NO_EGL run run --objects 200 --frames 1 --out "$W/run_noegl" --quiet
+  [[ "$rc" -eq 0 && ! -s "$W/err" && ! -s "$W/out" ]] || { show run --quiet; fail "run --quiet (auto) was not quiet"; }
+  pass
+else
+  echo "    skipped: the EGL vendor override did not take here ($(head -n 1 "$W/err"))"
+fi
 
 # Kept last so that a failure here does not hide the checks above.
 step "run --quiet prints nothing (its help: 'print nothing but errors')"
