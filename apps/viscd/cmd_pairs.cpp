@@ -131,6 +131,7 @@ void add_pairs_command(CLI::App& app, int& rc) {
   cmd->add_option("--validate-hash", args->validate_hash,
                   "expected FNV-1a hash of the pairs (16 hex digits); exit 3 if different");
   add_pipeline_options(*cmd, args->pipeline, false);
+  add_cpu_kernel_options(*cmd, args->pipeline);
   cmd->callback([args, &rc] { rc = run_pairs(*args); });
 }
 

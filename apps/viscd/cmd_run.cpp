@@ -284,6 +284,7 @@ void add_run_command(CLI::App& app, int& rc) {
                   "end; an existing one may hold only frame_*.csv files");
   cmd->add_flag("--quiet,-q", args->quiet, "print nothing but errors");
   add_pipeline_options(*cmd, args->pipeline, true);
+  add_cpu_kernel_options(*cmd, args->pipeline);
   cmd->callback([args, &rc] { rc = run_run(*args); });
 }
 

@@ -43,6 +43,15 @@ void add_pipeline_options(CLI::App& cmd, PipelineOptions& o, bool backend_auto) 
       ->capture_default_str();
 }
 
+void add_cpu_kernel_options(CLI::App& cmd, PipelineOptions& o) {
+  cmd.add_option("--simd", o.simd,
+                 "cpu backend: best | sse2 | scalar, the widest SIMD kernels it may use (best: AVX-512 or\n"
+                 "SSE2, as the CPU has). The pairs are the same either way. Default: VISCD_SIMD, else best");
+  cmd.add_option("--keep-order", o.keep_order,
+                 "cpu backend: on | off. on keeps the last frame's object order while it stays good, off\n"
+                 "sorts every frame. The pairs are the same either way. Default: VISCD_KEEP_ORDER, else on");
+}
+
 void add_scene_options(CLI::App& cmd, SceneOptions& o) {
   cmd.add_option("--objects,-n", o.objects, "number of objects N (at most 100 000 000)")
       ->check(CLI::Range(std::uint32_t{0}, kMaxObjects))
@@ -133,8 +142,25 @@ Result<Config> make_config(const PipelineOptions& o) {
   c.pixels_for_64_bits = o.b;
   c.culling = !o.no_culling;
   c.threads = o.threads;
-  // VISCD_SIMD and VISCD_KEEP_ORDER, for measurements (docs/usage.md).
+  // VISCD_SIMD and VISCD_KEEP_ORDER, for measurements (docs/usage.md); the options, when given,
+  // override them: the command line is the more specific request.
   if (Status s = apply_environment(c); !s) return Result<Config>::failure(s);
+  if (o.simd == "best")
+    c.simd = Simd::best;
+  else if (o.simd == "sse2")
+    c.simd = Simd::sse2;
+  else if (o.simd == "scalar")
+    c.simd = Simd::scalar;
+  else if (!o.simd.empty())
+    return Result<Config>::failure(ErrorKind::invalid_input,
+                                   "--simd: expected best, sse2 or scalar, got '" + printable(o.simd) + "'");
+  if (o.keep_order == "on")
+    c.keep_order = true;
+  else if (o.keep_order == "off")
+    c.keep_order = false;
+  else if (!o.keep_order.empty())
+    return Result<Config>::failure(ErrorKind::invalid_input,
+                                   "--keep-order: expected on or off, got '" + printable(o.keep_order) + "'");
   if (!o.map_size.empty()) {
     auto s = parse_size(o.map_size, "--map-size");
     if (!s) return Result<Config>::failure(s.status());

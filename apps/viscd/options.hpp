@@ -1,8 +1,9 @@
 #pragma once
 // The command-line options the commands share, and their parsing into viscd::Config, GlOptions
-// and SceneParams: the pipeline options (--backend, --bits, --lambda, ...), the scene options of
-// run and view, and the parsers of option values (sizes, lists of numbers). Every error names the
-// option; the commands turn it into exit code 2.
+// and SceneParams: the pipeline options (--backend, --bits, --lambda, ...), the cpu kernel options
+// of run and pairs (--simd, --keep-order), the scene options of run and view, and the parsers of
+// option values (sizes, lists of numbers). Every error names the option; the commands turn it
+// into exit code 2.
 
 #include <CLI/CLI.hpp>
 #include <cstddef>
@@ -34,10 +35,14 @@ struct PipelineOptions {
   std::string geometry = "impostor";  ///< gl only
   std::string counter = "ssbo";       ///< gl only
   std::string max_pair_memory = "auto";
+  std::string simd;        ///< best | sse2 | scalar; empty: VISCD_SIMD or best (run and pairs only)
+  std::string keep_order;  ///< on | off; empty: VISCD_KEEP_ORDER or on (run and pairs only)
 };
 
 /// Registers the pipeline options on `cmd`; `backend_auto` offers --backend auto in the help.
 void add_pipeline_options(CLI::App& cmd, PipelineOptions& o, bool backend_auto);
+/// Registers --simd and --keep-order (the cpu backend's kernels) on `cmd`.
+void add_cpu_kernel_options(CLI::App& cmd, PipelineOptions& o);
 
 /// The simulated scene's options, shared by `run` and `view`.
 struct SceneOptions {
@@ -53,9 +58,9 @@ void add_scene_options(CLI::App& cmd, SceneOptions& o);
 
 /// The gl backend's options (--geometry, --counter); the error names the bad option.
 [[nodiscard]] Result<GlOptions> make_gl_options(const PipelineOptions& o);
-/// Config from the options and the environment (VISCD_SIMD, VISCD_KEEP_ORDER). Checks every
-/// option, --backend and the gl options included, whatever the backend: a typo must not pass
-/// silently. The error names the bad option.
+/// Config from the options, then the environment (VISCD_SIMD, VISCD_KEEP_ORDER), then --simd and
+/// --keep-order when given. Checks every option, --backend and the gl options included, whatever
+/// the backend: a typo must not pass silently. The error names the bad option.
 [[nodiscard]] Result<Config> make_config(const PipelineOptions& o);
 
 /// Parses "1280x720"; the error names `option`.

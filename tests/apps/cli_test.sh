@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Command-line tests of the `viscd` tool: exit codes, outputs and messages of `pairs`, `query` and
-# `run`, and the backend choice (--backend auto, gl without OpenGL).
+# `run`, the backend choice (--backend auto, gl without OpenGL) and the cpu kernel options.
 # Usage: VISCD=/path/to/viscd bash tests/apps/cli_test.sh WORKDIR
 set -euo pipefail
 
@@ -395,6 +395,52 @@ if [[ "$rc" -eq 0 ]] && grep -q "backend auto -> cpu: no OpenGL 4.5 context (" "
 else
   echo "    skipped: the EGL vendor override did not take here ($(head -n 1 "$W/err"))"
 fi
+
+# ----------------------------------------------------------------------------------------------
+# The cpu backend's kernels: --simd and --keep-order (run and pairs) over VISCD_SIMD and
+# VISCD_KEEP_ORDER.
+awk 'BEGIN { srand(7); print "x,y,z,r"; for (k = 0; k < 3000; ++k) printf "%.4f,%.4f,%.4f,%.3f\n", 40 * rand(), 40 * rand(), 4 * rand(), 0.3 + 0.5 * rand() }' \
+  >"$W/cloud.csv"
+step "--simd best, sse2 and scalar give the same pairs; a bad value is a usage error naming --simd"
+expect_rc 0 pairs --spheres "$W/cloud.csv" --out "$W/pairs_simd_default.csv"
+[[ "$(wc -l <"$W/pairs_simd_default.csv")" -gt 100 ]] || fail "the cloud has too few pairs to compare kernels"
+for simd in best sse2 scalar; do
+  expect_rc 0 pairs --spheres "$W/cloud.csv" --out "$W/pairs_simd_$simd.csv" --simd "$simd"
+  cmp -s "$W/pairs_simd_default.csv" "$W/pairs_simd_$simd.csv" || fail "--simd $simd gives other pairs"
+done
+VISCD_SIMD=sse2 expect_rc 0 pairs --spheres "$W/cloud.csv" --out "$W/pairs_simd_env.csv" --simd scalar
+cmp -s "$W/pairs_simd_default.csv" "$W/pairs_simd_env.csv" || fail "--simd scalar over VISCD_SIMD gives other pairs"
+expect_rc 2 pairs --spheres "$W/cloud.csv" --out "$W/pairs_simd_bad.csv" --simd avx
+expect_in "$W/err" "--simd: expected best, sse2 or scalar, got 'avx'" "--simd avx"
+expect_rc 2 run --objects 100 --frames 1 --out "$W/run_simd_bad" --simd 4
+expect_in "$W/err" "--simd" "run --simd 4"
+pass
+
+# With every object active, a frame that keeps the order skips the sort: its sort_ms is 0.
+sort_zeros() {  # sort_zeros FRAMES_CSV: how many frames after the first have sort_ms 0
+  awk -F, 'NR == 1 { for (k = 1; k <= NF; ++k) if ($k == "sort_ms") c = k; next }
+           NR > 2 && $c == 0 { ++n } END { print n + 0 }' "$1"
+}
+step "--keep-order off sorts every frame, on keeps the order, each over VISCD_KEEP_ORDER; bad values exit 2"
+expect_rc 0 run --objects 3000 --frames 6 --no-culling --out "$W/keep_off" --keep-order off --quiet
+[[ "$(sort_zeros "$W/keep_off/frames.csv")" -eq 0 ]] || fail "--keep-order off skipped a sort"
+VISCD_KEEP_ORDER=1 expect_rc 0 run --objects 3000 --frames 6 --no-culling --out "$W/keep_off_env" --keep-order off --quiet
+[[ "$(sort_zeros "$W/keep_off_env/frames.csv")" -eq 0 ]] || fail "--keep-order off did not override VISCD_KEEP_ORDER=1"
+VISCD_KEEP_ORDER=0 expect_rc 0 run --objects 3000 --frames 6 --no-culling --out "$W/keep_on_env" --keep-order on --quiet
+[[ "$(sort_zeros "$W/keep_on_env/frames.csv")" -gt 0 ]] || fail "--keep-order on did not override VISCD_KEEP_ORDER=0"
+expect_rc 0 pairs --spheres "$W/cloud.csv" --out "$W/pairs_keep.csv" --keep-order off
+cmp -s "$W/pairs_simd_default.csv" "$W/pairs_keep.csv" || fail "--keep-order off gives other pairs"
+expect_rc 2 pairs --spheres "$W/cloud.csv" --out "$W/pairs_keep_bad.csv" --keep-order maybe
+expect_in "$W/err" "--keep-order: expected on or off, got 'maybe'" "--keep-order maybe"
+pass
+
+step "run and pairs --help teach --simd and --keep-order"
+for cmd in run pairs; do
+  expect_rc 0 "$cmd" --help
+  expect_in "$W/out" "--simd" "$cmd --help"
+  expect_in "$W/out" "--keep-order" "$cmd --help"
+done
+pass
 
 # Kept last so that a failure here does not hide the checks above.
 step "run --quiet prints nothing (its help: 'print nothing but errors')"
