@@ -11,7 +11,14 @@
 #include <fstream>
 #include <sstream>
 
-#include "common.hpp"
+#include "commands.hpp"
+#include "detector_choice.hpp"
+#include "exit_codes.hpp"
+#include "options.hpp"
+#include "progress.hpp"
+#include "statistics.hpp"
+#include "viscd/io.hpp"
+#include "viscd/scene.hpp"
 
 #ifndef VISCD_SOURCE_DIR
 #define VISCD_SOURCE_DIR "."
@@ -32,6 +39,16 @@ struct BenchArgs {
   std::vector<std::string> peer_args;
 };
 
+// The detector of one measurement: the backend by name, default gl options, no message.
+Result<std::unique_ptr<Detector>> make_bench_detector(const std::string& backend, const Config& config) {
+  DetectorRequest request;
+  request.backend = backend;
+  request.quiet = true;
+  auto chosen = make_tool_detector(request, config);
+  if (!chosen) return Result<std::unique_ptr<Detector>>::failure(chosen.status());
+  return std::move(chosen.value().detector);
+}
+
 struct Point {
   double frame_ms = 0;  // median wall time of step + detect
   FrameStats last;
@@ -42,9 +59,7 @@ struct Point {
 // Runs `frames` frames (after warm-up) of the ring scene and returns medians.
 Result<Point> measure(const std::string& backend, Config config, std::uint32_t n, const std::string& camera, int frames,
                       int warmup) {
-  PipelineOptions o;
-  o.backend = backend;
-  auto det = make_backend(o, config, true);
+  auto det = make_bench_detector(backend, config);
   if (!det) return Result<Point>::failure(det.status());
   Scene scene = Scene::make({.objects = n});
   std::vector<double> wall;
@@ -149,11 +164,9 @@ int run_paper(const BenchArgs& a) {
 
     // Fig. 5: screenshots, 2000 objects, zoom-out and zoom-in.
     for (const char* cam : {"zoom-out", "zoom-in"}) {
-      PipelineOptions o;
-      o.backend = be;
       Config cs;
       cs.shade = true;
-      auto det = make_backend(o, cs, true);
+      auto det = make_bench_detector(be, cs);
       if (!det) return fail(det.error());
       Scene scene = Scene::make({.objects = 2000});
       scene.step(1.0f / 60.0f);

@@ -4,7 +4,13 @@
 #include <cinttypes>
 #include <optional>
 
-#include "common.hpp"
+#include "commands.hpp"
+#include "detector_choice.hpp"
+#include "exit_codes.hpp"
+#include "input_files.hpp"
+#include "options.hpp"
+#include "outputs.hpp"
+#include "viscd/io.hpp"
 
 namespace viscd::app {
 namespace {
@@ -43,8 +49,11 @@ int run_pairs(const PairsArgs& a) {
     if (!m) return fail(m.error());
     ids = std::move(m.value());
   }
-  auto detector = make_backend(a.pipeline, config.value(), false);
-  if (!detector) return fail(detector.error());
+  auto request = detector_request(a.pipeline);
+  if (!request) return usage_fail(request.error());
+  auto chosen = make_tool_detector(request.value(), config.value());
+  if (!chosen) return fail(chosen.error());
+  Detector& det = *chosen.value().detector;
   FrameInput input;
   input.spheres = table.value().spheres;
   input.filters = table.value().filters;
@@ -55,8 +64,8 @@ int run_pairs(const PairsArgs& a) {
     input.id_map_height = config.value().map_height;
   }
   FrameResult frame;
-  if (Status s = detector.value()->detect(input, frame); !s) return fail(s.error());
-  detector.value()->wait_for_stage_times(frame.stats);  // one frame: its GPU times are wanted now
+  if (Status s = det.detect(input, frame); !s) return fail(s.error());
+  det.wait_for_stage_times(frame.stats);  // one frame: its GPU times are wanted now
 
   // Both outputs are written in full to temporary files first and renamed into place only when
   // both succeeded: a failure leaves the previous files as they were and no partial output.
@@ -68,7 +77,7 @@ int run_pairs(const PairsArgs& a) {
     auto f = AtomicFile::create(a.stats);
     if (!f) return fail(f.error());
     stats_file.emplace(std::move(f.value()));
-    if (Status s = stats_file->write(stats_json(frame.stats, detector.value()->name())); !s) return fail(s.error());
+    if (Status s = stats_file->write(stats_json(frame.stats, det.name())); !s) return fail(s.error());
   }
   if (Status s = pairs_file.value().commit(); !s) return fail(s.error());
   if (stats_file)
@@ -122,6 +131,7 @@ void add_pairs_command(CLI::App& app, int& rc) {
   cmd->add_option("--validate-hash", args->validate_hash,
                   "expected FNV-1a hash of the pairs (16 hex digits); exit 3 if different");
   add_pipeline_options(*cmd, args->pipeline, false);
+  add_cpu_kernel_options(*cmd, args->pipeline);
   cmd->callback([args, &rc] { rc = run_pairs(*args); });
 }
 

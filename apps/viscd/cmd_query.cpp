@@ -3,7 +3,13 @@
 #include <limits>
 #include <optional>
 
-#include "common.hpp"
+#include "commands.hpp"
+#include "detector_choice.hpp"
+#include "exit_codes.hpp"
+#include "input_files.hpp"
+#include "options.hpp"
+#include "outputs.hpp"
+#include "viscd/io.hpp"
 
 namespace viscd::app {
 namespace {
@@ -48,9 +54,11 @@ int run_query(const QueryArgs& a) {
   auto read = read_optional_camera(a.camera);
   if (!read) return fail(read.error());
   const std::optional<Camera>& camera = read.value();
-  auto detector = make_backend(a.pipeline, config.value(), false);
-  if (!detector) return fail(detector.error());
-  Detector& det = *detector.value();
+  auto request = detector_request(a.pipeline);
+  if (!request) return usage_fail(request.error());
+  auto chosen = make_tool_detector(request.value(), config.value());
+  if (!chosen) return fail(chosen.error());
+  Detector& det = *chosen.value().detector;
   FrameResult frame;
   if (Status s = det.detect(table.value().spheres, camera ? &*camera : nullptr, frame); !s) return fail(s.error());
 

@@ -6,7 +6,15 @@
 #include <optional>
 #include <sstream>
 
-#include "common.hpp"
+#include "commands.hpp"
+#include "detector_choice.hpp"
+#include "exit_codes.hpp"
+#include "options.hpp"
+#include "outputs.hpp"
+#include "progress.hpp"
+#include "statistics.hpp"
+#include "viscd/io.hpp"
+#include "viscd/scene.hpp"
 
 namespace viscd::app {
 namespace {
@@ -73,9 +81,12 @@ int run_run(RunArgs a) {
     config.value().contact_events = true;
   }
 
-  auto detector = make_backend(a.pipeline, config.value(), a.quiet);
-  if (!detector) return fail(detector.error());
-  Detector& det = *detector.value();
+  auto request = detector_request(a.pipeline);
+  if (!request) return usage_fail(request.error());
+  request.value().quiet = a.quiet;
+  auto chosen = make_tool_detector(request.value(), config.value());
+  if (!chosen) return fail(chosen.error());
+  Detector& det = *chosen.value().detector;
 
   Scene scene = Scene::make(params.value());
   Camera camera;
@@ -273,6 +284,7 @@ void add_run_command(CLI::App& app, int& rc) {
                   "end; an existing one may hold only frame_*.csv files");
   cmd->add_flag("--quiet,-q", args->quiet, "print nothing but errors");
   add_pipeline_options(*cmd, args->pipeline, true);
+  add_cpu_kernel_options(*cmd, args->pipeline);
   cmd->callback([args, &rc] { rc = run_run(*args); });
 }
 

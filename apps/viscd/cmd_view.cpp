@@ -6,10 +6,13 @@
 // loader resolves through); the gl backend owns a surfaceless EGL context. libglvnd refuses to
 // make one API's context current while the other's is, so every call into the gl detector is
 // bracketed by releasing the window's context before and the detector's after (DetectorGuard).
-#include <epoxy/egl.h>
-#include <epoxy/gl.h>
-#define GLFW_INCLUDE_NONE
-#include <GLFW/glfw3.h>
+//
+// Lifetimes: run_view() checks the options, then opens GLFW, the window and Dear ImGui through
+// their owners (view_window.hpp), and only then makes the Viewer, which holds the texture and the
+// detector: whatever way run_view() returns, the Viewer goes first (its detector under the
+// guard), then ImGui, the window and GLFW.
+#include "view_window.hpp"  // first: epoxy's GL header must precede GLFW's and ImGui's
+
 #include <backends/imgui_impl_glfw.h>
 #include <backends/imgui_impl_opengl3.h>
 #include <imgui.h>
@@ -20,14 +23,20 @@
 #include <chrono>
 #include <cinttypes>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
-#include "common.hpp"
+#include "commands.hpp"
+#include "detector_choice.hpp"
+#include "exit_codes.hpp"
+#include "options.hpp"
 #include "view_orbit.hpp"
-#include "viscd/gl.hpp"
+#include "viscd/io.hpp"
+#include "viscd/scene.hpp"
 
 namespace viscd::app {
 namespace {
@@ -42,6 +51,15 @@ struct ViewArgs {
   int frames = 0;
   std::string screenshot;
   std::string window_screenshot;
+};
+
+// What the options start the viewer with, checked before any window opens.
+struct ViewStart {
+  Config config;  // the pipeline options; the panel edits a copy
+  int objects = 0;
+  SceneKind kind = SceneKind::ring;
+  std::optional<Camera> file_camera;
+  DetectorRequest detector;  // cpu or gl; gl falls back to cpu
 };
 
 // Shading colours of stage 9 (viscd::state_colour), for the legend.
@@ -67,16 +85,10 @@ std::string series_name(std::size_t s) {
   return s == 0 ? "simulate" : std::string(stage_name(static_cast<Stage>(s - 1)));
 }
 
-// Layouts are printed with arrows (x(7)→z(6)→y(3)); ImGui's built-in font is ASCII only.
-std::string glfw_error_text;
-void on_glfw_error(int code, const char* message) {
-  glfw_error_text = message ? message : ("GLFW error " + std::to_string(code));
-}
-
 int no_window(const std::string& what) {
   const char* display = std::getenv("DISPLAY");
   std::string msg = what;
-  if (!glfw_error_text.empty()) msg += " (" + glfw_error_text + ")";
+  if (!GlfwLibrary::last_error().empty()) msg += " (" + GlfwLibrary::last_error() + ")";
   msg += display && *display ? std::string(". DISPLAY is '") + display + "'" : std::string(". DISPLAY is not set");
   msg +=
       ": run on a desktop session, or headless under a virtual X server with OpenGL 3.3, e.g.\n"
@@ -85,46 +97,56 @@ int no_window(const std::string& what) {
   return fail(msg);
 }
 
-// Releases whatever context the gl detector left current (EGL), then makes the window's current.
-void restore_window_context(GLFWwindow* window) {
-  if (eglGetCurrentContext() != EGL_NO_CONTEXT)
-    eglMakeCurrent(eglGetCurrentDisplay(), EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
-  glfwMakeContextCurrent(window);
+// The options checked and turned into the viewer's start; every error here exits 1.
+Result<ViewStart> check_view_args(const ViewArgs& args, const Config& config) {
+  using R = Result<ViewStart>;
+  ViewStart start;
+  start.config = config;
+  if (args.world.objects < 1 || args.world.objects > (1u << 29))
+    return R::failure(ErrorKind::invalid_input, "--objects: expected 1 to 536870912");
+  start.objects = static_cast<int>(args.world.objects);
+  auto params = make_scene_params(args.world);
+  if (!params) return R::failure(params.status());
+  start.kind = params.value().kind;
+  if (args.frames < 0)
+    return R::failure(ErrorKind::invalid_input, "--frames: expected 0 (until the window closes) or more");
+  auto request = detector_request(args.pipeline);
+  if (!request) return R::failure(request.status());
+  start.detector = request.value();
+  start.detector.fallback = GlFallback::cpu;
+  start.detector.tool = "viscd view";
+  const std::string& be = args.pipeline.backend;
+  if (be != "cpu" && be != "gl")
+    return R::failure(ErrorKind::invalid_input,
+                      "--backend: viscd view runs cpu or gl, got '" + be +
+                          "' (the reference backend ray-casts every pixel against every object: use viscd pairs)");
+  if (args.camera.size() > 5 && args.camera.ends_with(".json")) {
+    auto c = read_camera(args.camera);
+    if (!c) return R::failure(c.status());
+    start.file_camera = c.value();
+  } else if (args.camera != "zoom-out" && args.camera != "zoom-in") {
+    return R::failure(ErrorKind::invalid_input,
+                      "--camera: expected zoom-out, zoom-in or a .json file, got '" + args.camera + "'");
+  }
+  return start;
 }
 
-// Brackets a call into a gl detector (create, detect, destroy): window context off before,
-// detector context off and window context back after. A no-op for the cpu backend.
-class DetectorGuard {
- public:
-  DetectorGuard(GLFWwindow* window, bool gl) : window_(window), gl_(gl) {
-    if (gl_) glfwMakeContextCurrent(nullptr);
-  }
-  ~DetectorGuard() {
-    if (gl_) restore_window_context(window_);
-  }
-  DetectorGuard(const DetectorGuard&) = delete;
-  DetectorGuard& operator=(const DetectorGuard&) = delete;
-
- private:
-  GLFWwindow* window_;
-  bool gl_;
-};
-
+// The viewer's state and frame loop, in a window whose GLFW, context and Dear ImGui outlive it.
 class Viewer {
  public:
-  explicit Viewer(ViewArgs args) : args_(std::move(args)) {}
+  Viewer(const ViewArgs& args, ViewStart start, GLFWwindow* window);
+  ~Viewer() { destroy_detector(); }
+  Viewer(const Viewer&) = delete;
+  Viewer& operator=(const Viewer&) = delete;
+  /// Runs frames until the window closes or --frames are done; the exit code.
   int run();
 
  private:
-  enum class Backend { cpu, gl };
-
-  Status setup();
-  Config current_config() const;
+  Config frame_config() const;
   void rebuild_scene();
   void reset_camera();
-  Result<std::unique_ptr<Detector>> create_detector(Backend b, bool mesh);
   void destroy_detector();
-  void switch_backend(Backend b, bool mesh);
+  void switch_backend(bool gl, bool mesh);
   void handle_input();
   void panel();
   void timings_chart();
@@ -134,29 +156,26 @@ class Viewer {
   std::string save_window(const std::filesystem::path& path);
   std::filesystem::path next_screenshot_path() const;
 
-  ViewArgs args_;
-  GLFWwindow* window_ = nullptr;
+  const ViewArgs& args_;
+  GLFWwindow* window_;
   int fb_w_ = 1, fb_h_ = 1;
 
   // Scene and camera.
-  SceneKind kind_ = SceneKind::ring;
+  SceneKind kind_;
   Scene scene_;
   OrbitCamera orbit_;
-  Camera file_camera_;
-  bool have_file_camera_ = false;
+  std::optional<Camera> file_camera_;
   bool paused_ = false;
 
-  // Pipeline settings (the panel edits these).
-  Config base_;  // bits/layout/threads from the options
-  int objects_ = 10000;
-  float lambda_ = 200, a_ = 100, b_ = 400;
-  bool culling_ = true, adaptive_ = true;
-  int fixed_bits_index_ = 1;  // 16 / 32 / 64
-  int map_width_ = 0;         // 0: the window's framebuffer size
-  int map_height_ = 0;        // from --map-size until the slider moves; else by the window's aspect
+  // The pipeline's settings: the panel's sliders and toggles edit these fields directly. A map
+  // width with map_height 0 means a height that follows the window's aspect (frame_config()).
+  Config config_;
+  Bits fixed_bits_ = Bits::b32;  // the width the bits combo shows, used while adaptive bits are off
+  int objects_;
 
   // Detector.
-  Backend backend_ = Backend::cpu;
+  DetectorRequest request_;  // the options' gl settings; the panel switches backend and geometry
+  bool gl_ = false;
   bool mesh_ = false;
   std::unique_ptr<Detector> detector_;
   std::string backend_message_;
@@ -164,7 +183,7 @@ class Viewer {
   // Frame output.
   FrameResult result_;
   bool have_result_ = false;
-  GLuint texture_ = 0;
+  GlTexture texture_;
   int tex_w_ = 0, tex_h_ = 0;
   std::array<std::array<float, kSeries>, kHistory> history_{};
   int history_next_ = 0, history_count_ = 0;
@@ -174,22 +193,27 @@ class Viewer {
   std::string status_line_;
 };
 
-Config Viewer::current_config() const {
-  Config c = base_;
-  c.lambda = lambda_;
-  c.pixels_for_32_bits = a_;
-  c.pixels_for_64_bits = b_;
-  c.culling = culling_;
-  c.bits = adaptive_ ? Bits::adaptive
-                     : (fixed_bits_index_ == 0   ? Bits::b16
-                        : fixed_bits_index_ == 1 ? Bits::b32
-                                                 : Bits::b64);
-  c.shade = true;
-  if (map_width_ > 0) {
-    c.map_width = map_width_;
-    c.map_height = map_height_ > 0
-                       ? map_height_
-                       : std::max(1, static_cast<int>(std::lround(static_cast<double>(map_width_) * fb_h_ / fb_w_)));
+Viewer::Viewer(const ViewArgs& args, ViewStart start, GLFWwindow* window)
+    : args_(args),
+      window_(window),
+      kind_(start.kind),
+      file_camera_(start.file_camera),
+      config_(start.config),
+      objects_(start.objects),
+      request_(std::move(start.detector)) {
+  config_.shade = true;  // the window shows the shaded image
+  if (config_.bits != Bits::adaptive) fixed_bits_ = config_.bits;
+  mesh_ = request_.gl.geometry == GlGeometry::mesh;
+  glfwGetFramebufferSize(window_, &fb_w_, &fb_h_);
+  fb_w_ = std::max(fb_w_, 1), fb_h_ = std::max(fb_h_, 1);
+  rebuild_scene();
+}
+
+Config Viewer::frame_config() const {
+  Config c = config_;
+  if (c.map_width > 0) {
+    if (c.map_height <= 0)
+      c.map_height = std::max(1, static_cast<int>(std::lround(static_cast<double>(c.map_width) * fb_h_ / fb_w_)));
   } else {
     c.map_width = c.map_height = 0;
   }
@@ -202,81 +226,43 @@ void Viewer::rebuild_scene() {
 }
 
 void Viewer::reset_camera() {
-  Camera c = file_camera_;
-  if (!have_file_camera_) {
+  Camera c;
+  if (file_camera_) {
+    c = *file_camera_;
+  } else {
     auto preset = camera_preset(args_.camera, scene_, fb_w_, fb_h_);
     c = preset ? preset.value() : camera_preset("zoom-out", scene_, fb_w_, fb_h_).value();
   }
   orbit_.reset(c, scene_.world_radius() + scene_.world_half_height());
 }
 
-Result<std::unique_ptr<Detector>> Viewer::create_detector(Backend b, bool mesh) {
-  using R = Result<std::unique_ptr<Detector>>;
-  if (b == Backend::cpu) return R(make_cpu_detector(current_config()));
-  DetectorGuard guard(window_, true);
-  GlOptions o = make_gl_options(args_.pipeline).value();        // checked in setup()
-  o.geometry = mesh ? GlGeometry::mesh : GlGeometry::impostor;  // the panel's live toggle
-  return make_gl_detector(current_config(), o);
-}
-
 void Viewer::destroy_detector() {
-  DetectorGuard guard(window_, backend_ == Backend::gl && detector_ != nullptr);
+  DetectorGuard guard(window_, gl_ && detector_ != nullptr);
   detector_.reset();
 }
 
-void Viewer::switch_backend(Backend b, bool mesh) {
-  auto d = create_detector(b, mesh);
-  if (!d) {
-    backend_message_ = "gl backend unavailable: " + d.error();
-    std::fprintf(stderr, "viscd view: %s; staying on %s\n", backend_message_.c_str(),
-                 backend_ == Backend::gl ? "gl" : "cpu");
-    if (!detector_) {  // nothing to stay on: fall back to cpu
-      backend_ = Backend::cpu;
-      detector_ = make_cpu_detector(current_config());
-    }
+// The panel's backend or geometry choice; a gl backend that cannot start leaves the current
+// detector running and says why.
+void Viewer::switch_backend(bool gl, bool mesh) {
+  DetectorRequest request = request_;
+  request.backend = gl ? "gl" : "cpu";
+  request.gl.geometry = mesh ? GlGeometry::mesh : GlGeometry::impostor;
+  request.fallback = GlFallback::none;
+  request.quiet = true;
+  Result<DetectorChoice> chosen = [&] {
+    DetectorGuard guard(window_, gl);
+    return make_tool_detector(request, frame_config());
+  }();
+  if (!chosen) {
+    backend_message_ = gl_unavailable(chosen.error());
+    std::fprintf(stderr, "viscd view: %s; staying on %s\n", backend_message_.c_str(), gl_ ? "gl" : "cpu");
     return;
   }
   destroy_detector();
-  detector_ = std::move(d.value());
-  backend_ = b;
+  detector_ = std::move(chosen.value().detector);
+  gl_ = gl;
   mesh_ = mesh;
   backend_message_.clear();
-}
-
-Status Viewer::setup() {
-  auto config = make_config(args_.pipeline);
-  if (!config) return config.status();
-  base_ = config.value();
-  lambda_ = base_.lambda, a_ = base_.pixels_for_32_bits, b_ = base_.pixels_for_64_bits;
-  culling_ = base_.culling;
-  adaptive_ = base_.bits == Bits::adaptive;
-  fixed_bits_index_ = base_.bits == Bits::b16 ? 0 : base_.bits == Bits::b64 ? 2 : 1;
-  map_width_ = base_.map_width;
-  map_height_ = base_.map_height;
-  if (args_.world.objects < 1 || args_.world.objects > (1u << 29))
-    return Status::failure(ErrorKind::invalid_input, "--objects: expected 1 to 536870912");
-  objects_ = static_cast<int>(args_.world.objects);
-  auto params = make_scene_params(args_.world);
-  if (!params) return params.status();
-  kind_ = params.value().kind;
-  if (args_.frames < 0)
-    return Status::failure(ErrorKind::invalid_input, "--frames: expected 0 (until the window closes) or more");
-  if (auto g = make_gl_options(args_.pipeline); !g) return g.status();
-  const std::string& be = args_.pipeline.backend;
-  if (be != "cpu" && be != "gl")
-    return Status::failure(ErrorKind::invalid_input,
-                           "--backend: viscd view runs cpu or gl, got '" + be +
-                               "' (the reference backend ray-casts every pixel against every object: use viscd pairs)");
-  if (args_.camera.size() > 5 && args_.camera.ends_with(".json")) {
-    auto c = read_camera(args_.camera);
-    if (!c) return c.status();
-    file_camera_ = c.value();
-    have_file_camera_ = true;
-  } else if (args_.camera != "zoom-out" && args_.camera != "zoom-in") {
-    return Status::failure(ErrorKind::invalid_input,
-                           "--camera: expected zoom-out, zoom-in or a .json file, got '" + args_.camera + "'");
-  }
-  return {};
 }
 
 std::filesystem::path Viewer::next_screenshot_path() const {
@@ -413,27 +399,35 @@ void Viewer::panel() {
     ImGui::SliderInt("objects N", &n, 100, 1000000, "%d", ImGuiSliderFlags_Logarithmic);
     if (n != objects_ && n >= 1) objects_ = n;
     if (ImGui::IsItemDeactivatedAfterEdit()) rebuild_scene();  // rebuild once, on release
-    ImGui::SliderFloat("lambda (px)", &lambda_, 0, 5000, "%.0f", ImGuiSliderFlags_Logarithmic);
-    if (ImGui::SliderFloat("a (16 below)", &a_, 0, 5000, "%.0f", ImGuiSliderFlags_Logarithmic)) b_ = std::max(a_, b_);
-    if (ImGui::SliderFloat("b (64 from)", &b_, 0, 5000, "%.0f", ImGuiSliderFlags_Logarithmic)) a_ = std::min(a_, b_);
-    lambda_ = std::max(lambda_, 0.0f);
-    if (ImGui::SliderInt("map width", &map_width_, 0, 3840, map_width_ == 0 ? "window" : "%d")) map_height_ = 0;
-    map_width_ = std::max(map_width_, 0);
-    const Config c = current_config();
-    if (map_width_ > 0)
+    float& a = config_.pixels_for_32_bits;
+    float& b = config_.pixels_for_64_bits;
+    ImGui::SliderFloat("lambda (px)", &config_.lambda, 0, 5000, "%.0f", ImGuiSliderFlags_Logarithmic);
+    if (ImGui::SliderFloat("a (16 below)", &a, 0, 5000, "%.0f", ImGuiSliderFlags_Logarithmic)) b = std::max(a, b);
+    if (ImGui::SliderFloat("b (64 from)", &b, 0, 5000, "%.0f", ImGuiSliderFlags_Logarithmic)) a = std::min(a, b);
+    config_.lambda = std::max(config_.lambda, 0.0f);
+    int& map_width = config_.map_width;
+    if (ImGui::SliderInt("map width", &map_width, 0, 3840, map_width == 0 ? "window" : "%d"))
+      config_.map_height = 0;  // from now on the height follows the window's aspect
+    map_width = std::max(map_width, 0);
+    const Config c = frame_config();
+    if (map_width > 0)
       ImGui::Text("visibility map %dx%d, screen %dx%d", c.map_width, c.map_height, fb_w_, fb_h_);
     else
       ImGui::Text("visibility map = screen, %dx%d", fb_w_, fb_h_);
-    ImGui::Checkbox("culling", &culling_);
+    ImGui::Checkbox("culling", &config_.culling);
     ImGui::SameLine();
-    ImGui::Checkbox("adaptive bits", &adaptive_);
-    if (!adaptive_) {
+    bool adaptive = config_.bits == Bits::adaptive;
+    if (ImGui::Checkbox("adaptive bits", &adaptive)) config_.bits = adaptive ? Bits::adaptive : fixed_bits_;
+    if (!adaptive) {
       ImGui::SameLine();
       ImGui::SetNextItemWidth(70);
-      ImGui::Combo("##bits", &fixed_bits_index_,
-                   "16\0"
-                   "32\0"
-                   "64\0");
+      constexpr std::array<Bits, 3> kFixed = {Bits::b16, Bits::b32, Bits::b64};
+      int index = static_cast<int>(std::find(kFixed.begin(), kFixed.end(), fixed_bits_) - kFixed.begin());
+      if (ImGui::Combo("##bits", &index,
+                       "16\0"
+                       "32\0"
+                       "64\0"))
+        config_.bits = fixed_bits_ = kFixed[static_cast<std::size_t>(index)];
     }
     ImGui::Checkbox("paused (space)", &paused_);
     ImGui::SameLine();
@@ -441,13 +435,13 @@ void Viewer::panel() {
 
     ImGui::Text("backend");
     ImGui::SameLine();
-    int be = backend_ == Backend::gl ? 1 : 0;
+    int be = gl_ ? 1 : 0;
     bool be_changed = ImGui::RadioButton("cpu", &be, 0);
     ImGui::SameLine();
     be_changed |= ImGui::RadioButton("gl", &be, 1);
     int geom = mesh_ ? 1 : 0;
     bool geom_changed = false;
-    if (backend_ == Backend::gl) {
+    if (gl_) {
       ImGui::SameLine();
       ImGui::TextDisabled("|");
       ImGui::SameLine();
@@ -455,8 +449,7 @@ void Viewer::panel() {
       ImGui::SameLine();
       geom_changed |= ImGui::RadioButton("mesh", &geom, 1);
     }
-    if ((be_changed && (be == 1) != (backend_ == Backend::gl)) || (geom_changed && (geom == 1) != mesh_))
-      switch_backend(be == 1 ? Backend::gl : Backend::cpu, geom == 1);
+    if ((be_changed && (be == 1) != gl_) || (geom_changed && (geom == 1) != mesh_)) switch_backend(be == 1, geom == 1);
     if (!backend_message_.empty()) {
       ImGui::PushTextWrapPos(ImGui::GetCursorPosX() + 320);
       ImGui::TextColored(ImVec4(1, 0.45f, 0.4f, 1), "%s", backend_message_.c_str());
@@ -504,8 +497,8 @@ Status Viewer::frame() {
   const Camera cam = orbit_.camera(fb_w_, fb_h_);
   Status s;
   {
-    DetectorGuard guard(window_, backend_ == Backend::gl);
-    detector_->set_config(current_config());
+    DetectorGuard guard(window_, gl_);
+    detector_->set_config(frame_config());
     s = detector_->detect(scene_.spheres(), &cam, result_);
   }
   if (!s) {
@@ -523,7 +516,7 @@ Status Viewer::frame() {
 
 void Viewer::upload_image() {
   if (!have_result_ || result_.image.empty()) return;
-  glBindTexture(GL_TEXTURE_2D, texture_);
+  glBindTexture(GL_TEXTURE_2D, texture_.id());
   glPixelStorei(GL_UNPACK_ALIGNMENT, 1);
   glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
   if (result_.image_width != tex_w_ || result_.image_height != tex_h_) {
@@ -536,47 +529,19 @@ void Viewer::upload_image() {
 }
 
 int Viewer::run() {
-  if (auto config = make_config(args_.pipeline); !config) return usage_fail(config.error());
-  auto size = parse_size(args_.size, "--size");
-  if (!size) return usage_fail(size.error());
-  if (Status s = setup(); !s) return fail(s.error());
-
-  glfwSetErrorCallback(on_glfw_error);
-  if (!glfwInit()) return no_window("cannot connect to a display");
-  glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 3);
-  glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 3);
-  glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
-  glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
-  window_ = glfwCreateWindow(size.value().first, size.value().second, "viscd view", nullptr, nullptr);
-  if (!window_) {
-    glfwTerminate();
-    return no_window("cannot open an OpenGL 3.3 core window");
+  {
+    // The detector the options ask for; gl that cannot start falls back to cpu with a message.
+    Result<DetectorChoice> chosen = [&] {
+      DetectorGuard guard(window_, request_.backend == "gl");
+      return make_tool_detector(request_, frame_config());
+    }();
+    if (!chosen) return fail(chosen.error());
+    detector_ = std::move(chosen.value().detector);
+    gl_ = chosen.value().backend == "gl";
+    if (chosen.value().fell_back) backend_message_ = chosen.value().why;
   }
-  glfwMakeContextCurrent(window_);
-  glfwSwapInterval(args_.frames > 0 ? 0 : 1);
-  glfwGetFramebufferSize(window_, &fb_w_, &fb_h_);
-  fb_w_ = std::max(fb_w_, 1), fb_h_ = std::max(fb_h_, 1);
-
-  IMGUI_CHECKVERSION();
-  ImGui::CreateContext();
-  ImGui::GetIO().IniFilename = nullptr;  // no imgui.ini in the working folder
-  ImGui::StyleColorsDark();
-  ImGui_ImplGlfw_InitForOpenGL(window_, true);
-  ImGui_ImplOpenGL3_Init("#version 330 core");
-
-  glGenTextures(1, &texture_);
-  glBindTexture(GL_TEXTURE_2D, texture_);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-
-  rebuild_scene();
-  mesh_ = args_.pipeline.geometry == "mesh";
-  detector_ = make_cpu_detector(current_config());
-  if (args_.pipeline.backend == "gl") switch_backend(Backend::gl, mesh_);
-  std::printf("viscd view: %s backend, %d objects (%s scene), window %dx%d%s\n", backend_ == Backend::gl ? "gl" : "cpu",
-              objects_, args_.world.kind.c_str(), fb_w_, fb_h_,
+  std::printf("viscd view: %s backend, %d objects (%s scene), window %dx%d%s\n", gl_ ? "gl" : "cpu", objects_,
+              args_.world.kind.c_str(), fb_w_, fb_h_,
               args_.frames > 0 ? (", " + std::to_string(args_.frames) + " frames").c_str() : "");
   std::fflush(stdout);
 
@@ -599,12 +564,13 @@ int Viewer::run() {
     panel();
 
     if (Status s = frame(); !s) {
-      if (backend_ == Backend::gl) {
+      if (gl_) {
+        // A gl backend that fails mid-run: the window goes on with cpu rather than closing.
         backend_message_ = "gl backend failed: " + s.error() + "; switched to cpu";
         std::fprintf(stderr, "viscd view: %s\n", backend_message_.c_str());
         destroy_detector();
-        backend_ = Backend::cpu;
-        detector_ = make_cpu_detector(current_config());
+        gl_ = false;
+        detector_ = make_cpu_detector(frame_config());
       } else {
         rc = fail("frame " + std::to_string(frames_done) + ": " + s.error());
         break;
@@ -612,8 +578,9 @@ int Viewer::run() {
     }
     upload_image();
     if (have_result_)
-      ImGui::GetBackgroundDrawList()->AddImage(reinterpret_cast<ImTextureID>(static_cast<std::uintptr_t>(texture_)),
-                                               ImVec2(0, 0), ImGui::GetIO().DisplaySize);
+      ImGui::GetBackgroundDrawList()->AddImage(
+          reinterpret_cast<ImTextureID>(static_cast<std::uintptr_t>(texture_.id())), ImVec2(0, 0),
+          ImGui::GetIO().DisplaySize);
     if (screenshot_requested_) {
       screenshot_requested_ = false;
       const std::filesystem::path path =
@@ -651,15 +618,27 @@ int Viewer::run() {
       break;
     }
   }
-
-  destroy_detector();
-  glDeleteTextures(1, &texture_);
-  ImGui_ImplOpenGL3_Shutdown();
-  ImGui_ImplGlfw_Shutdown();
-  ImGui::DestroyContext();
-  glfwDestroyWindow(window_);
-  glfwTerminate();
   return rc;
+}
+
+int run_view(const ViewArgs& args) {
+  auto config = make_config(args.pipeline);
+  if (!config) return usage_fail(config.error());
+  auto size = parse_size(args.size, "--size");
+  if (!size) return usage_fail(size.error());
+  auto start = check_view_args(args, config.value());
+  if (!start) return fail(start.error());
+
+  // Declared in the order they start; destroyed in the reverse one on every return.
+  const GlfwLibrary glfw;
+  if (!glfw.ok()) return no_window("cannot connect to a display");
+  const GlfwWindow window(size.value().first, size.value().second, "viscd view");
+  if (!window.get()) return no_window("cannot open an OpenGL 3.3 core window");
+  glfwSwapInterval(args.frames > 0 ? 0 : 1);
+  const ImGuiLayer imgui(window.get());
+  if (!imgui.ok()) return fail("cannot start Dear ImGui's GLFW or OpenGL 3 backend in the window");
+  Viewer viewer(args, std::move(start.value()), window.get());
+  return viewer.run();
 }
 
 }  // namespace
@@ -686,7 +665,7 @@ void add_view_command(CLI::App& app, int& rc) {
   add_pipeline_options(*cmd, args->pipeline, false);
   cmd->get_option("--backend")
       ->description("cpu | gl (switchable in the panel; gl falls back to cpu if it cannot start)");
-  cmd->callback([args, &rc] { rc = Viewer(*args).run(); });
+  cmd->callback([args, &rc] { rc = run_view(*args); });
 }
 
 }  // namespace viscd::app

@@ -5,7 +5,10 @@
 #include <string_view>
 #include <vector>
 
-#include "common.hpp"
+#include "commands.hpp"
+#include "exit_codes.hpp"
+#include "viscd/io.hpp"
+#include "viscd/version.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app{

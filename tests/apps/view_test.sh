@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Window tests of `viscd view` under Xvfb: it opens a window, runs frames, writes a screenshot
-# that shows all three colour classes, and fails clearly without a display.
+# that shows all three colour classes, fails clearly without a display, and falls back from a gl
+# backend that cannot start to cpu.
 # Usage: VISCD=/path/to/viscd bash tests/apps/view_test.sh WORKDIR
 # Exits 77 (ctest: skipped) when xvfb-run or python3 is missing.
 set -euo pipefail
@@ -157,5 +158,25 @@ if grep -q "gl backend unavailable" "$WORK/err"; then
 fi
 check_png "$WORK/gl.png" 240x135 || fail "gl screenshot check"
 echo "    ok"
+
+# __EGL_VENDOR_LIBRARY_FILENAMES naming no file leaves libglvnd with no EGL driver (the gl
+# backend's context) while the window's GLX context still opens: gl cannot start.
+step "--backend gl that cannot start falls back to cpu, says why on stderr, and runs"
+run env __EGL_VENDOR_LIBRARY_FILENAMES=/nonexistent/viscd-no-egl-vendor.json "${XVFB[@]}" -- view --backend gl \
+  --objects 1000 --frames 3 --size 320x180 --lambda 60 --screenshot "$WORK/fallback.png"
+if [[ "$rc" -ne 0 ]]; then
+  show
+  fail "viscd view --backend gl without an EGL driver exited $rc"
+fi
+if grep -q "viscd view: gl backend, " "$WORK/out"; then
+  echo "    skipped: the EGL vendor override did not take here"
+else
+  grep -q "^viscd view: gl backend unavailable: .*; staying on cpu$" "$WORK/err" ||
+    { show; fail "no 'gl backend unavailable: ...; staying on cpu' message"; }
+  grep -q "^viscd view: cpu backend, 1000 objects" "$WORK/out" || { show; fail "the viewer does not say it runs cpu"; }
+  grep -q "3 frames, last:" "$WORK/out" || { show; fail "no summary of the 3 frames"; }
+  check_png "$WORK/fallback.png" 320x180 || fail "fallback screenshot check"
+  echo "    ok"
+fi
 
 echo "view_test: all $checks checks passed"

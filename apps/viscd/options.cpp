@@ -1,0 +1,205 @@
+// Registering the shared options and turning their values into Config, GlOptions and
+// SceneParams, with messages that name the option.
+#include "options.hpp"
+
+#include <charconv>
+#include <cmath>
+
+#include "memory.hpp"
+#include "viscd/io.hpp"
+
+namespace viscd::app {
+
+void add_pipeline_options(CLI::App& cmd, PipelineOptions& o, bool backend_auto) {
+  cmd.add_option(
+         "--backend", o.backend,
+         backend_auto ? "cpu | reference | gl | auto (auto: gl on a hardware GPU, else cpu)" : "cpu | reference | gl")
+      ->capture_default_str();
+  cmd.add_option("--bits", o.bits, "Morton width: adaptive (Eq. 1 from mu, a, b) | 16 | 32 | 64")
+      ->capture_default_str();
+  cmd.add_option("--layout", o.layout, "Morton layout: extended (paper Table 2) | plain (10/10/10 style)")
+      ->capture_default_str();
+  cmd.add_option("--lambda", o.lambda, "culling threshold in screen pixels")->capture_default_str();
+  cmd.add_option("-a", o.a, "adaptive bits: m = 16 below this mean pixel count")->capture_default_str();
+  cmd.add_option("-b", o.b, "adaptive bits: m = 64 from this mean pixel count (32 between a and b)")
+      ->capture_default_str();
+  cmd.add_flag("--no-culling", o.no_culling, "keep every object active (no lambda culling)");
+  cmd.add_option("--map-size", o.map_size,
+                 "visibility map WxH (default: the screen size); counts are scaled to screen pixels");
+  cmd.add_option("--threads", o.threads,
+                 "worker threads for the cpu backend (0 = all cores; more than the machine has are clamped)")
+      ->check(CLI::Range(0, 1 << 16))
+      ->capture_default_str();
+  const std::uint64_t cap = default_pair_memory_cap();
+  cmd.add_option("--max-pair-memory", o.max_pair_memory,
+                 "cap on the memory a frame's pairs may take (8 bytes a pair), e.g. 512M, 4G, or 0 for none; a "
+                 "frame over it fails naming its pair count. auto = 1/8 of the memory available when viscd "
+                 "starts" +
+                     (cap ? " (here " + format_bytes(cap) + ")" : std::string(" (unknown here: no cap)")))
+      ->capture_default_str();
+  cmd.add_option("--geometry", o.geometry, "gl backend: sphere geometry in the visibility map, impostor | mesh")
+      ->capture_default_str();
+  cmd.add_option("--counter", o.counter, "gl backend: pixel counting, ssbo (any N) | atomic_uint (the paper's)")
+      ->capture_default_str();
+}
+
+void add_cpu_kernel_options(CLI::App& cmd, PipelineOptions& o) {
+  cmd.add_option("--simd", o.simd,
+                 "cpu backend: best | sse2 | scalar, the widest SIMD kernels it may use (best: AVX-512 or\n"
+                 "SSE2, as the CPU has). The pairs are the same either way. Default: VISCD_SIMD, else best");
+  cmd.add_option("--keep-order", o.keep_order,
+                 "cpu backend: on | off. on keeps the last frame's object order while it stays good, off\n"
+                 "sorts every frame. The pairs are the same either way. Default: VISCD_KEEP_ORDER, else on");
+}
+
+void add_scene_options(CLI::App& cmd, SceneOptions& o) {
+  cmd.add_option("--objects,-n", o.objects, "number of objects N (at most 100 000 000)")
+      ->check(CLI::Range(std::uint32_t{0}, kMaxObjects))
+      ->capture_default_str();
+  cmd.add_option("--scene", o.kind, "ring (the paper's flat world) | box | clusters")->capture_default_str();
+  cmd.add_option("--seed", o.seed, "scene seed (same seed, same scene)")->capture_default_str();
+  cmd.add_option("--dt", o.dt, "simulated seconds per frame")->capture_default_str();
+}
+
+Result<SceneParams> make_scene_params(const SceneOptions& o) {
+  auto kind = parse_scene_kind(o.kind);
+  if (!kind) return Result<SceneParams>::failure(kind.status());
+  if (!(o.dt >= 0 && std::isfinite(o.dt)))
+    return Result<SceneParams>::failure(ErrorKind::invalid_input,
+                                        "--dt: expected a finite number >= 0, got " + std::to_string(o.dt));
+  return SceneParams{.kind = kind.value(), .objects = o.objects, .seed = o.seed};
+}
+
+Result<GlOptions> make_gl_options(const PipelineOptions& o) {
+  GlOptions g;
+  if (o.geometry == "impostor")
+    g.geometry = GlGeometry::impostor;
+  else if (o.geometry == "mesh")
+    g.geometry = GlGeometry::mesh;
+  else
+    return Result<GlOptions>::failure(ErrorKind::invalid_input,
+                                      "--geometry: expected impostor or mesh, got '" + printable(o.geometry) + "'");
+  if (o.counter == "ssbo")
+    g.counter = GlCounter::ssbo;
+  else if (o.counter == "atomic_uint")
+    g.counter = GlCounter::atomic_uint;
+  else
+    return Result<GlOptions>::failure(ErrorKind::invalid_input,
+                                      "--counter: expected ssbo or atomic_uint, got '" + printable(o.counter) + "'");
+  return g;
+}
+
+Result<std::pair<int, int>> parse_size(std::string_view text, std::string_view option) {
+  const auto x = text.find('x');
+  int w = 0, h = 0;
+  auto num = [](std::string_view s, int& v) {
+    const auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+    return ec == std::errc() && p == s.data() + s.size() && v >= 1 && v <= 65536;
+  };
+  if (x == std::string_view::npos || !num(text.substr(0, x), w) || !num(text.substr(x + 1), h))
+    return Result<std::pair<int, int>>::failure(
+        ErrorKind::invalid_input,
+        std::string(option) + ": expected WIDTHxHEIGHT such as 1280x720, got '" + printable(text) + "'");
+  return std::pair{w, h};
+}
+
+Result<Config> make_config(const PipelineOptions& o) {
+  Config c;
+  if (o.bits == "adaptive")
+    c.bits = Bits::adaptive;
+  else if (o.bits == "16")
+    c.bits = Bits::b16;
+  else if (o.bits == "32")
+    c.bits = Bits::b32;
+  else if (o.bits == "64")
+    c.bits = Bits::b64;
+  else
+    return Result<Config>::failure(ErrorKind::invalid_input,
+                                   "--bits: expected adaptive, 16, 32 or 64, got '" + printable(o.bits) + "'");
+  if (o.layout == "extended")
+    c.layout = Layout::extended;
+  else if (o.layout == "plain")
+    c.layout = Layout::plain;
+  else
+    return Result<Config>::failure(ErrorKind::invalid_input,
+                                   "--layout: expected extended or plain, got '" + printable(o.layout) + "'");
+  if (!(o.lambda >= 0 && std::isfinite(o.lambda)))
+    return Result<Config>::failure(ErrorKind::invalid_input, "--lambda: expected a finite number >= 0");
+  if (!(o.a >= 0 && o.b >= o.a && std::isfinite(o.b)))
+    return Result<Config>::failure(ErrorKind::invalid_input, "-a/-b: expected 0 <= a <= b");
+  if (o.threads < 0)
+    return Result<Config>::failure(ErrorKind::invalid_input, "--threads: expected 0 (all cores) or a positive count");
+  if (o.backend != "cpu" && o.backend != "reference" && o.backend != "gl" && o.backend != "auto")
+    return Result<Config>::failure(
+        ErrorKind::invalid_input, "--backend: expected cpu, reference, gl or auto, got '" + printable(o.backend) + "'");
+  // The gl options are checked whatever the backend: a typo must not pass silently.
+  if (auto g = make_gl_options(o); !g) return Result<Config>::failure(g.status());
+  auto cap = parse_bytes(o.max_pair_memory, "--max-pair-memory");
+  if (!cap) return Result<Config>::failure(cap.status());
+  c.pair_memory_cap = static_cast<std::size_t>(cap.value());
+  c.lambda = o.lambda;
+  c.pixels_for_32_bits = o.a;
+  c.pixels_for_64_bits = o.b;
+  c.culling = !o.no_culling;
+  c.threads = o.threads;
+  // VISCD_SIMD and VISCD_KEEP_ORDER, for measurements (docs/usage.md); the options, when given,
+  // override them: the command line is the more specific request.
+  if (Status s = apply_environment(c); !s) return Result<Config>::failure(s);
+  if (o.simd == "best")
+    c.simd = Simd::best;
+  else if (o.simd == "sse2")
+    c.simd = Simd::sse2;
+  else if (o.simd == "scalar")
+    c.simd = Simd::scalar;
+  else if (!o.simd.empty())
+    return Result<Config>::failure(ErrorKind::invalid_input,
+                                   "--simd: expected best, sse2 or scalar, got '" + printable(o.simd) + "'");
+  if (o.keep_order == "on")
+    c.keep_order = true;
+  else if (o.keep_order == "off")
+    c.keep_order = false;
+  else if (!o.keep_order.empty())
+    return Result<Config>::failure(ErrorKind::invalid_input,
+                                   "--keep-order: expected on or off, got '" + printable(o.keep_order) + "'");
+  if (!o.map_size.empty()) {
+    auto s = parse_size(o.map_size, "--map-size");
+    if (!s) return Result<Config>::failure(s.status());
+    c.map_width = s.value().first;
+    c.map_height = s.value().second;
+    if (auto m = check_map_size(c.map_width, c.map_height, "--map-size"); !m) return Result<Config>::failure(m);
+  }
+  return c;
+}
+
+Status check_map_size(int width, int height, std::string_view option) {
+  if (Status s = validate_map_size(width, height); !s)
+    return Status::failure(ErrorKind::invalid_input, std::string(option) + ": " + s.error());
+  return {};
+}
+
+Result<std::vector<float>> parse_numbers(std::string_view text, std::size_t count, std::string_view option,
+                                         std::string_view form) {
+  using R = Result<std::vector<float>>;
+  std::vector<float> v;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t comma = text.find(',', start);
+    const std::string_view field = text.substr(start, comma == std::string_view::npos ? text.npos : comma - start);
+    float x = 0;
+    const auto [p, ec] = std::from_chars(field.data(), field.data() + field.size(), x);
+    if (field.empty() || ec != std::errc() || p != field.data() + field.size() || !std::isfinite(x))
+      return R::failure(ErrorKind::invalid_input,
+                        std::string(option) + ": expected " + std::string(form) + " (" + std::to_string(count) +
+                            " finite numbers separated by commas), got '" + printable(text) + "'");
+    v.push_back(x);
+    if (comma == std::string_view::npos) break;
+    start = comma + 1;
+  }
+  if (v.size() != count)
+    return R::failure(ErrorKind::invalid_input, std::string(option) + ": expected " + std::string(form) + " (" +
+                                                    std::to_string(count) + " numbers), got " +
+                                                    std::to_string(v.size()) + " in '" + printable(text) + "'");
+  return v;
+}
+
+}  // namespace viscd::app

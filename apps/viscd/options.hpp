@@ -1,0 +1,75 @@
+#pragma once
+// The command-line options the commands share, and their parsing into viscd::Config, GlOptions
+// and SceneParams: the pipeline options (--backend, --bits, --lambda, ...), the cpu kernel options
+// of run and pairs (--simd, --keep-order), the scene options of run and view, and the parsers of
+// option values (sizes, lists of numbers). Every error names the option; the commands turn it
+// into exit code 2.
+
+#include <CLI/CLI.hpp>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "viscd/gl.hpp"
+#include "viscd/result.hpp"
+#include "viscd/scene.hpp"
+#include "viscd/viscd.hpp"
+
+namespace viscd::app {
+
+/// Upper bound of --objects: beyond it a frame needs tens of gigabytes.
+inline constexpr std::uint32_t kMaxObjects = 100'000'000;
+
+/// Options every frame-running command shares.
+struct PipelineOptions {
+  std::string backend = "cpu";
+  std::string bits = "adaptive";
+  std::string layout = "extended";
+  float lambda = 200, a = 100, b = 400;
+  bool no_culling = false;
+  std::string map_size;  ///< "WxH" or empty
+  int threads = 0;
+  std::string geometry = "impostor";  ///< gl only
+  std::string counter = "ssbo";       ///< gl only
+  std::string max_pair_memory = "auto";
+  std::string simd;        ///< best | sse2 | scalar; empty: VISCD_SIMD or best (run and pairs only)
+  std::string keep_order;  ///< on | off; empty: VISCD_KEEP_ORDER or on (run and pairs only)
+};
+
+/// Registers the pipeline options on `cmd`; `backend_auto` offers --backend auto in the help.
+void add_pipeline_options(CLI::App& cmd, PipelineOptions& o, bool backend_auto);
+/// Registers --simd and --keep-order (the cpu backend's kernels) on `cmd`.
+void add_cpu_kernel_options(CLI::App& cmd, PipelineOptions& o);
+
+/// The simulated scene's options, shared by `run` and `view`.
+struct SceneOptions {
+  std::uint32_t objects = 10000;
+  std::string kind = "ring";
+  std::uint64_t seed = 1;
+  float dt = 1.0f / 60.0f;  ///< simulated seconds per frame
+};
+/// Registers the scene options (--objects, --scene, --seed, --dt) on `cmd`.
+void add_scene_options(CLI::App& cmd, SceneOptions& o);
+/// SceneParams from the options; the error names the bad option (--scene, --dt).
+[[nodiscard]] Result<SceneParams> make_scene_params(const SceneOptions& o);
+
+/// The gl backend's options (--geometry, --counter); the error names the bad option.
+[[nodiscard]] Result<GlOptions> make_gl_options(const PipelineOptions& o);
+/// Config from the options, then the environment (VISCD_SIMD, VISCD_KEEP_ORDER), then --simd and
+/// --keep-order when given. Checks every option, --backend and the gl options included, whatever
+/// the backend: a typo must not pass silently. The error names the bad option.
+[[nodiscard]] Result<Config> make_config(const PipelineOptions& o);
+
+/// Parses "1280x720"; the error names `option`.
+[[nodiscard]] Result<std::pair<int, int>> parse_size(std::string_view text, std::string_view option);
+/// A visibility map of width x height within kMaxMapSide and kMaxMapPixels; the error names the option.
+[[nodiscard]] Status check_map_size(int width, int height, std::string_view option);
+/// Parses `count` comma-separated finite numbers ("1,2.5,-3"); the error names the option and
+/// shows `form` ("ox,oy,oz,dx,dy,dz").
+[[nodiscard]] Result<std::vector<float>> parse_numbers(std::string_view text, std::size_t count,
+                                                       std::string_view option, std::string_view form);
+
+}  // namespace viscd::app
