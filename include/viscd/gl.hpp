@@ -42,8 +42,9 @@ struct GlOptions {
   /// readback (every pass after culling is sized on the GPU from this frame's active count,
   /// through indirect dispatch). Centres outside the previous bounds clamp to the border cells: pairs stay exact
   /// (the tree is exact for any key order), only the codes and the tree's quality may differ
-  /// from the cpu backend's. The first frame, and a frame whose N or camera presence differs
-  /// from the previous frame's, use this frame's values as with true.
+  /// from the cpu backend's. The first frame, and a frame whose N differs from the previous
+  /// frame's or that counts pixels (a camera or the caller's map) when the previous one did not,
+  /// or the other way round, use this frame's values as with true.
   /// true: one mid-frame readback of this frame's values after culling; m, the layout and the
   /// codes then equal the cpu backend's bit for bit. FrameStats::bits/layout report what was
   /// used in both modes.

@@ -5,10 +5,10 @@
 #include <numeric>
 #include <random>
 
-#include "cpu/morton_order.hpp"
 #include "cpu/brute_force.hpp"
-#include "karras/karras_lbvh.hpp"
+#include "cpu/morton_order.hpp"
 #include "gl_test_util.hpp"
+#include "karras/karras_lbvh.hpp"
 
 namespace viscd::test {
 namespace {
