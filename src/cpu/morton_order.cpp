@@ -32,17 +32,24 @@ std::uint64_t MortonOrder::memory_bytes() const {
   return b;
 }
 
-void MortonOrder::sort(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits, Layout layout,
-                       int threads, FrameStats& stats) {
+MortonLayout layout_stage(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
+                          Layout layout, int threads, ActiveExtent& extent, FrameStats& stats) {
   VISCD_ASSERT(bits == 16 || bits == 32 || bits == 64, "Morton width must be 16, 32 or 64");
   Stopwatch sw;
-  const ActiveExtent extent = active_extent(spheres, active, threads);
-  layout_ = make_layout(layout, bits, extent.bounds, extent.mean_diameter());
+  extent = active_extent(spheres, active, threads);
+  const MortonLayout l = make_layout(layout, bits, extent.bounds, extent.mean_diameter());
+  stats.bits = bits;
+  stats.layout = l.info();
+  stats.ms(Stage::layout) = sw.lap();
+  return l;
+}
+
+void MortonOrder::sort(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits, Layout layout,
+                       int threads, FrameStats& stats) {
+  ActiveExtent extent;
+  layout_ = layout_stage(spheres, active, bits, layout, threads, extent, stats);
   if (bits != bits_) previous_ids_.clear();  // the last order was by codes of another width
   bits_ = bits;
-  stats.bits = bits;
-  stats.layout = layout_.info();
-  stats.ms(Stage::layout) = sw.lap();
   switch (bits) {
     case 16:
       return sort_keys<std::uint16_t>(spheres, active, extent.bounds, threads, stats);

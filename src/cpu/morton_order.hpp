@@ -30,6 +30,11 @@ namespace viscd::detail {
 [[nodiscard]] ActiveExtent active_extent(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
                                          int threads);
 
+/// Stage 4: the extent of the active centres (`extent`) and the layout of m = `bits` over it;
+/// writes stats.bits, stats.layout and the stage's time.
+[[nodiscard]] MortonLayout layout_stage(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
+                                        int bits, Layout layout, int threads, ActiveExtent& extent, FrameStats& stats);
+
 /// How a frame's stages 5-6 went (for tests and the bench).
 struct SortReport {
   bool kept = false;        ///< the last order was kept: stages 4-6 skipped (then reused is false)

@@ -25,11 +25,9 @@ class ReferenceDetector final : public PipelineDetector {
                     std::span<const std::uint32_t>, std::span<const Filter> filters, int bits, int threads,
                     std::vector<Pair>& pairs, FrameStats& stats) override {
     // Report the same m and layout as the LBVH backends would, so stats compare one to one.
+    ActiveExtent extent;
+    (void)layout_stage(spheres, active, bits, config_.layout, threads, extent, stats);
     Stopwatch sw;
-    const ActiveExtent e = active_extent(spheres, active, threads);
-    stats.bits = bits;
-    stats.layout = make_layout(config_.layout, bits, e.bounds, e.mean_diameter()).info();
-    stats.ms(Stage::layout) = sw.lap();
     const bool complete = brute_force_pairs(spheres, active, pairs, pairs_within_cap(config_.pair_memory_cap), filters);
     stats.ms(Stage::query) = sw.lap();
     if (!complete) return check_pair_cap(pairs.size() + 1, config_.pair_memory_cap, true);

@@ -11,12 +11,6 @@
 #include "viscd/assert.hpp"
 
 namespace viscd::gl {
-namespace {
-
-void barrier() { glMemoryBarrier(GL_ALL_BARRIER_BITS); }
-
-}  // namespace
-
 Status Broadphase::init() {
   if (Status s = build_compute_programs({{&morton_, "morton.comp"},
                                          {&build_, "lbvh_build.comp"},

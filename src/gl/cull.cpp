@@ -7,12 +7,6 @@
 #include "viscd/assert.hpp"
 
 namespace viscd::gl {
-namespace {
-
-void barrier() { glMemoryBarrier(GL_ALL_BARRIER_BITS); }
-
-}  // namespace
-
 Status Culling::init() {
   if (Status s = build_compute_programs({{&scan_local_, "scan_local.comp"},
                                          {&scan_blocks_, "scan_blocks.comp"},

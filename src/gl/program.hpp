@@ -13,6 +13,11 @@
 
 namespace viscd::gl {
 
+/// Makes every write of the passes before visible to every read of the passes after. The
+/// compute passes of a frame depend on each other in sequence, so one full barrier between them
+/// is what the backend uses (docs/gl.md).
+inline void barrier() { glMemoryBarrier(GL_ALL_BARRIER_BITS); }
+
 /// A linked program. Compute programs know their work-group size (GL_COMPUTE_WORK_GROUP_SIZE).
 class Program {
  public:

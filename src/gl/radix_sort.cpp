@@ -7,12 +7,6 @@
 #include "viscd/assert.hpp"
 
 namespace viscd::gl {
-namespace {
-
-void barrier() { glMemoryBarrier(GL_ALL_BARRIER_BITS); }
-
-}  // namespace
-
 Status RadixSort::init() {
   if (Status s = build_compute_programs({{&sort_local_, "sort_local.comp"},
                                          {&radix_hist_, "radix_hist.comp"},

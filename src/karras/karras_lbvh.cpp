@@ -140,14 +140,9 @@ std::vector<std::uint64_t> KarrasBroadphase::sorted_codes() const { return keys_
 Status KarrasBroadphase::run(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
                              Layout layout, int threads, std::size_t pair_memory_cap, std::vector<Pair>& pairs,
                              FrameStats& stats) {
-  VISCD_ASSERT(bits == 16 || bits == 32 || bits == 64, "Morton width must be 16, 32 or 64");
-  Stopwatch sw;
-  const ActiveExtent extent = active_extent(spheres, active, threads);
-  layout_ = make_layout(layout, bits, extent.bounds, extent.mean_diameter());
+  ActiveExtent extent;
+  layout_ = layout_stage(spheres, active, bits, layout, threads, extent, stats);
   bits_ = bits;
-  stats.bits = bits;
-  stats.layout = layout_.info();
-  stats.ms(Stage::layout) = sw.lap();
   switch (bits) {
     case 16:
       return run_keys<std::uint16_t>(spheres, active, extent.bounds, threads, pair_memory_cap, pairs, stats);
