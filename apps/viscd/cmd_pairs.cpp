@@ -57,6 +57,7 @@ int run_pairs(const PairsArgs& a) {
   FrameInput input;
   input.spheres = table.value().spheres;
   input.filters = table.value().filters;
+  input.always_active = table.value().always_active;
   input.camera = camera ? &*camera : nullptr;
   if (!a.id_map.empty()) {
     input.id_map = ids;
@@ -112,12 +113,14 @@ void add_pairs_command(CLI::App& app, int& rc) {
       "pairs as CSV (header i,j; 0-based; sorted; i < j) and the frame's stats as JSON.\n"
       "Without --camera (and without --id-map) every object is active and adaptive bits use 32.\n"
       "A CSV with group and mask columns filters pairs: i and j pair only when\n"
-      "(group_i & mask_j) != 0 and (group_j & mask_i) != 0. Outputs are written whole or not at\n"
-      "all, and never over an input.");
+      "(group_i & mask_j) != 0 and (group_j & mask_i) != 0. A CSV with an always_active column\n"
+      "(0 or 1) keeps the objects marked 1 active whatever their pixels. Outputs are written whole\n"
+      "or not at all, and never over an input.");
   cmd->add_option("--spheres", args->spheres,
-                  "sphere file: XYZR text (x y z r per line, # comments) or .csv with header x,y,z,r or\n"
-                  "x,y,z,r,group,mask (group, mask: unsigned 32-bit, decimal or 0x hex; default 1 and\n"
-                  "0xFFFFFFFF when the columns are absent)")
+                  "sphere file: XYZR text (x y z r per line, # comments) or .csv with header x,y,z,r,\n"
+                  "optionally followed by group,mask and then always_active (group, mask: unsigned 32-bit,\n"
+                  "decimal or 0x hex; default 1 and 0xFFFFFFFF when the columns are absent; always_active:\n"
+                  "0 or 1, never culled when 1)")
       ->required();
   cmd->add_option("--camera", args->camera,
                   "camera JSON {eye, target, up, fov_y_deg, near, far, width, height}: enables culling");

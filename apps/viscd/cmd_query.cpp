@@ -60,7 +60,11 @@ int run_query(const QueryArgs& a) {
   if (!chosen) return fail(chosen.error());
   Detector& det = *chosen.value().detector;
   FrameResult frame;
-  if (Status s = det.detect(table.value().spheres, camera ? &*camera : nullptr, frame); !s) return fail(s.error());
+  FrameInput input;
+  input.spheres = table.value().spheres;
+  input.camera = camera ? &*camera : nullptr;
+  input.always_active = table.value().always_active;  // objects marked 1 are never culled
+  if (Status s = det.detect(input, frame); !s) return fail(s.error());
 
   std::string text;
   char line[64];

@@ -45,6 +45,11 @@ struct FrameInput {
   /// Empty: no filtering. Else one Filter per sphere: a pair is reported only when both objects'
   /// filters accept each other (Filter).
   std::span<const Filter> filters;
+  /// Never culled. Empty: culling alone decides. Else one flag per sphere: an object whose flag is
+  /// not 0 is active whatever its pixels, even covering none (the player, the vehicle the camera
+  /// sits in, a projectile the game must not lose; docs/embedding.md, "What culling does to
+  /// gameplay"). Its pixels are still counted and still enter mu. Every backend.
+  std::span<const std::uint8_t> always_active;
   /// The caller's own visibility map, id_map_width x id_map_height object ids, row-major from the
   /// top-left pixel: 0 = background, object index + 1 elsewhere. When given, the detector renders
   /// nothing: it counts pixels per object from this map, then culls and picks the Morton width from

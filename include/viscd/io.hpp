@@ -26,9 +26,9 @@ namespace viscd {
 /// XYZR text: one sphere per line as four numbers `x y z r` separated by blanks (or commas);
 /// `#` starts a comment; blank lines are ignored. An empty file is zero spheres.
 [[nodiscard]] Result<std::vector<Sphere>> parse_xyzr(std::string_view text, std::string_view source);
-/// CSV with the header `x,y,z,r` (spaces allowed), then one sphere per line. The header
-/// `x,y,z,r,group,mask` is read too: its group and mask columns are checked and dropped (read
-/// them with parse_sphere_table).
+/// CSV with the header `x,y,z,r` (spaces allowed), then one sphere per line. The headers
+/// parse_sphere_table() takes are read too: their group, mask and always_active columns are
+/// checked and dropped (read them with parse_sphere_table).
 [[nodiscard]] Result<std::vector<Sphere>> parse_csv(std::string_view text, std::string_view source);
 /// Reads a sphere file: `.csv` is CSV, anything else XYZR.
 [[nodiscard]] Result<std::vector<Sphere>> read_spheres(const std::filesystem::path& path);
@@ -38,10 +38,15 @@ struct SphereTable {
   std::vector<Sphere> spheres;
   /// One per sphere when the file has group and mask columns; else empty (no filtering).
   std::vector<Filter> filters;
+  /// One per sphere (0 or 1) when the file has an always_active column; else empty
+  /// (FrameInput::always_active).
+  std::vector<std::uint8_t> always_active;
 };
-/// CSV with the header `x,y,z,r` or `x,y,z,r,group,mask`. Group and mask are unsigned 32-bit
-/// integers, decimal (`4294967295`) or hexadecimal (`0xFFFFFFFF`); anything else, a value beyond
-/// 32 bits or a missing column is an error naming the line and what was expected.
+/// CSV with the header `x,y,z,r`, optionally followed by `group,mask` and then by
+/// `always_active` (`x,y,z,r,always_active` and `x,y,z,r,group,mask,always_active` too). Group and
+/// mask are unsigned 32-bit integers, decimal (`4294967295`) or hexadecimal (`0xFFFFFFFF`);
+/// always_active is 0 or 1. Anything else, a value beyond 32 bits or a missing column is an error
+/// naming the line and what was expected.
 [[nodiscard]] Result<SphereTable> parse_sphere_table(std::string_view text, std::string_view source);
 /// Reads a sphere file with its filters: `.csv` as parse_sphere_table, anything else XYZR (no filters).
 [[nodiscard]] Result<SphereTable> read_sphere_table(const std::filesystem::path& path);

@@ -53,6 +53,10 @@ Status validate_frame_input(const FrameInput& in, const Config& config) {
         ErrorKind::invalid_input,
         "Config::shade needs the detector's own visibility map (depth and normals); with the caller's id map "
         "(FrameInput::id_map or gl_id_texture) no image can be shaded");
+  if (!in.always_active.empty() && in.always_active.size() != in.spheres.size())
+    return Status::failure(ErrorKind::invalid_input,
+                           "FrameInput: " + std::to_string(in.always_active.size()) + " always_active flags for " +
+                               std::to_string(in.spheres.size()) + " spheres; give none or one per sphere");
   if (!in.filters.empty() && in.filters.size() != in.spheres.size())
     return Status::failure(ErrorKind::invalid_input, "FrameInput: " + std::to_string(in.filters.size()) +
                                                          " filters for " + std::to_string(in.spheres.size()) +

@@ -84,7 +84,8 @@ const ShadingModel& shading_model() {
 }
 
 int cull_and_choose_bits(std::span<const std::uint32_t> counts, double pixel_scale, const Config& config,
-                         std::vector<float>& pixels, std::vector<std::uint32_t>& active, FrameStats& stats) {
+                         std::span<const std::uint8_t> always_active, std::vector<float>& pixels,
+                         std::vector<std::uint32_t>& active, FrameStats& stats) {
   const std::size_t n = counts.size();
   pixels.resize(n);
   active.clear();
@@ -94,7 +95,9 @@ int cull_and_choose_bits(std::span<const std::uint32_t> counts, double pixel_sca
     const double px = static_cast<double>(counts[k]) * pixel_scale;
     pixels[k] = static_cast<float>(px);
     total += px;
-    if (!config.culling || px >= static_cast<double>(config.lambda)) active.push_back(static_cast<std::uint32_t>(k));
+    const bool kept = !always_active.empty() && always_active[k] != 0;
+    if (!config.culling || px >= static_cast<double>(config.lambda) || kept)
+      active.push_back(static_cast<std::uint32_t>(k));
   }
   stats.mean_pixels = n ? total / static_cast<double>(n) : 0.0;
   stats.active = static_cast<std::uint32_t>(active.size());

@@ -62,10 +62,12 @@ struct PixelRect {
 };
 [[nodiscard]] PixelRect sphere_rect(const CameraRig& cam, const Sphere& s);
 
-/// Stage 3: screen-scaled pixels, mu over all N, active set (pixels >= lambda, or all when
-/// culling is off), and m from Eq. (1) or Config::bits. Fills stats.active/mean_pixels.
+/// Stage 3: screen-scaled pixels, mu over all N, active set (pixels >= lambda, or a non-zero
+/// `always_active` flag when there are flags, or all when culling is off), and m from Eq. (1) or
+/// Config::bits. Fills stats.active/mean_pixels.
 int cull_and_choose_bits(std::span<const std::uint32_t> counts, double pixel_scale, const Config& config,
-                         std::vector<float>& pixels, std::vector<std::uint32_t>& active, FrameStats& stats);
+                         std::span<const std::uint8_t> always_active, std::vector<float>& pixels,
+                         std::vector<std::uint32_t>& active, FrameStats& stats);
 
 /// Stage 1's map size: Config::map_width x map_height, or the camera's screen when they are 0.
 struct MapSize {

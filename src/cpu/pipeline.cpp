@@ -65,8 +65,8 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     if (!count_ids(in.id_map, n, threads, hist_, count_scratch_)) return id_map_error(in.id_map, in.id_map_width, n);
     stats.ms(Stage::count) = sw.lap();
     const double scale = map_pixel_scale(camera, in.id_map_width, in.id_map_height);
-    bits = cull_and_choose_bits(std::span<const std::uint32_t>(hist_).subspan(1, n), scale, config_, out.pixels,
-                                active_, stats);
+    bits = cull_and_choose_bits(std::span<const std::uint32_t>(hist_).subspan(1, n), scale, config_, in.always_active,
+                                out.pixels, active_, stats);
     stats.ms(Stage::cull) = sw.lap();
   } else if (camera) {
     const MapSize map = map_size(config_, *camera);
@@ -76,7 +76,7 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     stats.ms(Stage::visibility) = sw.lap();
     count_pixels(map_, n, threads, counts_, hist_, count_scratch_);
     stats.ms(Stage::count) = sw.lap();
-    bits = cull_and_choose_bits(counts_, rig->pixel_scale, config_, out.pixels, active_, stats);
+    bits = cull_and_choose_bits(counts_, rig->pixel_scale, config_, in.always_active, out.pixels, active_, stats);
     stats.ms(Stage::cull) = sw.lap();
   } else {
     map_ = VisibilityMap{};

@@ -39,11 +39,13 @@ void Culling::cull(std::uint32_t objects) {
   frame_.states.bind_storage(VISCD_BIND_STATE);
   frame_.info.bind_storage(VISCD_BIND_INFO);
   if (frame_.has_filters) frame_.filters.bind_storage(VISCD_BIND_FILTERS);
+  if (frame_.has_always) frame_.always.bind_storage(VISCD_BIND_ALWAYS);
   const GLuint p = cull_.get();
   glProgramUniform1ui(p, cull_.uniform("u_n"), objects);
   glProgramUniform1ui(p, cull_.uniform("u_has_counts"), frame_.has_pixels ? 1u : 0u);
   glProgramUniform1ui(p, cull_.uniform("u_culling"), config_.culling ? 1u : 0u);
   glProgramUniform1ui(p, cull_.uniform("u_has_filters"), frame_.has_filters ? 1u : 0u);
+  glProgramUniform1ui(p, cull_.uniform("u_has_always"), frame_.has_always ? 1u : 0u);
   glProgramUniform1d(p, cull_.uniform("u_scale"), frame_.pixel_scale);
   glProgramUniform1d(p, cull_.uniform("u_lambda"), static_cast<double>(config_.lambda));
   cull_.dispatch(objects);

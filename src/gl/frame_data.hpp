@@ -20,6 +20,7 @@ struct FrameData {
   // Buffers; their contents are declared in shaders/shared/layout.h.
   Buffer spheres;   ///< vec4 (x, y, z, r) per object, uploaded each frame; read by stages 1, 4, 5, 7 and queries
   Buffer filters;   ///< uvec2 (group, mask) per object, uploaded in frames with filters; stages 3 and 8
+  Buffer always;    ///< FrameInput::always_active, 4 bytes a word, uploaded in frames with flags; stage 3
   Buffer counts;    ///< uint per object: map pixels counted by stage 2, read by stage 3
   Buffer pixels;    ///< float per object: screen pixels written by stage 3, read back
   Buffer states;    ///< uint per object (ObjectState): stage 3 writes free / culled, stage 8 colliding; 9 reads
@@ -33,6 +34,7 @@ struct FrameData {
   double pixel_scale = 1.0;              ///< screen pixels per map pixel (1 without a camera)
   bool has_pixels = false;               ///< pixels are counted (a camera, or the caller's map)
   bool has_filters = false;              ///< FrameInput::filters were given
+  bool has_always = false;               ///< FrameInput::always_active was given
 
   /// Uploads the spheres into `spheres`, growing it as needed.
   void upload_spheres(std::span<const Sphere> s) {
@@ -49,7 +51,7 @@ struct FrameData {
   /// backend's memory figure has never counted it.
   [[nodiscard]] std::uint64_t buffer_bytes() const {
     std::uint64_t b = 0;
-    for (const Buffer* buf : {&spheres, &counts, &pixels, &states, &active, &info, &dispatch})
+    for (const Buffer* buf : {&spheres, &always, &counts, &pixels, &states, &active, &info, &dispatch})
       b += static_cast<std::uint64_t>(buf->size());
     return b;
   }

@@ -153,6 +153,12 @@ void GlDetector::begin_frame(const FrameInput& in) {
     frame_.filters.reserve(8 * static_cast<GLsizeiptr>(n));
     glNamedBufferSubData(frame_.filters.get(), 0, 8 * static_cast<GLsizeiptr>(n), in.filters.data());
   }
+  frame_.has_always = !in.always_active.empty();
+  if (frame_.has_always) {
+    // The bytes as they are; the shader reads byte k of word k / 4 (std430 has no byte arrays).
+    frame_.always.reserve(4 * ((static_cast<GLsizeiptr>(n) + 3) / 4));
+    glNamedBufferSubData(frame_.always.get(), 0, static_cast<GLsizeiptr>(n), in.always_active.data());
+  }
   for (Buffer* b : {&frame_.counts, &frame_.pixels, &frame_.active, &frame_.states})
     b->reserve(4 * static_cast<GLsizeiptr>(n));
   culling_.reserve(n);

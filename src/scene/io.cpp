@@ -233,34 +233,53 @@ Result<SphereTable> parse_sphere_table(std::string_view text, std::string_view s
   text = skip_bom(text);
   SphereTable out;
   std::string error;
-  bool header = false, with_filters = false;
+  bool header = false, with_filters = false, with_always = false;
+  std::size_t columns = 4;
+  std::string header_text = "x,y,z,r";
   for_each_line(text, [&](std::string_view line, std::size_t no) {
     if (trim(line).empty()) return true;
     const auto fields = split(line, ",", false);
     if (!header) {
+      // x,y,z,r, then optionally group,mask, then optionally always_active.
       const bool xyzr =
           fields.size() >= 4 && fields[0] == "x" && fields[1] == "y" && fields[2] == "z" && fields[3] == "r";
-      with_filters = xyzr && fields.size() == 6 && fields[4] == "group" && fields[5] == "mask";
-      if (!xyzr || (fields.size() != 4 && !with_filters)) {
-        error = where(source, no) + "expected the header `x,y,z,r` or `x,y,z,r,group,mask`, found '" +
+      std::size_t at = 4;
+      with_filters = xyzr && fields.size() >= 6 && fields[4] == "group" && fields[5] == "mask";
+      if (with_filters) at = 6;
+      with_always = xyzr && fields.size() == at + 1 && fields[at] == "always_active";
+      if (with_always) ++at;
+      if (!xyzr || fields.size() != at) {
+        error = where(source, no) +
+                "expected the header `x,y,z,r` or `x,y,z,r,group,mask`, either optionally followed by "
+                "`,always_active`, found '" +
                 printable(trim(line)) + "'";
         return false;
       }
+      columns = at;
+      header_text =
+          std::string("x,y,z,r") + (with_filters ? ",group,mask" : "") + (with_always ? ",always_active" : "");
       header = true;
       return true;
     }
     Sphere s;
     Filter f;
+    std::uint8_t always = 0;
     std::string e;
-    if (with_filters) {
-      if (fields.size() != 6)
-        e = "expected 6 fields `x,y,z,r,group,mask`, found " + std::to_string(fields.size());
+    if (columns == 4)
+      e = parse_sphere(fields, s);  // its own message for a wrong count: "expected 4 numbers"
+    else if (fields.size() != columns)
+      e = "expected " + std::to_string(columns) + " fields `" + header_text + "`, found " +
+          std::to_string(fields.size());
+    else
+      e = parse_sphere({fields.begin(), fields.begin() + 4}, s);
+    if (e.empty() && with_filters) e = parse_filter_field(fields[4], "group", f.group);
+    if (e.empty() && with_filters) e = parse_filter_field(fields[5], "mask", f.mask);
+    if (e.empty() && with_always) {
+      const std::string_view v = trim(fields[columns - 1]);
+      if (v == "0" || v == "1")
+        always = v == "1" ? 1 : 0;
       else
-        e = parse_sphere({fields.begin(), fields.begin() + 4}, s);
-      if (e.empty()) e = parse_filter_field(fields[4], "group", f.group);
-      if (e.empty()) e = parse_filter_field(fields[5], "mask", f.mask);
-    } else {
-      e = parse_sphere(fields, s);
+        e = "always_active: expected 0 or 1, found '" + printable(fields[columns - 1]) + "'";
     }
     if (!e.empty()) {
       error = where(source, no) + e;
@@ -268,6 +287,7 @@ Result<SphereTable> parse_sphere_table(std::string_view text, std::string_view s
     }
     out.spheres.push_back(s);
     if (with_filters) out.filters.push_back(f);
+    if (with_always) out.always_active.push_back(always);
     return true;
   });
   if (!error.empty()) return R::failure(ErrorKind::invalid_input, error);
@@ -294,7 +314,7 @@ Result<SphereTable> read_sphere_table(const std::filesystem::path& path) {
   if (path.extension() == ".csv") return parse_sphere_table(text.value(), path.string());
   auto spheres = parse_xyzr(text.value(), path.string());
   if (!spheres) return R::failure(spheres.status());
-  return SphereTable{std::move(spheres.value()), {}};
+  return SphereTable{std::move(spheres.value()), {}, {}};
 }
 
 Result<Camera> parse_camera(std::string_view text, std::string_view source) {

@@ -246,6 +246,28 @@ expect_rc 0 pairs --spheres "$W/four.xyzr" --id-map "$W/ids.u32" --map-size 4x2 
 expect_file_equals "$W/pairs_idc.csv" 'i,j\n0,1\n' "pairs from the id map scaled to the camera's screen"
 pass
 
+# The four spheres with objects 2 and 3 never culled: with the id map and lambda 2 (which keeps 0
+# and 1 alone), all four are active, so the pairs are (0,1) and (2,3).
+cat >"$W/four_always.csv" <<'CSV'
+x,y,z,r,always_active
+0,0,0,0.5,0
+1,0,0,0.5,0
+100,0,0,1,1
+101.5,0,0,1,1
+CSV
+step "pairs takes an always_active column: flagged objects are never culled"
+for be in cpu reference; do
+  expect_rc 0 pairs --spheres "$W/four_always.csv" --id-map "$W/ids.u32" --map-size 4x2 --lambda 2 \
+    --out "$W/pairs_aa.csv" --stats "$W/stats_aa.json" --backend $be
+  expect_file_equals "$W/pairs_aa.csv" 'i,j\n0,1\n2,3\n' "pairs with never-culled objects ($be)"
+  expect_in "$W/stats_aa.json" '"active": 4' "every object active ($be)"
+done
+printf 'x,y,z,r,always_active\n0,0,0,1,1\n0,0,0,1,2\n' >"$W/bad_always.csv"
+expect_rc 1 pairs --spheres "$W/bad_always.csv" --out "$W/pairs_ba.csv"
+expect_in "$W/err" "$W/bad_always.csv:3: always_active: expected 0 or 1" "bad always_active error"
+[[ ! -e "$W/pairs_ba.csv" ]] || fail "a failed pairs run wrote its output"
+pass
+
 step "--id-map errors: wrong file size names both sizes, an id beyond N names the pixel, no --map-size"
 expect_rc 1 pairs --spheres "$W/four.xyzr" --id-map "$W/ids.u32" --map-size 4x4 --out "$W/pairs_ide.csv"
 expect_in "$W/err" "32 bytes" "id map size error"

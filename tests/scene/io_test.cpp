@@ -406,6 +406,46 @@ TEST(CsvFilters, WithoutTheColumnsThereAreNoFilters) {
   EXPECT_TRUE(h.value().spheres.empty() && h.value().filters.empty());
 }
 
+TEST(CsvAlwaysActive, ColumnAfterTheSpheresOrTheFilters) {
+  auto r = parse_sphere_table("x,y,z,r,always_active\n1,2,3,4,1\n5,6,7,8, 0 \n", "f.csv");
+  ASSERT_TRUE(r.ok()) << r.error();
+  ASSERT_EQ(r.value().spheres.size(), 2u);
+  EXPECT_TRUE(r.value().filters.empty());
+  EXPECT_EQ(r.value().always_active, (std::vector<std::uint8_t>{1, 0}));
+  expect_sphere(r.value().spheres[1], 5, 6, 7, 8);
+  auto f = parse_sphere_table("x,y,z,r,group,mask,always_active\n1,2,3,4,2,0x3,0\n0,0,0,1,1,1,1\n", "f.csv");
+  ASSERT_TRUE(f.ok()) << f.error();
+  ASSERT_EQ(f.value().filters.size(), 2u);
+  EXPECT_EQ(f.value().filters[0].group, 2u);
+  EXPECT_EQ(f.value().filters[0].mask, 3u);
+  EXPECT_EQ(f.value().always_active, (std::vector<std::uint8_t>{0, 1}));
+  // Without the column there are no flags; the plain reader checks the column and drops it.
+  auto none = parse_sphere_table("x,y,z,r\n1,2,3,4\n", "f.csv");
+  ASSERT_TRUE(none.ok());
+  EXPECT_TRUE(none.value().always_active.empty());
+  auto plain = parse_csv("x,y,z,r,always_active\n1,2,3,4,1\n", "f.csv");
+  ASSERT_TRUE(plain.ok()) << plain.error();
+  EXPECT_EQ(plain.value().size(), 1u);
+}
+
+TEST(CsvAlwaysActive, BadValuesAndHeadersNameTheLine) {
+  const char* head = "x,y,z,r,always_active\n0,0,0,1,1\n";
+  for (const char* row : {"0,0,0,1,2", "0,0,0,1,-1", "0,0,0,1,yes", "0,0,0,1,", "0,0,0,1,0x1", "0,0,0,1,1.0"}) {
+    const std::string e = table_error(std::string(head) + row + "\n", "f.csv");
+    EXPECT_CONTAINS(e, "f.csv:3: always_active: expected 0 or 1") << row;
+  }
+  EXPECT_CONTAINS(table_error(std::string(head) + "0,0,0,1\n", "f.csv"), "f.csv:3: expected 5 fields");
+  EXPECT_CONTAINS(table_error("x,y,z,r,group,mask,always_active\n0,0,0,1,1,1\n", "f.csv"),
+                  "f.csv:2: expected 7 fields `x,y,z,r,group,mask,always_active`");
+  // The column comes last, once.
+  for (const char* text : {"x,y,z,r,always_active,group,mask\n", "x,y,z,r,always_active,always_active\n",
+                           "x,y,z,always_active,r\n", "x,y,z,r,active\n"}) {
+    const std::string e = table_error(text, "f.csv");
+    EXPECT_CONTAINS(e, "f.csv:1: expected the header") << text;
+    EXPECT_CONTAINS(e, "always_active") << text;
+  }
+}
+
 TEST(CsvFilters, PlainReaderTakesTheSpheresOnly) {
   auto r = parse_csv("x,y,z,r,group,mask\n1,2,3,4,2,0x1\n", "f.csv");
   ASSERT_TRUE(r.ok()) << r.error();

@@ -1,6 +1,7 @@
 #version 450 core
 // Stage 3, step 1 (paper Fig. 3): screen-scaled pixels (double, as core/visibility.cpp), the
-// active flag (pixels >= lambda, or every object without culling or camera), the object's first
+// active flag (pixels >= lambda or a non-zero always_active byte, or every object without culling
+// or camera), the object's first
 // state (free when active, culled otherwise; the pair pass later marks colliding ones), the
 // integer pixel total, the count of active objects and, with filters, the OR of their groups and
 // of their masks (pairable.comp's inputs).
@@ -12,8 +13,11 @@ layout(std430, binding = VISCD_BIND_FLAGS) writeonly buffer Flags { uint flags[]
 layout(std430, binding = VISCD_BIND_STATE) writeonly buffer State { uint state[]; };
 layout(std430, binding = VISCD_BIND_INFO) buffer Info { FrameInfo info; };
 layout(std430, binding = VISCD_BIND_FILTERS) readonly buffer Filters { uvec2 filters[]; };
+// FrameInput::always_active as uploaded: byte k of the array is byte k % 4 of word k / 4.
+layout(std430, binding = VISCD_BIND_ALWAYS) readonly buffer Always { uint always[]; };
 uniform uint u_n;
 uniform uint u_has_filters;
+uniform uint u_has_always;  // FrameInput::always_active was given
 uniform uint u_has_counts;  // 0: no camera, every object active
 uniform uint u_culling;
 uniform double u_scale;  // screen pixels per map pixel
@@ -35,7 +39,8 @@ void main() {
       const uint c = counts[k];
       const double px = double(c) * u_scale;
       pixels[k] = float(px);
-      if (u_culling != 0u && !(px >= u_lambda)) flag = 0u;
+      const bool kept = u_has_always != 0u && ((always[k >> 2u] >> (8u * (k & 3u))) & 0xFFu) != 0u;
+      if (u_culling != 0u && !(px >= u_lambda) && !kept) flag = 0u;
       atomicAdd(s_total, c);
     }
     flags[k] = flag;

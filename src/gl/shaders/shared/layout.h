@@ -69,6 +69,7 @@ struct dvec2 {
 #define VISCD_BIND_IMAGE 21       // uint rgba8[W * H], rows top to bottom
 #define VISCD_BIND_DISPATCH 22    // DispatchArgs: indirect dispatch sizes from the active count
 #define VISCD_BIND_FILTERS 23     // uvec2 filters[N]: x = group, y = mask (viscd::Filter)
+#define VISCD_BIND_ALWAYS 24      // uint always[(N + 3) / 4]: FrameInput::always_active, 4 bytes a word
 // Atomic counter buffer binding of the paper's atomic_uint counting mode.
 #define VISCD_BIND_ATOMIC_COUNTERS 0
 // Texture units.
