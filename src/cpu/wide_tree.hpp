@@ -1,5 +1,6 @@
 #pragma once
-// A 16-wide bounding volume hierarchy over leaves in a fixed order: the cpu broadphase's buckets,
+// Stage 7 of the cpu broadphase, second half ("fit"): a 16-wide bounding volume hierarchy over
+// leaves in a fixed order, the cpu broadphase's buckets,
 // consecutive in Morton order. Node j of level 0 holds the boxes of leaves 16j .. 16j + 15; node j
 // of level k + 1 holds the boxes of nodes 16j .. 16j + 15 of level k; the top level is one node.
 // No topology is stored: a child's index follows from its parent's, and the leaves under an entry
