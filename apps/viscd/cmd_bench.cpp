@@ -181,8 +181,10 @@ int run_paper(const BenchArgs& a) {
     // Fig. 6 (culling on/off), Fig. 7 (adaptive vs fixed 32 / 64), Fig. 8 (memory): N sweep.
     for (std::uint32_t n : a.sizes) {
       for (bool culling : {true, false}) {
+        // Off is the paper's baseline: every object, fixed 64-bit codes, and so no visibility map.
         Config cc;
         cc.culling = culling;
+        if (!culling) cc.bits = Bits::b64;
         auto q = measure(be, cc, n, "zoom-out", a.frames, a.warmup);
         if (!check(q, be + " fig 6")) return 1;
         const Point& pt = q.value();

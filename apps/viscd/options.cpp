@@ -23,7 +23,9 @@ void add_pipeline_options(CLI::App& cmd, PipelineOptions& o, bool backend_auto) 
   cmd.add_option("-a", o.a, "adaptive bits: m = 16 below this mean pixel count")->capture_default_str();
   cmd.add_option("-b", o.b, "adaptive bits: m = 64 from this mean pixel count (32 between a and b)")
       ->capture_default_str();
-  cmd.add_flag("--no-culling", o.no_culling, "keep every object active (no lambda culling)");
+  cmd.add_flag("--no-culling", o.no_culling,
+               "keep every object active (no lambda culling); with a fixed --bits no visibility map is\n"
+               "rendered (the paper's baseline)");
   cmd.add_option("--map-size", o.map_size,
                  "visibility map WxH (default: the screen size); counts are scaled to screen pixels");
   cmd.add_option("--threads", o.threads,

@@ -49,6 +49,12 @@ struct Config {
   int map_height = 0;
   /// Produce the shaded image (stage 9) in FrameResult::image. Default off.
   bool shade = false;
+  /// Count every object's pixels (FrameResult::pixels, mu) even when no stage needs them. With a
+  /// camera the detector renders and counts a visibility map of its own only when something uses
+  /// it: culling, adaptive bits (mu picks m), shading, or this. Off (default), a frame with a
+  /// camera, culling off and a fixed bit count renders no map: the paper's baseline, which pays
+  /// for the broadphase alone. The caller's id map is always counted (the count also checks it).
+  bool report_pixels = false;
   /// Report contact events: FrameResult::began and ::ended, the pairs that began and ended since
   /// the previous detect() of this detector (Detector::reset_events() forgets that frame). Objects
   /// are compared by index: a pair whose object left the active set (culled, filtered, or an index

@@ -24,6 +24,16 @@ Status validate_frame(std::span<const Sphere> spheres, const Camera* camera, con
   return {};
 }
 
+bool renders_own_map(const FrameInput& in, const Config& config) {
+  const bool callers_map = !in.id_map.empty() || in.gl_id_texture != 0;
+  const bool map_used = config.culling || config.bits == Bits::adaptive || config.shade || config.report_pixels;
+  return in.camera != nullptr && !callers_map && map_used;
+}
+
+bool counts_pixels(const FrameInput& in, const Config& config) {
+  return !in.id_map.empty() || in.gl_id_texture != 0 || renders_own_map(in, config);
+}
+
 Status validate_frame_input(const FrameInput& in, const Config& config) {
   if (!in.id_map.empty() && in.gl_id_texture != 0)
     return Status::failure(ErrorKind::invalid_input,

@@ -29,6 +29,12 @@ std::uint64_t bytes_of(const std::vector<T>& v) {
 /// and a gl texture together are an error. The ids themselves are checked where they are
 /// counted (id_map_error()).
 [[nodiscard]] Status validate_frame_input(const FrameInput& input, const Config& config);
+
+/// Whether this frame renders a visibility map of its own (stage 1): a camera, no caller's map,
+/// and something that uses the map (culling, adaptive bits, shading, Config::report_pixels).
+[[nodiscard]] bool renders_own_map(const FrameInput& input, const Config& config);
+/// Whether this frame counts pixels (stage 2): its own map, or the caller's.
+[[nodiscard]] bool counts_pixels(const FrameInput& input, const Config& config);
 /// The error of an id map holding an id above `objects`: names the first such pixel (x, y).
 [[nodiscard]] Status id_map_error(std::span<const std::uint32_t> ids, int width, std::size_t objects);
 /// The culling rules' view of the screen: screen pixels per map pixel, (screen area) / (map area),

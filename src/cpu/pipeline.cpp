@@ -40,7 +40,7 @@ FilterSplit split_by_filters(std::span<const std::uint32_t> active, std::span<co
 Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
   const std::span<const Sphere> spheres = in.spheres;
   const Camera* camera = in.camera;
-  const bool own_map = !in.id_map.empty();
+  const bool callers_map = !in.id_map.empty();
   if (in.gl_id_texture != 0)
     return Status::failure(ErrorKind::unsupported_input,
                            "FrameInput::gl_id_texture is for the gl backend; the " + std::string(name()) +
@@ -53,12 +53,12 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
   stats = FrameStats{};
   stats.objects = static_cast<std::uint32_t>(n);
   stats.has_camera = camera != nullptr;
-  stats.has_pixels = camera != nullptr || own_map;
+  stats.has_pixels = counts_pixels(in, config_);
   Stopwatch sw;
 
   int bits = 0;
   std::optional<CameraRig> rig;
-  if (own_map) {
+  if (callers_map) {
     // The caller's map: no stage 1; counted, then culled exactly as a map of our own.
     map_ = VisibilityMap{};
     stats.ms(Stage::visibility) = sw.lap();
@@ -68,7 +68,7 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     bits = cull_and_choose_bits(std::span<const std::uint32_t>(hist_).subspan(1, n), scale, config_, in.always_active,
                                 out.pixels, active_, stats);
     stats.ms(Stage::cull) = sw.lap();
-  } else if (camera) {
+  } else if (renders_own_map(in, config_)) {
     const MapSize map = map_size(config_, *camera);
     rig.emplace(*camera, map.width, map.height);
     map_.resize(map.width, map.height, config_.shade);
@@ -79,6 +79,8 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     bits = cull_and_choose_bits(counts_, rig->pixel_scale, config_, in.always_active, out.pixels, active_, stats);
     stats.ms(Stage::cull) = sw.lap();
   } else {
+    // No camera, or one whose map nothing would use (culling off, fixed bits, no shading, no
+    // pixels asked for): no stages 1-3, every object active.
     map_ = VisibilityMap{};
     out.pixels.clear();
     active_.resize(n);
@@ -116,7 +118,7 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
   });
   stats.ms(Stage::query) += sw.lap();
 
-  if (camera && config_.shade) {
+  if (rig && config_.shade) {
     shade(*rig, map_, out.state, threads, out.image);
     out.image_width = map_.width;
     out.image_height = map_.height;

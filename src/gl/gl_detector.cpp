@@ -117,7 +117,7 @@ Status GlDetector::detect_frame(const FrameInput& in, FrameResult& out) {
   // 1-2: the detector's own map and its counts, or counting on the caller's map.
   if (callers_map) {
     if (Status s = visibility_.count_callers_map(in); !s) return s;
-  } else if (has_camera) {
+  } else if (frame_.rig) {  // a camera whose map something uses (core's renders_own_map())
     if (Status s = visibility_.render(n_all); !s) return s;
   }
   // 3: cull, compact, dispatch sizes.
@@ -167,11 +167,11 @@ void GlDetector::begin_frame(const FrameInput& in) {
   zero_info.id_check.y = 0xFFFFFFFFu;  // atomicMin's start: no bad pixel
   glNamedBufferSubData(frame_.info.get(), 0, sizeof zero_info, &zero_info);
   const bool callers_map = !in.id_map.empty() || in.gl_id_texture != 0;
-  frame_.has_pixels = callers_map || in.camera;
+  frame_.has_pixels = detail::counts_pixels(in, config_);
   frame_.rig.reset();
   if (callers_map) {
     frame_.pixel_scale = detail::map_pixel_scale(in.camera, in.id_map_width, in.id_map_height);
-  } else if (in.camera) {
+  } else if (detail::renders_own_map(in, config_)) {
     const detail::MapSize map = detail::map_size(config_, *in.camera);
     frame_.rig.emplace(*in.camera, map.width, map.height);
     frame_.pixel_scale = frame_.rig->pixel_scale;

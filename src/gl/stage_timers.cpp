@@ -28,7 +28,12 @@ void sum_intervals(const Queries& queries, const Used& used, std::size_t parts, 
       ms += t1 >= t0 ? static_cast<double>(t1 - t0) * 1e-6 : 0.0;
       any = true;
     }
-    if (any && ready) stats.stage_ms[stage] = ms;
+    // Waiting, the frame's times are complete: a stage it did not run took 0 (not the value
+    // the previous frame's times, read one frame late, left there).
+    if (wait)
+      stats.stage_ms[stage] = any ? ms : 0.0;
+    else if (any && ready)
+      stats.stage_ms[stage] = ms;
   }
 }
 

@@ -186,8 +186,13 @@ void check_frame(const FrameResult& got, std::span<const Sphere> spheres, const 
   }
   EXPECT_GT(got.stats.layout.total_bits(), 0);
 
-  // Pixels: per object with a camera (within the rasterizer margin of the reference's), none without.
-  if (!camera) {
+  // Pixels: per object when the frame rendered its map (within the rasterizer margin of the
+  // reference's), none otherwise. The map is rendered when a camera is given and something uses
+  // it: culling, adaptive bits, shading or Config::report_pixels.
+  const bool map_used =
+      camera && (config.culling || config.bits == Bits::adaptive || config.shade || config.report_pixels);
+  EXPECT_EQ(got.stats.has_pixels, map_used);
+  if (!map_used) {
     EXPECT_TRUE(got.pixels.empty());
   } else if (want.has_reference) {
     ASSERT_EQ(got.pixels.size(), n);
