@@ -130,11 +130,17 @@ class BucketBroadphase {
   /// those whose conservative box may meet `box`, until found() returns false; returns false then.
   template <class Exact, class Found>
   bool overlap_walk(const Aabb& box, const Objects& objects, const Filter* filter, Exact&& exact, Found&& found) const;
-  /// The filter of the object at sorted position p (Objects).
-  [[nodiscard]] Filter object_filter(std::size_t p, std::uint32_t id, const Objects& objects) const {
-    if (!objects.filters.empty()) return objects.filters[id];
+  /// Whether the object at sorted position p passes the query's filter (null: none).
+  [[nodiscard]] bool passes(const Filter* filter, std::size_t p, const Objects& objects) const {
+    if (filter == nullptr) return true;
+    if (!objects.filters.empty()) return pair_passes_filter(*filter, objects.filters[order_.sorted_ids()[p]]);
     const std::span<const Filter> sorted = buckets_.sorted_filters();
-    return sorted.empty() ? Filter{} : sorted[p];
+    return pair_passes_filter(*filter, sorted.empty() ? Filter{} : sorted[p]);
+  }
+  /// The index a query reports for the object at sorted position p.
+  [[nodiscard]] std::uint32_t reported(std::size_t p, const Objects& objects) const {
+    const std::uint32_t id = order_.sorted_ids()[p];
+    return objects.ids.empty() ? id : objects.ids[id];
   }
 
   KeepOrderPolicy keep_order_;

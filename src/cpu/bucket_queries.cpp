@@ -71,13 +71,11 @@ void BucketBroadphase::ray_hits(const Ray& ray, const Objects& objects, const Fi
     const BucketLanes& ln = buckets_.lanes()[b];
     const std::size_t first = std::size_t{b} * kBucket;
     for (std::uint32_t m = ray_lanes(q, ln, t_hi); m && t_hi >= 0; m &= m - 1) {
-      const std::size_t p = first + static_cast<std::uint32_t>(std::countr_zero(m));
-      const std::uint32_t id = order_.sorted_ids()[p];
-      if (!query_passes(filter, object_filter(p, id, objects))) continue;
-      const std::size_t l = p - first;
+      const auto l = static_cast<std::uint32_t>(std::countr_zero(m));
+      if (!passes(filter, first + l, objects)) continue;
       float t = 0;
       if (ray_sphere(ray.origin, ray.dir, max_t, Sphere{ln.x[l], ln.y[l], ln.z[l], ln.r[l]}, t))
-        hit(objects.ids.empty() ? id : objects.ids[id], t);
+        hit(reported(first + l, objects), t);
     }
   });
 }
@@ -134,11 +132,8 @@ bool BucketBroadphase::overlap_walk(const Aabb& box, const Objects& objects, con
     // Only the lanes in use: the exact tests need not reject the padding's NaN centres.
     const std::size_t lanes = std::min<std::size_t>(kBucket, n - first);
     for (std::size_t l = 0; l < lanes && go_on; ++l) {
-      const std::size_t p = first + l;
-      const std::uint32_t id = order_.sorted_ids()[p];
-      if (!query_passes(filter, object_filter(p, id, objects))) continue;
-      if (!exact(Sphere{ln.x[l], ln.y[l], ln.z[l], ln.r[l]})) continue;
-      go_on = found(objects.ids.empty() ? id : objects.ids[id]);
+      if (!passes(filter, first + l, objects) || !exact(Sphere{ln.x[l], ln.y[l], ln.z[l], ln.r[l]})) continue;
+      go_on = found(reported(first + l, objects));
     }
   };
   wide_detail::walk<SimdBaseline>(tree_, box, keep, visit);
@@ -156,9 +151,7 @@ void BucketBroadphase::overlap(const Sphere& sphere, const Objects& objects, con
     for (std::uint32_t m = SimdBaseline::sphere_lanes(buckets_.lanes()[b], sphere.x, sphere.y, sphere.z, sphere.r); m;
          m &= m - 1) {
       const std::size_t p = std::size_t{b} * kBucket + static_cast<std::uint32_t>(std::countr_zero(m));
-      const std::uint32_t id = order_.sorted_ids()[p];
-      if (query_passes(filter, object_filter(p, id, objects)))
-        out.push_back(objects.ids.empty() ? id : objects.ids[id]);
+      if (passes(filter, p, objects)) out.push_back(reported(p, objects));
     }
   };
   for_each_wide_overlap(tree_, box, visit);
