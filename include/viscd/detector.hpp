@@ -2,6 +2,7 @@
 /// \file detector.hpp
 /// The detector an engine calls, a factory per backend, and the rules every backend shares.
 
+#include <cstdint>
 #include <memory>
 #include <span>
 #include <string>
@@ -19,6 +20,33 @@ namespace detail {
 class Backend;  // what each backend implements (src/core/backend.hpp); not part of the API
 struct DetectorAccess;
 }  // namespace detail
+
+/// The callback of Detector::ray_cast(ray, visitor) (after Box2D's b2RayCastCallback): called
+/// once for each hit the query finds, from the calling thread, during the call. What it returns
+/// steers the query; the ray's max t starts at Ray::max_t and never grows:
+///   - 0 (either sign): stop; no further calls;
+///   - a value v > 0: the max t becomes min(max t, v). Returning hit.t clips the ray to the hit
+///     (the closest-hit search); returning the current max t (or infinity) keeps every hit;
+///   - a negative value or NaN: the hit is ignored and the max t stays (filtering).
+/// A closest-hit visitor that must break ties at t = 0 by index (as Detector::ray_cast does)
+/// returns the smallest positive float for a hit at t = 0 rather than 0, which would stop.
+class RayVisitor {
+ public:
+  virtual ~RayVisitor() = default;
+  /// One hit: the object's index and its t (ray_hits_sphere()), with t <= the current max t.
+  /// Returns the new max t, as above. Must not call the detector.
+  virtual float on_hit(const RayHit& hit) = 0;
+};
+
+/// The callback of Detector::overlap(sphere, visitor) and overlap_box(box, visitor) (after Jolt's collectors'
+/// ShouldEarlyOut): called once for each overlapping object, from the calling thread, during the call.
+class OverlapVisitor {
+ public:
+  virtual ~OverlapVisitor() = default;
+  /// One overlapping object's index. Returns true to go on, false to stop the query (no further
+  /// calls). Must not call the detector.
+  virtual bool on_overlap(std::uint32_t index) = 0;
+};
 
 /// Finds every overlapping pair of spheres, frame after frame, and answers ray and overlap
 /// queries on the last frame. Made by a factory below (make_cpu_detector(), make_detector(),
@@ -55,16 +83,41 @@ class Detector {
   void reset_events();
 
   /// Queries on the last successful frame: they see its active objects (culled ones are
-  /// invisible; filters do not apply) at the positions that frame was given. A ray hits a sphere
-  /// by ray_hits_sphere(); a ray with a zero or non-finite direction, a non-finite origin, or a
-  /// max_t that is negative or NaN hits nothing.
+  /// invisible) at the positions that frame was given. A ray hits a sphere by ray_hits_sphere(); a
+  /// ray with a zero or non-finite direction, a non-finite origin, or a max_t that is negative or
+  /// NaN hits nothing. A sphere overlaps a query sphere by spheres_overlap() and a box by
+  /// sphere_overlaps_box().
+  ///
+  /// `filter` (optional; not kept after the call): when given, an object is reported only when
+  /// pair_passes_filter(*filter, its filter), its filter being the one the last frame's
+  /// FrameInput::filters gave it (Filter{} when that frame had none). Without it, the frame's
+  /// filters do not apply. Every query is exact: each backend answers as brute force over the
+  /// active objects would, bit for bit.
+  ///
   /// ray_cast: the first hit (smallest t, ties to the smaller index); false when there is none.
-  [[nodiscard]] bool ray_cast(const Ray& ray, RayHit& hit);
+  [[nodiscard]] bool ray_cast(const Ray& ray, RayHit& hit, const Filter* filter = nullptr);
   /// Every hit, sorted by (t, index); `hits` is cleared first (its capacity is reused).
-  void ray_cast_all(const Ray& ray, std::vector<RayHit>& hits);
+  void ray_cast_all(const Ray& ray, std::vector<RayHit>& hits, const Filter* filter = nullptr);
+  /// Calls visitor.on_hit() for the hits of `ray` in an unspecified order, with the ray's max t
+  /// lowered by what the visitor returns (RayVisitor). Guarantees: each object at most once; only
+  /// hits with t <= the max t at the time they are found; every hit with t <= the final max t
+  /// (since the max only decreases, a visitor that returns hit.t finds the first hit); no call
+  /// after the visitor returned 0. Nothing is called for an invalid ray.
+  void ray_cast(const Ray& ray, RayVisitor& visitor, const Filter* filter = nullptr);
   /// The active objects that overlap `sphere` by spheres_overlap(), sorted by index; cleared
   /// first. A sphere that validate_spheres() refuses overlaps nothing.
-  void overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices);
+  void overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices, const Filter* filter = nullptr);
+  /// The active objects whose sphere overlaps `box` by sphere_overlaps_box(), sorted by index;
+  /// cleared first. A box with a non-finite bound or min > max on an axis overlaps nothing.
+  /// (Named apart from overlap(): a braced list such as overlap({x, y, z, r}, indices) would
+  /// otherwise be ambiguous, since it can initialise a Box too.)
+  void overlap_box(const Box& box, std::vector<std::uint32_t>& indices, const Filter* filter = nullptr);
+  /// Calls visitor.on_overlap() once for each active object that overlaps `sphere` (as the list
+  /// form), in an unspecified order, until it returns false. Nothing for an invalid sphere.
+  void overlap(const Sphere& sphere, OverlapVisitor& visitor, const Filter* filter = nullptr);
+  /// Calls visitor.on_overlap() once for each active object that overlaps `box` (as the list
+  /// form), in an unspecified order, until it returns false. Nothing for an invalid box.
+  void overlap_box(const Box& box, OverlapVisitor& visitor, const Filter* filter = nullptr);
 
   /// Backend name: "reference", "cpu", "gl".
   [[nodiscard]] std::string_view name() const;
@@ -116,6 +169,15 @@ class Detector {
 /// operations everywhere (docs/architecture.md, "Queries"), so that every backend's answer is the
 /// same bit for bit. A zero direction hits nothing.
 [[nodiscard]] bool ray_hits_sphere(const Ray& ray, const Sphere& sphere, float& t);
+
+/// The sphere-box test every backend and query uses: true when the squared distance from the
+/// sphere's centre to the closed box is at most r^2 (touching counts; a box inside the sphere or
+/// the centre inside the box overlaps). Evaluated in double from the float inputs, per axis
+/// e = the distance from the centre to the box's interval (0 inside it), d2 = (e_x^2 + e_y^2) +
+/// e_z^2 <= r^2 (docs/architecture.md, "Queries"), so that every backend's answer is the same bit
+/// for bit. False for a box with a non-finite bound or min > max on an axis, or a sphere that
+/// validate_spheres() refuses.
+[[nodiscard]] bool sphere_overlaps_box(const Sphere& sphere, const Box& box);
 
 /// Checks spheres for the input rules (finite, 0 <= r, magnitudes <= kMaxCoordinate) and the
 /// object limit; the error names the first bad sphere by index.

@@ -36,7 +36,8 @@ struct Pair {
 /// An object's collision filter. Objects i and j are reported as a pair only when
 /// `(group_i & mask_j) != 0 && (group_j & mask_i) != 0` (pair_passes_filter() in detector.hpp).
 /// The default (group 1, every mask bit) pairs with every other default object. Filters decide
-/// which pairs are reported, never which objects are active or seen by queries.
+/// which pairs are reported, never which objects are active; queries see them only when given a
+/// filter of their own (Detector::ray_cast, overlap).
 struct Filter {
   std::uint32_t group = 1;           ///< the groups the object belongs to (bits)
   std::uint32_t mask = 0xFFFFFFFFu;  ///< the groups it may collide with (bits)
@@ -56,6 +57,15 @@ struct RayHit {
   std::uint32_t index = 0;
   float t = 0;
   friend constexpr bool operator==(const RayHit&, const RayHit&) = default;
+};
+
+/// An axis-aligned box for Detector::overlap, in world units: the points p with
+/// min[k] <= p[k] <= max[k] on every axis k (closed: its faces belong to it). A box with
+/// min = max is a point. A box with a non-finite bound, or min > max on an axis, overlaps nothing.
+/// A sphere overlaps a box by sphere_overlaps_box() (detector.hpp).
+struct Box {
+  float min[3] = {0, 0, 0};
+  float max[3] = {0, 0, 0};
 };
 
 /// What one frame decided about an object.

@@ -16,6 +16,7 @@
 #include <string_view>
 #include <vector>
 
+#include "core/brute_queries.hpp"
 #include "viscd/config.hpp"
 #include "viscd/detector.hpp"
 #include "viscd/frame.hpp"
@@ -45,13 +46,24 @@ class Backend {
   [[nodiscard]] virtual Status run_frame(const FrameInput& input, FrameResult& out) = 0;
 
   /// Queries on the last successful frame (called only after one; the ray is valid: finite, a
-  /// non-zero direction, max_t >= 0; the sphere passes validate_spheres). A backend that answers
-  /// them from structures of its own overrides all three and answers_queries(); the others get
-  /// brute force over a copy of the active spheres that detect() keeps after each frame.
+  /// non-zero direction, max_t >= 0; the sphere passes validate_spheres; the box is finite with
+  /// min <= max). `filter` is the query's filter or null (Detector). The results need not be
+  /// sorted: Detector sorts the lists. A backend that answers them from structures of its own
+  /// overrides them all; the others get brute force over query_objects().
+  [[nodiscard]] virtual bool query_ray_first(const Ray& ray, const Filter* filter, RayHit& hit);
+  virtual void query_ray_all(const Ray& ray, const Filter* filter, std::vector<RayHit>& hits);
+  virtual void query_ray_visit(const Ray& ray, const Filter* filter, RayVisitor& visitor);
+  virtual void query_sphere(const Sphere& sphere, const Filter* filter, std::vector<std::uint32_t>& indices);
+  virtual void query_box(const Box& box, const Filter* filter, std::vector<std::uint32_t>& indices);
+  virtual void query_sphere_visit(const Sphere& sphere, const Filter* filter, OverlapVisitor& visitor);
+  virtual void query_box_visit(const Box& box, const Filter* filter, OverlapVisitor& visitor);
+
+  /// Whether the backend keeps what queries need itself (answers_queries() true: gl reads its
+  /// copy back from the GPU, cpu searches its tree); otherwise detect() keeps a copy of the active
+  /// spheres, ids and (in frames with filters) filters after each frame for query_objects().
   [[nodiscard]] virtual bool answers_queries() const { return false; }
-  [[nodiscard]] virtual bool query_ray(const Ray& ray, RayHit& hit);
-  virtual void query_ray_all(const Ray& ray, std::vector<RayHit>& hits);
-  virtual void query_overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices);
+  /// The objects the brute-force queries search: by default the copy detect() keeps.
+  [[nodiscard]] virtual QueryObjects query_objects() { return {query_spheres_, query_ids_, query_filters_}; }
 
   [[nodiscard]] const Config& config() const { return config_; }
   void set_config(const Config& config) { config_ = config; }
@@ -63,9 +75,11 @@ class Backend {
   friend class viscd::Detector;
   std::vector<Pair> previous_pairs_;  // the contact events' previous frame (empty: none)
   bool queries_ready_ = false;        // the last detect() succeeded
-  // The active objects of the last frame, for the brute-force queries.
+  // The active objects of the last frame, for the brute-force queries, and their filters (empty
+  // when the frame had none).
   std::vector<Sphere> query_spheres_;
   std::vector<std::uint32_t> query_ids_;
+  std::vector<Filter> query_filters_;
 };
 
 /// The one way from a backend to the public handle and back (factories, tests, tools).

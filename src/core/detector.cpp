@@ -55,6 +55,21 @@ bool ray_hits_sphere(const Ray& ray, const Sphere& sphere, float& t) {
   return detail::ray_sphere(ray.origin, ray.dir, ray.max_t, sphere, t);
 }
 
+namespace {
+bool valid_sphere(const Sphere& s) { return validate_spheres(std::span<const Sphere>(&s, 1)).ok(); }
+
+// A box every query takes: finite bounds, min <= max on every axis (false for NaN too).
+bool valid_box(const Box& b) {
+  for (int k = 0; k < 3; ++k)
+    if (!std::isfinite(b.min[k]) || !std::isfinite(b.max[k]) || !(b.min[k] <= b.max[k])) return false;
+  return true;
+}
+}  // namespace
+
+bool sphere_overlaps_box(const Sphere& sphere, const Box& box) {
+  return valid_sphere(sphere) && valid_box(box) && detail::sphere_box_exact(sphere, box.min, box.max);
+}
+
 // ---- Detector: the frame around run_frame(), contact events, queries ----
 
 namespace {
@@ -95,8 +110,6 @@ bool valid_ray(const Ray& r) {
   return moves && r.max_t >= 0;  // false for a NaN max_t too
 }
 
-bool valid_sphere(const Sphere& s) { return validate_spheres(std::span<const Sphere>(&s, 1)).ok(); }
-
 // Hits sort by (t, index).
 bool hit_before(const RayHit& a, const RayHit& b) { return a.t < b.t || (a.t == b.t && a.index < b.index); }
 
@@ -104,41 +117,84 @@ bool hit_before(const RayHit& a, const RayHit& b) { return a.t < b.t || (a.t == 
 
 namespace detail {
 
-bool brute_ray(std::span<const Sphere> spheres, std::span<const std::uint32_t> ids, const Ray& ray, RayHit& hit) {
+namespace {
+Filter filter_of(const QueryObjects& o, std::size_t k) { return o.filters.empty() ? Filter{} : o.filters[k]; }
+}  // namespace
+
+bool brute_ray(const QueryObjects& o, const Ray& ray, const Filter* filter, RayHit& hit) {
   bool found = false;
-  for (std::size_t k = 0; k < spheres.size(); ++k) {
+  for (std::size_t k = 0; k < o.spheres.size(); ++k) {
     float t = 0;
-    if (!ray_hits_sphere(ray, spheres[k], t)) continue;
-    const RayHit h{ids[k], t};
+    if (!query_passes(filter, filter_of(o, k)) || !ray_hits_sphere(ray, o.spheres[k], t)) continue;
+    const RayHit h{o.ids[k], t};
     if (!found || hit_before(h, hit)) hit = h;
     found = true;
   }
   return found;
 }
 
-void brute_ray_all(std::span<const Sphere> spheres, std::span<const std::uint32_t> ids, const Ray& ray,
-                   std::vector<RayHit>& hits) {
-  for (std::size_t k = 0; k < spheres.size(); ++k) {
+void brute_ray_all(const QueryObjects& o, const Ray& ray, const Filter* filter, std::vector<RayHit>& hits) {
+  for (std::size_t k = 0; k < o.spheres.size(); ++k) {
     float t = 0;
-    if (ray_hits_sphere(ray, spheres[k], t)) hits.push_back({ids[k], t});
+    if (query_passes(filter, filter_of(o, k)) && ray_hits_sphere(ray, o.spheres[k], t)) hits.push_back({o.ids[k], t});
   }
-  std::sort(hits.begin(), hits.end(), hit_before);
 }
 
-void brute_overlap(std::span<const Sphere> spheres, std::span<const std::uint32_t> ids, const Sphere& sphere,
+void brute_ray_visit(const QueryObjects& o, const Ray& ray, const Filter* filter, RayVisitor& visitor) {
+  Ray r = ray;  // r.max_t is the current max t
+  for (std::size_t k = 0; k < o.spheres.size(); ++k) {
+    float t = 0;
+    if (!query_passes(filter, filter_of(o, k)) || !ray_hits_sphere(r, o.spheres[k], t)) continue;
+    if (!apply_ray_answer(visitor.on_hit({o.ids[k], t}), r.max_t)) return;
+  }
+}
+
+void brute_overlap(const QueryObjects& o, const Sphere& sphere, const Filter* filter,
                    std::vector<std::uint32_t>& indices) {
-  for (std::size_t k = 0; k < spheres.size(); ++k)
-    if (spheres_overlap(sphere, spheres[k])) indices.push_back(ids[k]);
+  for (std::size_t k = 0; k < o.spheres.size(); ++k)
+    if (query_passes(filter, filter_of(o, k)) && spheres_overlap(sphere, o.spheres[k])) indices.push_back(o.ids[k]);
 }
 
-bool Backend::query_ray(const Ray& ray, RayHit& hit) { return brute_ray(query_spheres_, query_ids_, ray, hit); }
-
-void Backend::query_ray_all(const Ray& ray, std::vector<RayHit>& hits) {
-  brute_ray_all(query_spheres_, query_ids_, ray, hits);
+void brute_overlap_box(const QueryObjects& o, const Box& box, const Filter* filter,
+                       std::vector<std::uint32_t>& indices) {
+  for (std::size_t k = 0; k < o.spheres.size(); ++k)
+    if (query_passes(filter, filter_of(o, k)) && sphere_box_exact(o.spheres[k], box.min, box.max))
+      indices.push_back(o.ids[k]);
 }
 
-void Backend::query_overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices) {
-  brute_overlap(query_spheres_, query_ids_, sphere, indices);
+void brute_overlap_visit(const QueryObjects& o, const Sphere& sphere, const Filter* filter, OverlapVisitor& visitor) {
+  for (std::size_t k = 0; k < o.spheres.size(); ++k)
+    if (query_passes(filter, filter_of(o, k)) && spheres_overlap(sphere, o.spheres[k]) && !visitor.on_overlap(o.ids[k]))
+      return;
+}
+
+void brute_overlap_box_visit(const QueryObjects& o, const Box& box, const Filter* filter, OverlapVisitor& visitor) {
+  for (std::size_t k = 0; k < o.spheres.size(); ++k)
+    if (query_passes(filter, filter_of(o, k)) && sphere_box_exact(o.spheres[k], box.min, box.max) &&
+        !visitor.on_overlap(o.ids[k]))
+      return;
+}
+
+bool Backend::query_ray_first(const Ray& ray, const Filter* filter, RayHit& hit) {
+  return brute_ray(query_objects(), ray, filter, hit);
+}
+void Backend::query_ray_all(const Ray& ray, const Filter* filter, std::vector<RayHit>& hits) {
+  brute_ray_all(query_objects(), ray, filter, hits);
+}
+void Backend::query_ray_visit(const Ray& ray, const Filter* filter, RayVisitor& visitor) {
+  brute_ray_visit(query_objects(), ray, filter, visitor);
+}
+void Backend::query_sphere(const Sphere& sphere, const Filter* filter, std::vector<std::uint32_t>& indices) {
+  brute_overlap(query_objects(), sphere, filter, indices);
+}
+void Backend::query_box(const Box& box, const Filter* filter, std::vector<std::uint32_t>& indices) {
+  brute_overlap_box(query_objects(), box, filter, indices);
+}
+void Backend::query_sphere_visit(const Sphere& sphere, const Filter* filter, OverlapVisitor& visitor) {
+  brute_overlap_visit(query_objects(), sphere, filter, visitor);
+}
+void Backend::query_box_visit(const Box& box, const Filter* filter, OverlapVisitor& visitor) {
+  brute_overlap_box_visit(query_objects(), box, filter, visitor);
 }
 
 }  // namespace detail
@@ -182,12 +238,16 @@ Status Detector::detect(const FrameInput& input, FrameResult& out) {
       // allocation follows the active set as it changes.
       b.query_spheres_.clear();
       b.query_ids_.clear();
+      b.query_filters_.clear();
       b.query_spheres_.reserve(input.spheres.size());
       b.query_ids_.reserve(input.spheres.size());
+      const bool filters = !input.filters.empty();  // else every object has Filter{}: no copy
+      if (filters) b.query_filters_.reserve(input.spheres.size());
       for (std::size_t k = 0; k < input.spheres.size(); ++k) {
         if (out.state[k] == ObjectState::culled) continue;
         b.query_spheres_.push_back(input.spheres[k]);
         b.query_ids_.push_back(static_cast<std::uint32_t>(k));
+        if (filters) b.query_filters_.push_back(input.filters[k]);
       }
     }
     b.queries_ready_ = true;
@@ -200,19 +260,43 @@ Status Detector::detect(const FrameInput& input, FrameResult& out) {
 
 void Detector::reset_events() { backend_->previous_pairs_.clear(); }
 
-bool Detector::ray_cast(const Ray& ray, RayHit& hit) {
+bool Detector::ray_cast(const Ray& ray, RayHit& hit, const Filter* filter) {
   if (!backend_->queries_ready_ || !valid_ray(ray)) return false;
-  return backend_->query_ray(ray, hit);
+  return backend_->query_ray_first(ray, filter, hit);
 }
 
-void Detector::ray_cast_all(const Ray& ray, std::vector<RayHit>& hits) {
+void Detector::ray_cast_all(const Ray& ray, std::vector<RayHit>& hits, const Filter* filter) {
   hits.clear();
-  if (backend_->queries_ready_ && valid_ray(ray)) backend_->query_ray_all(ray, hits);
+  if (!backend_->queries_ready_ || !valid_ray(ray)) return;
+  backend_->query_ray_all(ray, filter, hits);
+  // Backends append in their own order; the contract is (t, index).
+  std::sort(hits.begin(), hits.end(), hit_before);
 }
 
-void Detector::overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices) {
+void Detector::ray_cast(const Ray& ray, RayVisitor& visitor, const Filter* filter) {
+  if (backend_->queries_ready_ && valid_ray(ray)) backend_->query_ray_visit(ray, filter, visitor);
+}
+
+void Detector::overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices, const Filter* filter) {
   indices.clear();
-  if (backend_->queries_ready_ && valid_sphere(sphere)) backend_->query_overlap(sphere, indices);
+  if (!backend_->queries_ready_ || !valid_sphere(sphere)) return;
+  backend_->query_sphere(sphere, filter, indices);
+  std::sort(indices.begin(), indices.end());
+}
+
+void Detector::overlap_box(const Box& box, std::vector<std::uint32_t>& indices, const Filter* filter) {
+  indices.clear();
+  if (!backend_->queries_ready_ || !valid_box(box)) return;
+  backend_->query_box(box, filter, indices);
+  std::sort(indices.begin(), indices.end());
+}
+
+void Detector::overlap(const Sphere& sphere, OverlapVisitor& visitor, const Filter* filter) {
+  if (backend_->queries_ready_ && valid_sphere(sphere)) backend_->query_sphere_visit(sphere, filter, visitor);
+}
+
+void Detector::overlap_box(const Box& box, OverlapVisitor& visitor, const Filter* filter) {
+  if (backend_->queries_ready_ && valid_box(box)) backend_->query_box_visit(box, filter, visitor);
 }
 
 Status validate_spheres(std::span<const Sphere> spheres) {

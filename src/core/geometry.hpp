@@ -99,6 +99,27 @@ inline bool ray_sphere(const float origin[3], const float dir[3], float max_t, c
   return true;
 }
 
+/// The sphere-box test of the queries (sphere_overlaps_box(); docs/architecture.md, "Queries"):
+/// the squared distance from the centre to the closed box [lo, hi], in double from the float
+/// inputs, against r^2, touching counts:
+///   e_k = lo_k - c_k when c_k < lo_k, c_k - hi_k when c_k > hi_k, else 0 (per axis, x, y, z);
+///   d2 = (e_x^2 + e_y^2) + e_z^2;  overlap when d2 <= r^2.
+/// Every backend calls this one function, so all agree bit for bit. No sum or product of floats
+/// overflows or underflows to zero in double here, and the roundings (a few units of 2^-53) are
+/// far inside conservative_box()'s margin, so a tree over conservative boxes never rejects what
+/// this accepts. Preconditions: finite inputs with lo <= hi (Detector checks the box, and
+/// validate_spheres() the sphere); a NaN centre would count as inside, so callers skip padding.
+inline bool sphere_box_exact(const Sphere& s, const float lo[3], const float hi[3]) {
+  const double c[3] = {s.x, s.y, s.z};
+  double d2 = 0;
+  for (int k = 0; k < 3; ++k) {
+    const double e = c[k] < lo[k] ? double{lo[k]} - c[k] : c[k] > hi[k] ? c[k] - double{hi[k]} : 0.0;
+    d2 += e * e;
+  }
+  const double r = s.r;
+  return d2 <= r * r;
+}
+
 /// How far beyond a sphere's conservative box ray_sphere()'s hit point can lie for a ray from
 /// `origin`: its rounding in double is below 2^-46 of |origin| + |centre| + r; the box already
 /// covers 2^-19 of |centre| + r, and this covers the origin's part with room to spare (2^-32), and

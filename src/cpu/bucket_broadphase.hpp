@@ -21,6 +21,7 @@
 #include <span>
 #include <vector>
 
+#include "core/brute_queries.hpp"
 #include "cpu/buckets.hpp"
 #include "cpu/keep_order.hpp"
 #include "cpu/morton_order.hpp"
@@ -28,6 +29,7 @@
 #include "cpu/simd.hpp"
 #include "cpu/wide_tree.hpp"
 #include "viscd/config.hpp"
+#include "viscd/detector.hpp"
 #include "viscd/frame.hpp"
 #include "viscd/result.hpp"
 #include "viscd/types.hpp"
@@ -54,15 +56,38 @@ class BucketBroadphase {
   void build(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits, Layout layout,
              int threads, FrameStats& stats);
 
-  /// Queries on the last tree (docs/architecture.md, "Queries"). A tree object's id is its index
-  /// in the spheres it was built from, reported as ids[id] when `ids` is not empty.
+  /// What the queries report of the tree's objects. A tree object's id is its index in the
+  /// spheres the tree was built from; it is reported as ids[id] when `ids` is not empty. Its
+  /// filter is filters[id] when `filters` is not empty, else the frame's filter (run() with
+  /// filters), else Filter{}.
+  struct Objects {
+    std::span<const std::uint32_t> ids;
+    std::span<const Filter> filters;
+  };
+
+  /// Queries on the last tree (docs/architecture.md, "Queries"); `filter` is the query's filter
+  /// or null (query_passes()). Results are appended unsorted.
   /// ray_first: the first hit (smallest t, ties to the smaller reported index) if it comes before
   /// `best` (when `found`); returns whether there is a hit now.
-  [[nodiscard]] bool ray_first(const Ray& ray, std::span<const std::uint32_t> ids, RayHit& best, bool found) const;
-  /// Appends every hit, unsorted.
-  void ray_all(const Ray& ray, std::span<const std::uint32_t> ids, std::vector<RayHit>& hits) const;
-  /// Appends the objects that overlap `sphere` by overlap_exact(), unsorted.
-  void overlap(const Sphere& sphere, std::span<const std::uint32_t> ids, std::vector<std::uint32_t>& out) const;
+  [[nodiscard]] bool ray_first(const Ray& ray, const Objects& objects, const Filter* filter, RayHit& best,
+                               bool found) const;
+  /// Appends every hit.
+  void ray_all(const Ray& ray, const Objects& objects, const Filter* filter, std::vector<RayHit>& hits) const;
+  /// The hits through `visitor`, as Detector::ray_cast(ray, visitor): the walk prunes by the max t
+  /// `max_t`, which the visitor's answers lower (and which carries over to a next tree). Returns
+  /// false when the visitor stopped the query.
+  [[nodiscard]] bool ray_visit(const Ray& ray, const Objects& objects, const Filter* filter, float& max_t,
+                               RayVisitor& visitor) const;
+  /// Appends the objects that overlap `sphere` by overlap_exact().
+  void overlap(const Sphere& sphere, const Objects& objects, const Filter* filter,
+               std::vector<std::uint32_t>& out) const;
+  /// Appends the objects that overlap `box` (finite, min <= max) by sphere_box_exact().
+  void overlap_box(const Box& box, const Objects& objects, const Filter* filter, std::vector<std::uint32_t>& out) const;
+  /// overlap() and overlap_box() through a visitor; false when it stopped the query.
+  [[nodiscard]] bool overlap_visit(const Sphere& sphere, const Objects& objects, const Filter* filter,
+                                   OverlapVisitor& visitor) const;
+  [[nodiscard]] bool overlap_box_visit(const Box& box, const Objects& objects, const Filter* filter,
+                                       OverlapVisitor& visitor) const;
 
   /// Inspection for tests: the last frame's tree over buckets, the bucket boxes, the objects in
   /// sorted order, the sorted codes (widened to 64 bits) and how the sort went.
@@ -95,10 +120,28 @@ class BucketBroadphase {
                     std::vector<Pair>& pairs, FrameStats& stats);
   template <class Visit>
   void ray_walk(const Ray& ray, double& t_hi, Visit&& visit) const;
-  /// Calls hit(id, t) for each sphere the ray hits within t_hi (which the calls may lower); id is
-  /// the sphere's entry of the sorted ids.
+  /// Calls hit(index, t) for each sphere that passes `filter` and that the ray hits with
+  /// t <= max_t (both of which the calls may lower; a negative t_hi ends the walk); index is the
+  /// reported index.
   template <class Hit>
-  void ray_hits(const Ray& ray, double& t_hi, Hit&& hit) const;
+  void ray_hits(const Ray& ray, const Objects& objects, const Filter* filter, double& t_hi, const float& max_t,
+                Hit&& hit) const;
+  /// Calls found(index) for each object whose sphere passes `filter` and `exact(sphere)`, among
+  /// those whose conservative box may meet `box`, until found() returns false; returns false then.
+  template <class Exact, class Found>
+  bool overlap_walk(const Aabb& box, const Objects& objects, const Filter* filter, Exact&& exact, Found&& found) const;
+  /// Whether the object at sorted position p passes the query's filter (null: none).
+  [[nodiscard]] bool passes(const Filter* filter, std::size_t p, const Objects& objects) const {
+    if (filter == nullptr) return true;
+    if (!objects.filters.empty()) return pair_passes_filter(*filter, objects.filters[order_.sorted_ids()[p]]);
+    const std::span<const Filter> sorted = buckets_.sorted_filters();
+    return pair_passes_filter(*filter, sorted.empty() ? Filter{} : sorted[p]);
+  }
+  /// The index a query reports for the object at sorted position p.
+  [[nodiscard]] std::uint32_t reported(std::size_t p, const Objects& objects) const {
+    const std::uint32_t id = order_.sorted_ids()[p];
+    return objects.ids.empty() ? id : objects.ids[id];
+  }
 
   KeepOrderPolicy keep_order_;
   MortonOrder order_;

@@ -2,7 +2,10 @@
 // all hits) and sphere overlaps. A ray walks the 16-wide tree nearest child first with slab tests
 // in double against boxes widened by ray_box_margin() (cpu/simd.hpp: ray_children, ray_lanes), so
 // no hit is missed; candidates get the exact test ray_sphere(). Overlaps walk the tree with the
-// sphere's conservative box and test 16 lanes at a time with overlap_exact().
+// sphere's conservative box and test 16 lanes at a time with overlap_exact(); box overlaps walk it
+// with the box itself and test each lane with sphere_box_exact(). The visitor forms walk the same
+// way and stop the walk when the visitor says so; a ray visitor that lowers the max t prunes it.
+// A query filter is checked before the exact test (Objects: the frame's filters in sorted order).
 
 #include <algorithm>
 #include <bit>
@@ -15,7 +18,8 @@
 namespace viscd::detail {
 namespace {
 
-// Every t whose float rounding is at most `limit` is at most this.
+// Every t whose float rounding is at most `limit` is at most this. (For a limit of 0 this is the
+// smallest positive float: hits at t = 0 stay in reach.)
 inline double upper_t(float limit) {
   return static_cast<double>(std::nextafter(limit, std::numeric_limits<float>::infinity()));
 }
@@ -61,23 +65,26 @@ void BucketBroadphase::ray_walk(const Ray& ray, double& t_hi, Visit&& visit) con
 }
 
 template <class Hit>
-void BucketBroadphase::ray_hits(const Ray& ray, double& t_hi, Hit&& hit) const {
+void BucketBroadphase::ray_hits(const Ray& ray, const Objects& objects, const Filter* filter, double& t_hi,
+                                const float& max_t, Hit&& hit) const {
   ray_walk(ray, t_hi, [&](const RaySetup& q, std::uint32_t b) {
     const BucketLanes& ln = buckets_.lanes()[b];
     const std::size_t first = std::size_t{b} * kBucket;
-    for (std::uint32_t m = ray_lanes(q, ln, t_hi); m; m &= m - 1) {
+    for (std::uint32_t m = ray_lanes(q, ln, t_hi); m && t_hi >= 0; m &= m - 1) {
       const auto l = static_cast<std::uint32_t>(std::countr_zero(m));
+      if (!passes(filter, first + l, objects)) continue;
       float t = 0;
-      if (ray_sphere(ray.origin, ray.dir, ray.max_t, Sphere{ln.x[l], ln.y[l], ln.z[l], ln.r[l]}, t))
-        hit(order_.sorted_ids()[first + l], t);
+      if (ray_sphere(ray.origin, ray.dir, max_t, Sphere{ln.x[l], ln.y[l], ln.z[l], ln.r[l]}, t))
+        hit(reported(first + l, objects), t);
     }
   });
 }
 
-bool BucketBroadphase::ray_first(const Ray& ray, std::span<const std::uint32_t> ids, RayHit& best, bool found) const {
+bool BucketBroadphase::ray_first(const Ray& ray, const Objects& objects, const Filter* filter, RayHit& best,
+                                 bool found) const {
+  const float max_t = ray.max_t;
   double t_hi = upper_t(found ? std::min(best.t, ray.max_t) : ray.max_t);
-  ray_hits(ray, t_hi, [&](std::uint32_t id, float t) {
-    const std::uint32_t index = ids.empty() ? id : ids[id];
+  ray_hits(ray, objects, filter, t_hi, max_t, [&](std::uint32_t index, float t) {
     if (found && (t > best.t || (t == best.t && index > best.index))) return;
     best = {index, t};
     found = true;
@@ -86,12 +93,54 @@ bool BucketBroadphase::ray_first(const Ray& ray, std::span<const std::uint32_t> 
   return found;
 }
 
-void BucketBroadphase::ray_all(const Ray& ray, std::span<const std::uint32_t> ids, std::vector<RayHit>& hits) const {
+void BucketBroadphase::ray_all(const Ray& ray, const Objects& objects, const Filter* filter,
+                               std::vector<RayHit>& hits) const {
   double t_hi = upper_t(ray.max_t);
-  ray_hits(ray, t_hi, [&](std::uint32_t id, float t) { hits.push_back({ids.empty() ? id : ids[id], t}); });
+  ray_hits(ray, objects, filter, t_hi, ray.max_t, [&](std::uint32_t index, float t) { hits.push_back({index, t}); });
 }
 
-void BucketBroadphase::overlap(const Sphere& sphere, std::span<const std::uint32_t> ids,
+bool BucketBroadphase::ray_visit(const Ray& ray, const Objects& objects, const Filter* filter, float& max_t,
+                                 RayVisitor& visitor) const {
+  // The walk prunes by t_hi, which follows max_t as the visitor lowers it: every hit with
+  // t <= the final max t is still reached, and boxes beyond it are skipped.
+  double t_hi = upper_t(max_t);
+  bool go_on = true;
+  ray_hits(ray, objects, filter, t_hi, max_t, [&](std::uint32_t index, float t) {
+    if (!apply_ray_answer(visitor.on_hit({index, t}), max_t)) {
+      go_on = false;
+      t_hi = -1;  // ends the walk: every entry and lane starts at t >= 0
+      return;
+    }
+    t_hi = upper_t(max_t);
+  });
+  return go_on;
+}
+
+template <class Exact, class Found>
+bool BucketBroadphase::overlap_walk(const Aabb& box, const Objects& objects, const Filter* filter, Exact&& exact,
+                                    Found&& found) const {
+  const std::size_t n = order_.sorted_ids().size();
+  if (n == 0) return true;
+  bool go_on = true;
+  // The shared walk, told to enter nothing more once the visitor stopped: what is left of the
+  // nodes already on its stack (at most 15 entries a level) is skipped without a box test.
+  const auto keep = [&](std::uint32_t, std::uint32_t) -> std::uint32_t { return go_on ? 0xFFFFu : 0u; };
+  const auto visit = [&](std::uint32_t b) {
+    if (!go_on) return;
+    const BucketLanes& ln = buckets_.lanes()[b];
+    const std::size_t first = std::size_t{b} * kBucket;
+    // Only the lanes in use: the exact tests need not reject the padding's NaN centres.
+    const std::size_t lanes = std::min<std::size_t>(kBucket, n - first);
+    for (std::size_t l = 0; l < lanes && go_on; ++l) {
+      if (!passes(filter, first + l, objects) || !exact(Sphere{ln.x[l], ln.y[l], ln.z[l], ln.r[l]})) continue;
+      go_on = found(reported(first + l, objects));
+    }
+  };
+  wide_detail::walk<SimdBaseline>(tree_, box, keep, visit);
+  return go_on;
+}
+
+void BucketBroadphase::overlap(const Sphere& sphere, const Objects& objects, const Filter* filter,
                                std::vector<std::uint32_t>& out) const {
   const std::size_t n = order_.sorted_ids().size();
   if (n == 0) return;
@@ -101,12 +150,41 @@ void BucketBroadphase::overlap(const Sphere& sphere, std::span<const std::uint32
     // Padding lanes hold NaN centres: overlap_mask() never sets their bits.
     for (std::uint32_t m = SimdBaseline::sphere_lanes(buckets_.lanes()[b], sphere.x, sphere.y, sphere.z, sphere.r); m;
          m &= m - 1) {
-      const std::uint32_t id =
-          order_.sorted_ids()[std::size_t{b} * kBucket + static_cast<std::uint32_t>(std::countr_zero(m))];
-      out.push_back(ids.empty() ? id : ids[id]);
+      const std::size_t p = std::size_t{b} * kBucket + static_cast<std::uint32_t>(std::countr_zero(m));
+      if (passes(filter, p, objects)) out.push_back(reported(p, objects));
     }
   };
   for_each_wide_overlap(tree_, box, visit);
+}
+
+bool BucketBroadphase::overlap_visit(const Sphere& sphere, const Objects& objects, const Filter* filter,
+                                     OverlapVisitor& visitor) const {
+  return overlap_walk(
+      conservative_box(sphere), objects, filter, [&](const Sphere& s) { return overlap_exact(sphere, s); },
+      [&](std::uint32_t index) { return visitor.on_overlap(index); });
+}
+
+namespace {
+// The query box as the tree's box type. No widening: the tree's boxes contain every object's
+// conservative box, which contains every point sphere_box_exact() can accept as within r.
+Aabb tree_box(const Box& b) { return Aabb{{b.min[0], b.min[1], b.min[2]}, {b.max[0], b.max[1], b.max[2]}}; }
+}  // namespace
+
+void BucketBroadphase::overlap_box(const Box& box, const Objects& objects, const Filter* filter,
+                                   std::vector<std::uint32_t>& out) const {
+  (void)overlap_walk(
+      tree_box(box), objects, filter, [&](const Sphere& s) { return sphere_box_exact(s, box.min, box.max); },
+      [&](std::uint32_t index) {
+        out.push_back(index);
+        return true;
+      });
+}
+
+bool BucketBroadphase::overlap_box_visit(const Box& box, const Objects& objects, const Filter* filter,
+                                         OverlapVisitor& visitor) const {
+  return overlap_walk(
+      tree_box(box), objects, filter, [&](const Sphere& s) { return sphere_box_exact(s, box.min, box.max); },
+      [&](std::uint32_t index) { return visitor.on_overlap(index); });
 }
 
 }  // namespace viscd::detail

@@ -81,13 +81,7 @@ Status GlDetector::run_frame(const FrameInput& input, FrameResult& out) {
   }
 }
 
-bool GlDetector::query_ray(const Ray& ray, RayHit& hit) { return readback_.ray(ray, hit); }
-
-void GlDetector::query_ray_all(const Ray& ray, std::vector<RayHit>& hits) { readback_.ray_all(ray, hits); }
-
-void GlDetector::query_overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices) {
-  readback_.overlap(sphere, indices);
-}
+detail::QueryObjects GlDetector::query_objects() { return readback_.query_objects(); }
 
 Status GlDetector::detect_frame(const FrameInput& in, FrameResult& out) {
   // Passes over N run one invocation per object (scan blocks of VISCD_SCAN_BLOCK), one

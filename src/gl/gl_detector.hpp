@@ -63,13 +63,11 @@ class GlDetector final : public detail::Backend {
   /// The frame: any input detect() accepts, filters and the caller's id map (an array, or
   /// FrameInput::gl_id_texture) included.
   [[nodiscard]] Status run_frame(const FrameInput& input, FrameResult& out) override;
-  // Queries: the frame's spheres and states stay on the GPU; the first query after a frame reads
-  // them back once (Readback; no host copy in frames nobody queries), then searches the active
-  // ones by brute force.
+  // Queries: the frame's spheres, states and filters stay on the GPU; the first query after a
+  // frame reads them back once (Readback; no host copy in frames nobody queries), then Backend's
+  // brute force searches the active ones.
   [[nodiscard]] bool answers_queries() const override { return true; }
-  [[nodiscard]] bool query_ray(const Ray& ray, RayHit& hit) override;
-  void query_ray_all(const Ray& ray, std::vector<RayHit>& hits) override;
-  void query_overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices) override;
+  [[nodiscard]] detail::QueryObjects query_objects() override;
 
  private:
   friend class GlInspector;  // test access to the parts (test_access.hpp)

@@ -36,36 +36,33 @@ void Readback::read_states_and_pixels(std::uint32_t objects, bool has_pixels, Fr
   }
 }
 
-bool Readback::ray(const Ray& ray, RayHit& hit) {
+detail::QueryObjects Readback::query_objects() {
   read_active_spheres();
-  return detail::brute_ray(query_active_, query_ids_, ray, hit);
-}
-
-void Readback::ray_all(const Ray& ray, std::vector<RayHit>& hits) {
-  read_active_spheres();
-  detail::brute_ray_all(query_active_, query_ids_, ray, hits);
-}
-
-void Readback::overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices) {
-  read_active_spheres();
-  detail::brute_overlap(query_active_, query_ids_, sphere, indices);
+  return {query_active_, query_ids_, query_active_filters_};
 }
 
 void Readback::read_active_spheres() {
   if (query_copy_ready_) return;
   query_copy_ready_ = true;
   const std::uint32_t n = query_objects_;
+  // Filters stay on the GPU (uploaded for the pair stages) and come back only with the rest.
+  const bool filters = frame_.has_filters && n > 0;
   query_all_.resize(n);
   state_words_.resize(n);
+  query_all_filters_.resize(filters ? n : 0);
   query_active_.clear();
   query_ids_.clear();
+  query_active_filters_.clear();
   if (n == 0 || !ctx_.make_current()) return;
   glGetNamedBufferSubData(frame_.spheres.get(), 0, 16 * static_cast<GLsizeiptr>(n), query_all_.data());
   glGetNamedBufferSubData(frame_.states.get(), 0, 4 * static_cast<GLsizeiptr>(n), state_words_.data());
+  if (filters)
+    glGetNamedBufferSubData(frame_.filters.get(), 0, 8 * static_cast<GLsizeiptr>(n), query_all_filters_.data());
   for (std::uint32_t k = 0; k < n; ++k) {
     if (state_words_[k] == VISCD_STATE_CULLED) continue;
     query_active_.push_back(query_all_[k]);
     query_ids_.push_back(k);
+    if (filters) query_active_filters_.push_back(query_all_filters_[k]);
   }
 }
 

@@ -1,12 +1,14 @@
 #pragma once
 // What the gl backend reads back to the host: each frame's pairs, states and pixels, and, for
 // the queries (ray_cast, ray_cast_all, overlap), the frame's spheres and states, read once on
-// the first query after a frame, so that frames nobody queries read nothing more. The queries
-// then search the active spheres by brute force with core's functions.
+// the first query after a frame, so that frames nobody queries read nothing more (with the
+// frame's filters, when it had any, for queries with a filter). The queries then search the
+// active spheres by brute force with core's functions.
 
 #include <cstdint>
 #include <vector>
 
+#include "core/brute_queries.hpp"
 #include "gl/context.hpp"
 #include "gl/frame_data.hpp"
 #include "gl/objects.hpp"
@@ -28,13 +30,14 @@ class Readback {
   /// FrameData::states into out.state, and with `has_pixels` FrameData::pixels into out.pixels
   /// (cleared without).
   void read_states_and_pixels(std::uint32_t objects, bool has_pixels, FrameResult& out);
-  /// The queries of Backend over the last frame's active objects.
-  [[nodiscard]] bool ray(const Ray& ray, RayHit& hit);
-  void ray_all(const Ray& ray, std::vector<RayHit>& hits);
-  void overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices);
+  /// The last frame's active objects for the brute-force queries of Backend: their spheres, ids
+  /// and (in frames with filters) filters, read back on the first call after a frame. The spans
+  /// stay valid until the next frame.
+  [[nodiscard]] detail::QueryObjects query_objects();
 
  private:
-  /// Reads the last frame's spheres and states back once per frame and keeps the active ones.
+  /// Reads the last frame's spheres, states and filters back once per frame and keeps the
+  /// active ones.
   void read_active_spheres();
 
   FrameData& frame_;
@@ -45,6 +48,7 @@ class Readback {
   std::uint32_t query_objects_ = 0;  // N of the last frame
   std::vector<Sphere> query_all_, query_active_;
   std::vector<std::uint32_t> query_ids_;
+  std::vector<Filter> query_all_filters_, query_active_filters_;  // empty in frames without filters
 };
 
 }  // namespace viscd::gl
