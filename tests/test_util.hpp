@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdint>
 #include <iterator>
+#include <limits>
 #include <numeric>
 #include <ostream>
 #include <random>
@@ -171,5 +172,24 @@ inline Config config_bits(Bits b, Layout l = Layout::extended) {
   c.layout = l;
   return c;
 }
+
+/// A ray from (ox, oy, oz) along (dx, dy, dz) up to max_t.
+inline Ray make_ray(float ox, float oy, float oz, float dx, float dy, float dz,
+                    float max_t = std::numeric_limits<float>::infinity()) {
+  Ray r;
+  r.origin[0] = ox, r.origin[1] = oy, r.origin[2] = oz;
+  r.dir[0] = dx, r.dir[1] = dy, r.dir[2] = dz;
+  r.max_t = max_t;
+  return r;
+}
+
+/// A ray visitor that keeps every hit (returns infinity: the max t stays).
+struct AllHits final : RayVisitor {
+  std::vector<RayHit> hits;
+  float on_hit(const RayHit& h) override {
+    hits.push_back(h);
+    return std::numeric_limits<float>::infinity();
+  }
+};
 
 }  // namespace viscd::test

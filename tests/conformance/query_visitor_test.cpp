@@ -13,6 +13,7 @@ namespace viscd::conformance {
 namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
+using test::AllHits;
 
 // The frame as the queries see it: spheres, the active objects (ascending) and filters.
 struct Seen {
@@ -26,14 +27,6 @@ struct Seen {
 };
 
 bool by_t_then_index(const RayHit& a, const RayHit& b) { return a.t < b.t || (a.t == b.t && a.index < b.index); }
-
-struct AllHits final : RayVisitor {
-  std::vector<RayHit> hits;
-  float on_hit(const RayHit& h) override {
-    hits.push_back(h);
-    return kInf;
-  }
-};
 
 // Clips the ray to the best hit so far (the smallest positive float at t = 0: ties stay in reach).
 struct ClosestHit final : RayVisitor {

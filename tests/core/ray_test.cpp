@@ -7,6 +7,7 @@
 #include <random>
 
 #include "core/geometry.hpp"
+#include "test_util.hpp"
 #include "viscd/detector.hpp"
 
 namespace viscd {
@@ -14,11 +15,7 @@ namespace {
 
 Ray ray(float ox, float oy, float oz, float dx, float dy, float dz,
         float max_t = std::numeric_limits<float>::infinity()) {
-  Ray r;
-  r.origin[0] = ox, r.origin[1] = oy, r.origin[2] = oz;
-  r.dir[0] = dx, r.dir[1] = dy, r.dir[2] = dz;
-  r.max_t = max_t;
-  return r;
+  return test::make_ray(ox, oy, oz, dx, dy, dz, max_t);
 }
 
 // t of the hit, or -1 for a miss.

@@ -17,14 +17,7 @@ using test::oracle_overlap;
 using test::random_spheres_by_half_extent;
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
-
-Ray make_ray(float ox, float oy, float oz, float dx, float dy, float dz, float max_t = kInf) {
-  Ray r;
-  r.origin[0] = ox, r.origin[1] = oy, r.origin[2] = oz;
-  r.dir[0] = dx, r.dir[1] = dy, r.dir[2] = dz;
-  r.max_t = max_t;
-  return r;
-}
+using test::make_ray;
 
 std::string describe(const Ray& r) {
   char buf[200];

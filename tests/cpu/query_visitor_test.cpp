@@ -17,15 +17,9 @@ namespace viscd {
 namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
+using test::AllHits;
+using test::make_ray;
 constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
-
-Ray make_ray(float ox, float oy, float oz, float dx, float dy, float dz, float max_t = kInf) {
-  Ray r;
-  r.origin[0] = ox, r.origin[1] = oy, r.origin[2] = oz;
-  r.dir[0] = dx, r.dir[1] = dy, r.dir[2] = dz;
-  r.max_t = max_t;
-  return r;
-}
 
 Box make_box(float x0, float y0, float z0, float x1, float y1, float z1) {
   Box b;
@@ -75,15 +69,6 @@ std::vector<std::uint32_t> oracle_box(const Frame& fr, const Box& b, const Filte
 }
 
 // ---- visitors ----
-
-// Keeps every hit (returns infinity: the max t stays).
-struct AllHits final : RayVisitor {
-  std::vector<RayHit> hits;
-  float on_hit(const RayHit& h) override {
-    hits.push_back(h);
-    return kInf;
-  }
-};
 
 // The closest hit, ties to the smaller index: clips the ray to each better hit (the smallest
 // positive float at t = 0, so that ties at t = 0 are still seen). Checks every call against the
