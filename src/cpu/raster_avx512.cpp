@@ -2,7 +2,7 @@
 // a rectangle up to 16 pixels wide in the tile, two for a wider one), hit() in one pass with
 // masks. The operations are the SSE2 kernel's, lane for lane (sub, mul, add, sqrt, div, no FMA:
 // the library is compiled with -ffp-contract=off), so both give the same bits. Called only when
-// simd_level() is avx512; nothing here runs on another CPU.
+// the detector's level (Config::simd) is avx512 and the CPU has it; nothing here runs on another CPU.
 
 #include "cpu/raster_tile.hpp"
 

@@ -2,7 +2,7 @@
 // The tile pass of the cpu rasterizer (cpu/raster.hpp): one task per 32x32-pixel tile runs
 // hit() for the tile's spheres in depth order, writes the tile's pixels to the map and counts
 // them per sphere. Two kernels give the same bits: SSE2 (every x86-64; groups of 4 pixels) and
-// AVX-512 (rows of 16 pixels), chosen at run time by simd_level() (cpu/simd.hpp). What both
+// AVX-512 (rows of 16 pixels), chosen at run time by the detector's level (Config::simd, cpu/simd.hpp). What both
 // share is here.
 
 #include <algorithm>
