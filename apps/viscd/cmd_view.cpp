@@ -98,6 +98,8 @@ int no_window(const std::string& what) {
 }
 
 // The options checked and turned into the viewer's start; every error here exits 1.
+// The options' values; a bad one is a usage error (exit 2), as in the other commands. The camera
+// file, when one is named, is read afterwards (read_view_camera): a bad file is bad input (exit 1).
 Result<ViewStart> check_view_args(const ViewArgs& args, const Config& config) {
   using R = Result<ViewStart>;
   ViewStart start;
@@ -118,17 +120,22 @@ Result<ViewStart> check_view_args(const ViewArgs& args, const Config& config) {
   const std::string& be = args.pipeline.backend;
   if (be != "cpu" && be != "gl")
     return R::failure(ErrorKind::invalid_input,
-                      "--backend: viscd view runs cpu or gl, got '" + be +
+                      "--backend: viscd view runs cpu or gl, got '" + printable(be) +
                           "' (the reference backend ray-casts every pixel against every object: use viscd pairs)");
-  if (args.camera.size() > 5 && args.camera.ends_with(".json")) {
-    auto c = read_camera(args.camera);
-    if (!c) return R::failure(c.status());
-    start.file_camera = c.value();
-  } else if (args.camera != "zoom-out" && args.camera != "zoom-in") {
+  const bool file = args.camera.size() > 5 && args.camera.ends_with(".json");
+  if (!file && args.camera != "zoom-out" && args.camera != "zoom-in")
     return R::failure(ErrorKind::invalid_input,
-                      "--camera: expected zoom-out, zoom-in or a .json file, got '" + args.camera + "'");
-  }
+                      "--camera: expected zoom-out, zoom-in or a .json file, got '" + printable(args.camera) + "'");
   return start;
+}
+
+// The camera file named by --camera, if any, into `start`.
+Status read_view_camera(const ViewArgs& args, ViewStart& start) {
+  if (!(args.camera.size() > 5 && args.camera.ends_with(".json"))) return {};
+  auto c = read_camera(args.camera);
+  if (!c) return c.status();
+  start.file_camera = c.value();
+  return {};
 }
 
 // The viewer's state and frame loop, in a window whose GLFW, context and Dear ImGui outlive it.
@@ -627,7 +634,8 @@ int run_view(const ViewArgs& args) {
   auto size = parse_size(args.size, "--size");
   if (!size) return usage_fail(size.error());
   auto start = check_view_args(args, config.value());
-  if (!start) return fail(start.error());
+  if (!start) return usage_fail(start.error());
+  if (Status s = read_view_camera(args, start.value()); !s) return fail(s.error());
 
   // Declared in the order they start; destroyed in the reverse one on every return.
   const GlfwLibrary glfw;

@@ -132,6 +132,19 @@ run env -u DISPLAY -- view --backend reference
 [[ "$rc" -ne 0 ]] && grep -q -- "--backend" "$WORK/err" || { show; fail "view --backend reference was not refused"; }
 echo "    ok"
 
+step "bad option values are usage errors (exit 2), a bad camera file bad input (exit 1)"
+for bad in "--objects 0" "--frames -1" "--backend reference" "--camera sideways"; do
+  # shellcheck disable=SC2086 # the option and its value are two words
+  run env -u DISPLAY -- view $bad
+  [[ "$rc" -eq 2 ]] || { show; fail "view $bad exited $rc, expected 2"; }
+done
+run env -u DISPLAY -- view --camera "$(printf 'odd\tname')"
+[[ "$rc" -eq 2 ]] && grep -qF 'odd\tname' "$WORK/err" || { show; fail "a control character in --camera was not escaped"; }
+echo '{"eye": [0, 0, 10], "bogus": 1}' >"$WORK/badcam.json"
+run env -u DISPLAY -- view --camera "$WORK/badcam.json"
+[[ "$rc" -eq 1 ]] && grep -q "badcam.json" "$WORK/err" || { show; fail "view with a bad camera file exited $rc, expected 1"; }
+echo "    ok"
+
 step "20 frames in a 640x360 window, screenshot with colliding, free and culled objects"
 run "${XVFB[@]}" -- view --objects 3000 --frames 20 --size 640x360 --lambda 100 --screenshot "$WORK/view.png" \
   --window-screenshot "$WORK/window.png"
