@@ -4,11 +4,33 @@
 
 #include <charconv>
 #include <cmath>
+#include <initializer_list>
+#include <string>
+#include <string_view>
+#include <utility>
 
 #include "memory.hpp"
 #include "viscd/io.hpp"
 
 namespace viscd::app {
+namespace {
+
+// The value named `text` among `choices`, or the error "OPTION: expected a, b or c, got 'text'".
+template <class T>
+Result<T> choose(std::string_view option, std::string_view text,
+                 std::initializer_list<std::pair<std::string_view, T>> choices) {
+  std::string names;
+  std::size_t k = 0;
+  for (const auto& [name, value] : choices) {
+    if (name == text) return value;
+    names += (k == 0 ? "" : k + 1 == choices.size() ? " or " : ", ") + std::string(name);
+    ++k;
+  }
+  return Result<T>::failure(ErrorKind::invalid_input,
+                            std::string(option) + ": expected " + names + ", got '" + printable(text) + "'");
+}
+
+}  // namespace
 
 void add_pipeline_options(CLI::App& cmd, PipelineOptions& o, bool backend_auto) {
   cmd.add_option(
@@ -74,20 +96,14 @@ Result<SceneParams> make_scene_params(const SceneOptions& o) {
 
 Result<GlOptions> make_gl_options(const PipelineOptions& o) {
   GlOptions g;
-  if (o.geometry == "impostor")
-    g.geometry = GlGeometry::impostor;
-  else if (o.geometry == "mesh")
-    g.geometry = GlGeometry::mesh;
-  else
-    return Result<GlOptions>::failure(ErrorKind::invalid_input,
-                                      "--geometry: expected impostor or mesh, got '" + printable(o.geometry) + "'");
-  if (o.counter == "ssbo")
-    g.counter = GlCounter::ssbo;
-  else if (o.counter == "atomic_uint")
-    g.counter = GlCounter::atomic_uint;
-  else
-    return Result<GlOptions>::failure(ErrorKind::invalid_input,
-                                      "--counter: expected ssbo or atomic_uint, got '" + printable(o.counter) + "'");
+  auto geometry =
+      choose<GlGeometry>("--geometry", o.geometry, {{"impostor", GlGeometry::impostor}, {"mesh", GlGeometry::mesh}});
+  if (!geometry) return Result<GlOptions>::failure(geometry.status());
+  g.geometry = geometry.value();
+  auto counter =
+      choose<GlCounter>("--counter", o.counter, {{"ssbo", GlCounter::ssbo}, {"atomic_uint", GlCounter::atomic_uint}});
+  if (!counter) return Result<GlOptions>::failure(counter.status());
+  g.counter = counter.value();
   return g;
 }
 
@@ -107,33 +123,21 @@ Result<std::pair<int, int>> parse_size(std::string_view text, std::string_view o
 
 Result<Config> make_config(const PipelineOptions& o) {
   Config c;
-  if (o.bits == "adaptive")
-    c.bits = Bits::adaptive;
-  else if (o.bits == "16")
-    c.bits = Bits::b16;
-  else if (o.bits == "32")
-    c.bits = Bits::b32;
-  else if (o.bits == "64")
-    c.bits = Bits::b64;
-  else
-    return Result<Config>::failure(ErrorKind::invalid_input,
-                                   "--bits: expected adaptive, 16, 32 or 64, got '" + printable(o.bits) + "'");
-  if (o.layout == "extended")
-    c.layout = Layout::extended;
-  else if (o.layout == "plain")
-    c.layout = Layout::plain;
-  else
-    return Result<Config>::failure(ErrorKind::invalid_input,
-                                   "--layout: expected extended or plain, got '" + printable(o.layout) + "'");
+  auto bits = choose<Bits>("--bits", o.bits,
+                           {{"adaptive", Bits::adaptive}, {"16", Bits::b16}, {"32", Bits::b32}, {"64", Bits::b64}});
+  if (!bits) return Result<Config>::failure(bits.status());
+  c.bits = bits.value();
+  auto layout = choose<Layout>("--layout", o.layout, {{"extended", Layout::extended}, {"plain", Layout::plain}});
+  if (!layout) return Result<Config>::failure(layout.status());
+  c.layout = layout.value();
   if (!(o.lambda >= 0 && std::isfinite(o.lambda)))
     return Result<Config>::failure(ErrorKind::invalid_input, "--lambda: expected a finite number >= 0");
   if (!(o.a >= 0 && o.b >= o.a && std::isfinite(o.b)))
     return Result<Config>::failure(ErrorKind::invalid_input, "-a/-b: expected 0 <= a <= b");
   if (o.threads < 0)
     return Result<Config>::failure(ErrorKind::invalid_input, "--threads: expected 0 (all cores) or a positive count");
-  if (o.backend != "cpu" && o.backend != "reference" && o.backend != "gl" && o.backend != "auto")
-    return Result<Config>::failure(
-        ErrorKind::invalid_input, "--backend: expected cpu, reference, gl or auto, got '" + printable(o.backend) + "'");
+  if (auto be = choose<int>("--backend", o.backend, {{"cpu", 0}, {"reference", 0}, {"gl", 0}, {"auto", 0}}); !be)
+    return Result<Config>::failure(be.status());
   // The gl options are checked whatever the backend: a typo must not pass silently.
   if (auto g = make_gl_options(o); !g) return Result<Config>::failure(g.status());
   auto cap = parse_bytes(o.max_pair_memory, "--max-pair-memory");
@@ -147,22 +151,16 @@ Result<Config> make_config(const PipelineOptions& o) {
   // VISCD_SIMD and VISCD_KEEP_ORDER, for measurements (docs/usage.md); the options, when given,
   // override them: the command line is the more specific request.
   if (Status s = apply_environment(c); !s) return Result<Config>::failure(s);
-  if (o.simd == "best")
-    c.simd = Simd::best;
-  else if (o.simd == "sse2")
-    c.simd = Simd::sse2;
-  else if (o.simd == "scalar")
-    c.simd = Simd::scalar;
-  else if (!o.simd.empty())
-    return Result<Config>::failure(ErrorKind::invalid_input,
-                                   "--simd: expected best, sse2 or scalar, got '" + printable(o.simd) + "'");
-  if (o.keep_order == "on")
-    c.keep_order = true;
-  else if (o.keep_order == "off")
-    c.keep_order = false;
-  else if (!o.keep_order.empty())
-    return Result<Config>::failure(ErrorKind::invalid_input,
-                                   "--keep-order: expected on or off, got '" + printable(o.keep_order) + "'");
+  if (!o.simd.empty()) {  // empty: not given
+    auto simd = choose<Simd>("--simd", o.simd, {{"best", Simd::best}, {"sse2", Simd::sse2}, {"scalar", Simd::scalar}});
+    if (!simd) return Result<Config>::failure(simd.status());
+    c.simd = simd.value();
+  }
+  if (!o.keep_order.empty()) {
+    auto keep = choose<bool>("--keep-order", o.keep_order, {{"on", true}, {"off", false}});
+    if (!keep) return Result<Config>::failure(keep.status());
+    c.keep_order = keep.value();
+  }
   if (!o.map_size.empty()) {
     auto s = parse_size(o.map_size, "--map-size");
     if (!s) return Result<Config>::failure(s.status());

@@ -221,8 +221,6 @@ Status Detector::detect(const FrameInput& input, FrameResult& out) {
   try {
     if (Status s = detail::validate_frame_input(input, b.config()); !s) return s;
     if (Status s = b.run_frame(input, out); !s) return s;
-    // Pixels were counted when the frame rendered its map or had the caller's, whatever the backend.
-    out.stats.has_pixels = detail::counts_pixels(input, b.config());
     if (b.config().contact_events) {
       pair_differences(b.previous_pairs_, out.pairs, out.began, out.ended);
       reserve_with_headroom(b.previous_pairs_, out.pairs.size());

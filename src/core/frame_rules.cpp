@@ -25,22 +25,21 @@ Status validate_frame(std::span<const Sphere> spheres, const Camera* camera, con
 }
 
 bool renders_own_map(const FrameInput& in, const Config& config) {
-  const bool callers_map = !in.id_map.empty() || in.gl_id_texture != 0;
   const bool map_used = config.culling || config.bits == Bits::adaptive || config.shade || config.report_pixels;
-  return in.camera != nullptr && !callers_map && map_used;
+  return in.camera != nullptr && !has_callers_map(in) && map_used;
 }
 
 bool counts_pixels(const FrameInput& in, const Config& config) {
-  return !in.id_map.empty() || in.gl_id_texture != 0 || renders_own_map(in, config);
+  return has_callers_map(in) || renders_own_map(in, config);
 }
 
 Status validate_frame_input(const FrameInput& in, const Config& config) {
   if (!in.id_map.empty() && in.gl_id_texture != 0)
     return Status::failure(ErrorKind::invalid_input,
                            "FrameInput: id_map and gl_id_texture are both set; give the visibility map one way");
-  if (in.id_map.empty() && in.gl_id_texture == 0)
+  if (!has_callers_map(in))
     if (Status s = validate_frame(in.spheres, in.camera, config); !s) return s;
-  if (!in.id_map.empty() || in.gl_id_texture != 0) {
+  if (has_callers_map(in)) {
     // The caller's map: its own size replaces Config's, so only the rest of validate_frame().
     Config own = config;
     own.map_width = own.map_height = 0;
@@ -58,7 +57,7 @@ Status validate_frame_input(const FrameInput& in, const Config& config) {
                              "FrameInput: the id map holds " + std::to_string(in.id_map.size()) + " ids, but " +
                                  std::to_string(w) + "x" + std::to_string(h) + " needs " + std::to_string(want));
   }
-  if ((!in.id_map.empty() || in.gl_id_texture != 0) && config.shade)
+  if (has_callers_map(in) && config.shade)
     return Status::failure(
         ErrorKind::invalid_input,
         "Config::shade needs the detector's own visibility map (depth and normals); with the caller's id map "

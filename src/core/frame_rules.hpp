@@ -30,6 +30,10 @@ std::uint64_t bytes_of(const std::vector<T>& v) {
 /// counted (id_map_error()).
 [[nodiscard]] Status validate_frame_input(const FrameInput& input, const Config& config);
 
+/// Whether the frame brings the caller's visibility map (FrameInput::id_map or gl_id_texture).
+[[nodiscard]] inline bool has_callers_map(const FrameInput& input) {
+  return !input.id_map.empty() || input.gl_id_texture != 0;
+}
 /// Whether this frame renders a visibility map of its own (stage 1): a camera, no caller's map,
 /// and something that uses the map (culling, adaptive bits, shading, Config::report_pixels).
 [[nodiscard]] bool renders_own_map(const FrameInput& input, const Config& config);

@@ -99,7 +99,7 @@ Status GlDetector::detect_frame(const FrameInput& in, FrameResult& out) {
   if (Status s = gl_errors("an earlier call"); !s) return s;
   const auto n_all = static_cast<std::uint32_t>(in.spheres.size());
   const bool has_camera = in.camera != nullptr;
-  const bool callers_map = !in.id_map.empty() || in.gl_id_texture != 0;
+  const bool callers_map = detail::has_callers_map(in);
   FrameStats& stats = out.stats;
   stats = FrameStats{};
   stats.objects = n_all;
@@ -160,7 +160,7 @@ void GlDetector::begin_frame(const FrameInput& in) {
   shader::FrameInfo zero_info{};
   zero_info.id_check.y = 0xFFFFFFFFu;  // atomicMin's start: no bad pixel
   glNamedBufferSubData(frame_.info.get(), 0, sizeof zero_info, &zero_info);
-  const bool callers_map = !in.id_map.empty() || in.gl_id_texture != 0;
+  const bool callers_map = detail::has_callers_map(in);
   frame_.has_pixels = detail::counts_pixels(in, config_);
   frame_.rig.reset();
   if (callers_map) {

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <initializer_list>
 #include <limits>
 #include <random>
 #include <set>
@@ -180,40 +181,39 @@ void check_ray(Detector& d, const Frame& fr, const Ray& r, const Filter* q, cons
 }
 
 // Every form of the sphere and box overlap queries against the oracle.
-void check_sphere(Detector& d, const Frame& fr, const Sphere& s, const Filter* q, const std::string& what) {
-  SCOPED_TRACE(std::string(d.name()) + ": " + what + ", " + describe(q));
-  const std::vector<std::uint32_t> want = oracle_sphere(fr, s, q);
+// The list form against `want`, then a visitor that keeps every object and visitors that stop
+// after each of `limits`; list(out) and visit(visitor) run the query.
+template <class List, class Visit>
+void check_overlap_forms(const std::vector<std::uint32_t>& want, List&& list, Visit&& visit,
+                         std::initializer_list<std::size_t> limits) {
   std::vector<std::uint32_t> got;
-  d.overlap(s, got, q);
+  list(got);
   ASSERT_EQ(got, want);
   Collect all;
-  d.overlap(s, all, q);
+  visit(all);
   std::sort(all.seen.begin(), all.seen.end());
   ASSERT_EQ(all.seen, want) << "a visitor that keeps every object";
-  Collect two;
-  two.limit = 2;
-  d.overlap(s, two, q);
-  ASSERT_EQ(two.seen.size(), std::min<std::size_t>(2, want.size())) << "a visitor that stops after 2";
-  ASSERT_TRUE(distinct_subset(two.seen, want));
+  for (const std::size_t limit : limits) {
+    Collect some;
+    some.limit = limit;
+    visit(some);
+    ASSERT_EQ(some.seen.size(), std::min(limit, want.size())) << "a visitor that stops after " << limit;
+    ASSERT_TRUE(distinct_subset(some.seen, want));
+  }
+}
+
+void check_sphere(Detector& d, const Frame& fr, const Sphere& s, const Filter* q, const std::string& what) {
+  SCOPED_TRACE(std::string(d.name()) + ": " + what + ", " + describe(q));
+  check_overlap_forms(
+      oracle_sphere(fr, s, q), [&](std::vector<std::uint32_t>& out) { d.overlap(s, out, q); },
+      [&](OverlapVisitor& v) { d.overlap(s, v, q); }, {2});
 }
 
 void check_box(Detector& d, const Frame& fr, const Box& b, const Filter* q, const std::string& what) {
   SCOPED_TRACE(std::string(d.name()) + ": " + what + ": " + describe(b) + ", " + describe(q));
-  const std::vector<std::uint32_t> want = oracle_box(fr, b, q);
-  std::vector<std::uint32_t> got;
-  d.overlap_box(b, got, q);
-  ASSERT_EQ(got, want);
-  Collect all;
-  d.overlap_box(b, all, q);
-  std::sort(all.seen.begin(), all.seen.end());
-  ASSERT_EQ(all.seen, want) << "a visitor that keeps every object";
-  for (const std::size_t limit : {std::size_t{1}, std::size_t{5}}) {
-    Collect some;
-    some.limit = limit;
-    d.overlap_box(b, some, q);
-    ASSERT_EQ(some.seen.size(), std::min(limit, want.size())) << "a visitor that stops after " << limit;
-    ASSERT_TRUE(distinct_subset(some.seen, want));
-  }
+  check_overlap_forms(
+      oracle_box(fr, b, q), [&](std::vector<std::uint32_t>& out) { d.overlap_box(b, out, q); },
+      [&](OverlapVisitor& v) { d.overlap_box(b, v, q); }, {1, 5});
 }
 
 const Filter kQueryFilters[] = {{1, 0xFFFFFFFFu}, {2, 2}, {4, 1 | 4}, {0x80000000u, 0xFFFFFFFFu}, {0, 0}};
