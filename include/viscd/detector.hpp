@@ -48,8 +48,8 @@ class OverlapVisitor {
   virtual bool on_overlap(std::uint32_t index) = 0;
 };
 
-/// Finds every overlapping pair of spheres, frame after frame, and answers ray and overlap
-/// queries on the last frame. Made by a factory below (make_cpu_detector(), make_detector(),
+/// Finds every overlapping pair of objects (spheres or axis-aligned boxes), frame after frame, and answers ray and
+/// overlap queries on the last frame. Made by a factory below (make_cpu_detector(), make_detector(),
 /// make_gl_detector()); the backend it runs is fixed for its lifetime.
 ///
 /// Threading: a Detector is not thread-safe; use one per thread. It may use worker threads
@@ -78,15 +78,51 @@ class Detector {
   /// detect() with spheres and a camera only (no filters, no id map).
   [[nodiscard]] Status detect(std::span<const Sphere> spheres, const Camera* camera, FrameResult& out);
 
+  /// The static set: objects that do not move (terrain, buildings, props; sleeping bodies an
+  /// engine parks there), handed over once and then changed piecemeal: adding, removing or moving
+  /// k of them costs about k, not a rebuild. Each frame reports, beside the pairs of its moving
+  /// objects, the pair of each active moving object with each static object it overlaps, as
+  /// {i, static_index(k)}; never a pair of two static objects. Static objects are never culled,
+  /// occlude in the detector's own visibility map (a wall hides what is behind it; the caller's
+  /// id map shows them as background), are not counted in mu, and are seen by the queries (under
+  /// static_index(k)). Each has a Filter (default Filter{}) that applies as a moving object's does.
+  ///
+  /// An object lives in a slot k, kept until it is removed; add_static_*() takes the smallest
+  /// free slot, set_static_*() fills slots 0..n-1. The set holds spheres or boxes (its kind is
+  /// that of its first object; an empty set takes either), and a frame's moving objects must be
+  /// of the same kind while the set is not empty. Invalid shapes (validate_spheres(),
+  /// validate_boxes()), a shape of the other kind and an unknown slot fail with
+  /// ErrorKind::invalid_input and change nothing. Changes take effect at the next detect().
+  ///
+  /// set_static_spheres / set_static_boxes: replaces the set (filters: empty, or one per object).
+  [[nodiscard]] Status set_static_spheres(std::span<const Sphere> spheres, std::span<const Filter> filters = {});
+  [[nodiscard]] Status set_static_boxes(std::span<const Box> boxes, std::span<const Filter> filters = {});
+  /// Adds one object; returns its slot k (reported as static_index(k)).
+  [[nodiscard]] Result<std::uint32_t> add_static_sphere(const Sphere& sphere, const Filter& filter = {});
+  [[nodiscard]] Result<std::uint32_t> add_static_box(const Box& box, const Filter& filter = {});
+  /// Moves (or reshapes) the object in slot k; its filter stays.
+  [[nodiscard]] Status move_static_sphere(std::uint32_t k, const Sphere& sphere);
+  [[nodiscard]] Status move_static_box(std::uint32_t k, const Box& box);
+  /// Removes the object in slot k; the slot is free for a later add.
+  [[nodiscard]] Status remove_static(std::uint32_t k);
+  /// Empties the static set.
+  void clear_static();
+  /// Objects in the static set.
+  [[nodiscard]] std::size_t static_count() const;
+  /// The kind of the static set's objects (ShapeKind::sphere while it is empty).
+  [[nodiscard]] ShapeKind static_kind() const;
+
   /// Forgets the previous frame of the contact events: the next frame's `began` holds all its
   /// pairs and its `ended` is empty.
   void reset_events();
 
   /// Queries on the last successful frame: they see its active objects (culled ones are
-  /// invisible) at the positions that frame was given. A ray hits a sphere by ray_hits_sphere(); a
-  /// ray with a zero or non-finite direction, a non-finite origin, or a max_t that is negative or
-  /// NaN hits nothing. A sphere overlaps a query sphere by spheres_overlap() and a box by
-  /// sphere_overlaps_box().
+  /// invisible) at the positions that frame was given, and the static set as it was then (static
+  /// objects are reported as static_index(k)). A ray hits a sphere by ray_hits_sphere() and a box
+  /// by ray_hits_box(); a ray with a zero or non-finite direction, a non-finite origin, or a
+  /// max_t that is negative or NaN hits nothing. A query sphere overlaps a sphere by
+  /// spheres_overlap() and a box by sphere_overlaps_box(); a query box overlaps a sphere by
+  /// sphere_overlaps_box() and a box by boxes_overlap().
   ///
   /// `filter` (optional; not kept after the call): when given, an object is reported only when
   /// pair_passes_filter(*filter, its filter), its filter being the one the last frame's
@@ -107,7 +143,7 @@ class Detector {
   /// The active objects that overlap `sphere` by spheres_overlap(), sorted by index; cleared
   /// first. A sphere that validate_spheres() refuses overlaps nothing.
   void overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices, const Filter* filter = nullptr);
-  /// The active objects whose sphere overlaps `box` by sphere_overlaps_box(), sorted by index;
+  /// The active objects that overlap `box` (sphere_overlaps_box(), boxes_overlap()), sorted by index;
   /// cleared first. A box with a non-finite bound or min > max on an axis overlaps nothing.
   /// (Named apart from overlap(): a braced list such as overlap({x, y, z, r}, indices) would
   /// otherwise be ambiguous, since it can initialise a Box too.)
@@ -140,6 +176,7 @@ class Detector {
  private:
   friend struct detail::DetectorAccess;
   explicit Detector(std::unique_ptr<detail::Backend> backend);
+  static void keep_query_objects(detail::Backend& b, const FrameInput& input, const FrameResult& out);
   std::unique_ptr<detail::Backend> backend_;
 };
 
@@ -150,7 +187,8 @@ class Detector {
 /// A backend by name ("reference", "cpu", or "gl" when built with VISCD_ENABLE_GL).
 [[nodiscard]] Result<std::unique_ptr<Detector>> make_detector(std::string_view backend, const Config& config = {});
 
-/// Largest number of pairs N objects can produce, N(N-1)/2: the capacity that always suffices.
+/// Largest number of pairs N objects can produce, N(N-1)/2: the capacity that always suffices
+/// (with a static set of K objects add N K).
 [[nodiscard]] constexpr std::uint64_t max_pairs_bound(std::uint64_t n) { return n < 2 ? 0 : n * (n - 1) / 2; }
 
 /// The overlap test every backend uses, evaluated in float without FMA: |c_i - c_j| <= r_i + r_j
@@ -179,6 +217,21 @@ class Detector {
 /// validate_spheres() refuses.
 [[nodiscard]] bool sphere_overlaps_box(const Sphere& sphere, const Box& box);
 
+/// The box test every backend uses, in float: min_i <= max_j && min_j <= max_i on every axis
+/// (closed boxes: touching faces, edges and corners count; a point box is a point). False when a
+/// bound is NaN.
+[[nodiscard]] bool boxes_overlap(const Box& a, const Box& b);
+/// The ray-box test every backend and query uses: true when a point origin + t * dir with
+/// 0 <= t <= ray.max_t lies in the closed box, with `t` the smallest such t rounded to float (0
+/// when the origin is inside or on it). Slabs in double from the float inputs: along an axis with
+/// dir 0 the origin must lie within [min, max]; else the slab is entered at (min - o) / d and left
+/// at (max - o) / d (swapped for d < 0); t = the largest entry (and 0), hit when it is at most the
+/// smallest exit (and max_t) (docs/architecture.md, "Queries"). A zero direction hits nothing;
+/// an invalid box (validate_boxes()) is never hit.
+[[nodiscard]] bool ray_hits_box(const Ray& ray, const Box& box, float& t);
+/// Checks boxes for the input rules (every bound finite with magnitude <= kMaxCoordinate,
+/// min <= max on each axis) and the object limit; the error names the first bad box by index.
+[[nodiscard]] Status validate_boxes(std::span<const Box> boxes);
 /// Checks spheres for the input rules (finite, 0 <= r, magnitudes <= kMaxCoordinate) and the
 /// object limit; the error names the first bad sphere by index.
 [[nodiscard]] Status validate_spheres(std::span<const Sphere> spheres);

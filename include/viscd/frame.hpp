@@ -37,15 +37,22 @@ inline constexpr std::size_t kStageCount = static_cast<std::size_t>(Stage::count
 
 /// Everything one frame takes (Detector::detect). Spans need only live for the call.
 struct FrameInput {
-  /// The objects' bounding spheres; an object's index is its position here, and keeps its meaning
-  /// from frame to frame (contact events compare pairs by index).
+  /// The moving objects as bounding spheres; an object's index is its position here, and keeps
+  /// its meaning from frame to frame (contact events compare pairs by index).
   std::span<const Sphere> spheres;
+  /// Or the moving objects as axis-aligned boxes (validate_boxes()); a frame holds spheres or
+  /// boxes, never both. Every stage takes boxes: Morton codes from box centres, the layout rule
+  /// with the boxes' mean size (the mean of their three side lengths stands for a sphere's
+  /// diameter), the exact box test boxes_overlap(), boxes drawn as boxes in the detector's own
+  /// map. The per-object spans below then have one entry per box. The detector's static set, when
+  /// not empty, must hold the same kind.
+  std::span<const Box> boxes;
   /// The camera for visibility culling; nullptr: no culling (unless `id_map` is given).
   const Camera* camera = nullptr;
-  /// Empty: no filtering. Else one Filter per sphere: a pair is reported only when both objects'
+  /// Empty: no filtering. Else one Filter per object: a pair is reported only when both objects'
   /// filters accept each other (Filter).
   std::span<const Filter> filters;
-  /// Never culled. Empty: culling alone decides. Else one flag per sphere: an object whose flag is
+  /// Never culled. Empty: culling alone decides. Else one flag per object: an object whose flag is
   /// not 0 is active whatever its pixels, even covering none (the player, the vehicle the camera
   /// sits in, a projectile the game must not lose; docs/embedding.md, "What culling does to
   /// gameplay"). Its pixels are still counted and still enter mu. Every backend.
@@ -55,7 +62,8 @@ struct FrameInput {
   /// nothing: it counts pixels per object from this map, then culls and picks the Morton width from
   /// the counts as from a map of its own. With `camera` counts are scaled by screen area / map
   /// area; without one they are map pixels. The map's size replaces Config::map_width x
-  /// map_height and follows validate_map_size(); an id above the number of spheres is an error.
+  /// map_height and follows validate_map_size(); an id above the number of objects is an error
+  /// (static objects are not counted: write them as 0, background).
   /// Every backend; the gl backend also takes the map as a texture (`gl_id_texture`).
   std::span<const std::uint32_t> id_map;
   int id_map_width = 0, id_map_height = 0;
@@ -80,7 +88,8 @@ struct MortonLayoutInfo {
 
 /// Numbers describing one frame.
 struct FrameStats {
-  std::uint32_t objects = 0;                   ///< N, all input spheres
+  std::uint32_t objects = 0;                   ///< N, the frame's moving objects (spheres or boxes)
+  std::uint32_t static_objects = 0;            ///< objects in the detector's static set this frame
   std::uint32_t active = 0;                    ///< objects not culled (N when culling is off)
   bool has_camera = false;                     ///< a camera was given
   bool has_pixels = false;                     ///< pixels were counted (a camera or the caller's id map): mu is defined
@@ -99,11 +108,13 @@ struct FrameStats {
 /// Result of one frame. Reuse one FrameResult across frames: its buffers keep their capacity,
 /// so a steady state allocates nothing.
 struct FrameResult {
-  /// Every overlapping pair among active objects, (i < j), sorted, unique.
+  /// Every overlapping pair among active objects, (i < j), sorted, unique: the pairs of moving
+  /// objects, and of each active moving object i with each static object k as
+  /// {i, static_index(k)} (never two static objects; is_static_index() tells them apart).
   std::vector<Pair> pairs;
-  /// State of each of the N objects.
+  /// State of each of the N moving objects (static objects have none: never culled).
   std::vector<ObjectState> state;
-  /// Screen pixels covered by each object (after map-to-screen scaling); empty when no pixels
+  /// Screen pixels covered by each moving object (after map-to-screen scaling); empty when no pixels
   /// were counted (no camera and no id map).
   std::vector<float> pixels;
   /// With Config::contact_events: the pairs of `pairs` that the previous frame of this detector

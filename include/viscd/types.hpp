@@ -51,22 +51,40 @@ struct Ray {
   float max_t = std::numeric_limits<float>::infinity();
 };
 
-/// A sphere a ray hits: its object index and the smallest t >= 0 of the ray inside or on it
-/// (0 when the ray starts inside or on the sphere).
+/// An object a ray hits: its index (static_index(k) for a static object) and the smallest t >= 0
+/// of the ray inside or on it (0 when the ray starts inside or on it).
 struct RayHit {
   std::uint32_t index = 0;
   float t = 0;
   friend constexpr bool operator==(const RayHit&, const RayHit&) = default;
 };
 
-/// An axis-aligned box for Detector::overlap, in world units: the points p with
-/// min[k] <= p[k] <= max[k] on every axis k (closed: its faces belong to it). A box with
-/// min = max is a point. A box with a non-finite bound, or min > max on an axis, overlaps nothing.
-/// A sphere overlaps a box by sphere_overlaps_box() (detector.hpp).
+/// An axis-aligned box, in world units: the points p with min[k] <= p[k] <= max[k] on every axis k
+/// (closed: its faces belong to it). A box with min = max is a point. Boxes are objects
+/// (FrameInput::boxes, the static set) and query shapes (Detector::overlap_box). As an object a
+/// box must be valid (validate_boxes(): finite, |value| <= kMaxCoordinate, min <= max); as a query
+/// shape an invalid box overlaps nothing. Two boxes overlap by boxes_overlap(), a sphere and a box
+/// by sphere_overlaps_box() (detector.hpp).
 struct Box {
   float min[3] = {0, 0, 0};
   float max[3] = {0, 0, 0};
 };
+static_assert(sizeof(Box) == 24, "Box is six floats");
+
+/// What a frame's objects are (FrameInput::spheres or FrameInput::boxes; the static set's kind).
+enum class ShapeKind : std::uint8_t { sphere, box };
+
+/// Static objects (Detector::add_static_sphere and the rest) are reported by an index with this
+/// bit set: static_index(k) for the object in slot k of the static set. Moving objects' indices
+/// stay below it (a frame holds at most 2^31 - 1 objects), so in a Pair {i, j} with i < j a static
+/// object is always j, and pairs sort moving pairs of i before i's pairs with static objects.
+inline constexpr std::uint32_t kStaticBit = 0x80000000u;
+/// The index under which pairs, events and queries report static object k.
+[[nodiscard]] constexpr std::uint32_t static_index(std::uint32_t k) { return k | kStaticBit; }
+/// Whether a reported index names a static object.
+[[nodiscard]] constexpr bool is_static_index(std::uint32_t index) { return (index & kStaticBit) != 0; }
+/// The static set's slot k of a reported static index (static_index(k) -> k).
+[[nodiscard]] constexpr std::uint32_t static_slot(std::uint32_t index) { return index & ~kStaticBit; }
 
 /// What one frame decided about an object.
 enum class ObjectState : std::uint8_t {
@@ -92,6 +110,8 @@ struct Rgb8 {
   }
   return {235, 200, 40};
 }
+/// The colour the shaded image gives static objects (Detector::set_static_spheres and the rest).
+inline constexpr Rgb8 kStaticColour{140, 140, 150};
 /// The shaded image's background (pixels no object covers).
 inline constexpr Rgb8 kBackgroundColour{18, 18, 24};
 

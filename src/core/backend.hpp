@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "core/brute_queries.hpp"
+#include "core/static_set.hpp"
 #include "viscd/config.hpp"
 #include "viscd/detector.hpp"
 #include "viscd/frame.hpp"
@@ -39,16 +40,17 @@ class Backend {
   /// Detector::wait_for_stage_times(); backends that time stages on the host do nothing.
   virtual void wait_for_stage_times(FrameStats& stats) { (void)stats; }
 
-  /// One frame, after Detector::detect() checked the shared input rules (spheres, camera, map
-  /// sizes, filter count, id map size, Config::threads): writes pairs, states, pixels, image and
-  /// stats. Applies `input.filters` to the pairs. Returns ErrorKind::unsupported_input for input
-  /// this backend does not take. detect() turns std::bad_alloc into ErrorKind::out_of_memory.
+  /// One frame, after Detector::detect() checked the shared input rules (objects, camera, map
+  /// sizes, filter count, id map size, Config::threads, the static set's kind): writes pairs,
+  /// states, pixels, image and stats. Applies `input.filters` to the pairs. The static set
+  /// (static_set_) takes part as Detector::set_static_spheres() describes. Returns ErrorKind::unsupported_input for
+  /// input this backend does not take. detect() turns std::bad_alloc into ErrorKind::out_of_memory.
   [[nodiscard]] virtual Status run_frame(const FrameInput& input, FrameResult& out) = 0;
 
   /// Queries on the last successful frame (called only after one; the ray is valid: finite, a
   /// non-zero direction, max_t >= 0; the sphere passes validate_spheres; the box is finite with
-  /// min <= max). `filter` is the query's filter or null (Detector). The results need not be
-  /// sorted: Detector sorts the lists. A backend that answers them from structures of its own
+  /// min <= max). Static objects are reported as static_index(k). `filter` is the query's filter or null (Detector).
+  /// The results need not be sorted: Detector sorts the lists. A backend that answers them from structures of its own
   /// overrides them all; the others get brute force over query_objects().
   [[nodiscard]] virtual bool query_ray_first(const Ray& ray, const Filter* filter, RayHit& hit);
   virtual void query_ray_all(const Ray& ray, const Filter* filter, std::vector<RayHit>& hits);
@@ -60,16 +62,20 @@ class Backend {
 
   /// Whether the backend keeps what queries need itself (answers_queries() true: gl reads its
   /// copy back from the GPU, cpu searches its tree); otherwise detect() keeps a copy of the active
-  /// spheres, ids and (in frames with filters) filters after each frame for query_objects().
+  /// objects, ids and (in frames with filters) filters after each frame, the static set's with
+  /// them, for query_objects().
   [[nodiscard]] virtual bool answers_queries() const { return false; }
   /// The objects the brute-force queries search: by default the copy detect() keeps.
-  [[nodiscard]] virtual QueryObjects query_objects() { return {query_spheres_, query_ids_, query_filters_}; }
+  [[nodiscard]] virtual QueryObjects query_objects() {
+    return {query_boxes_.empty() ? Shapes(query_spheres_) : Shapes(query_boxes_), query_ids_, query_filters_};
+  }
 
   [[nodiscard]] const Config& config() const { return config_; }
   void set_config(const Config& config) { config_ = config; }
 
  protected:
   Config config_;
+  StaticSet static_set_;
 
  private:
   friend class viscd::Detector;
@@ -78,6 +84,7 @@ class Backend {
   // The active objects of the last frame, for the brute-force queries, and their filters (empty
   // when the frame had none).
   std::vector<Sphere> query_spheres_;
+  std::vector<Box> query_boxes_;
   std::vector<std::uint32_t> query_ids_;
   std::vector<Filter> query_filters_;
 };

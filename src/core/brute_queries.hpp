@@ -1,8 +1,8 @@
 #pragma once
 // Queries by brute force over given spheres, their object ids (ascending) and filters: the
 // answers of the backends that keep no tree for queries (reference, gl), and the definition the
-// others are tested against. Exact: ray_hits_sphere(), spheres_overlap() and
-// sphere_overlaps_box() on every sphere. Also the rules every backend shares: which object a
+// others are tested against. Exact: ray_hits_sphere() / ray_hits_box(), spheres_overlap(),
+// sphere_overlaps_box() and boxes_overlap() on every object. Also the rules every backend shares: which object a
 // query filter lets through, and what a RayVisitor's answer does to the ray.
 
 #include <cmath>
@@ -10,16 +10,17 @@
 #include <span>
 #include <vector>
 
+#include "core/shapes.hpp"
 #include "viscd/detector.hpp"
 #include "viscd/types.hpp"
 
 namespace viscd::detail {
 
-/// The objects a brute-force query searches: the active spheres, their object ids (ascending)
-/// and their filters (parallel to `spheres`; empty when the frame had none: every object then
-/// has Filter{}).
+/// The objects a brute-force query searches: the active objects (spheres or boxes), their
+/// reported indices (ascending) and their filters (parallel to `shapes`; empty when the frame had
+/// none: every object then has Filter{}).
 struct QueryObjects {
-  std::span<const Sphere> spheres;
+  Shapes shapes;
   std::span<const std::uint32_t> ids;
   std::span<const Filter> filters;
 };

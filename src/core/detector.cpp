@@ -70,6 +70,12 @@ bool sphere_overlaps_box(const Sphere& sphere, const Box& box) {
   return valid_sphere(sphere) && valid_box(box) && detail::sphere_box_exact(sphere, box.min, box.max);
 }
 
+bool boxes_overlap(const Box& a, const Box& b) { return detail::box_overlap_exact(a, b); }
+
+bool ray_hits_box(const Ray& ray, const Box& box, float& t) {
+  return validate_boxes({&box, 1}).ok() && detail::ray_box_exact(ray.origin, ray.dir, ray.max_t, box, t);
+}
+
 // ---- Detector: the frame around run_frame(), contact events, queries ----
 
 namespace {
@@ -123,9 +129,9 @@ Filter filter_of(const QueryObjects& o, std::size_t k) { return o.filters.empty(
 
 bool brute_ray(const QueryObjects& o, const Ray& ray, const Filter* filter, RayHit& hit) {
   bool found = false;
-  for (std::size_t k = 0; k < o.spheres.size(); ++k) {
+  for (std::size_t k = 0; k < o.shapes.size(); ++k) {
     float t = 0;
-    if (!query_passes(filter, filter_of(o, k)) || !ray_hits_sphere(ray, o.spheres[k], t)) continue;
+    if (!query_passes(filter, filter_of(o, k)) || !o.shapes.ray_hit(k, ray, t)) continue;
     const RayHit h{o.ids[k], t};
     if (!found || hit_before(h, hit)) hit = h;
     found = true;
@@ -134,45 +140,42 @@ bool brute_ray(const QueryObjects& o, const Ray& ray, const Filter* filter, RayH
 }
 
 void brute_ray_all(const QueryObjects& o, const Ray& ray, const Filter* filter, std::vector<RayHit>& hits) {
-  for (std::size_t k = 0; k < o.spheres.size(); ++k) {
+  for (std::size_t k = 0; k < o.shapes.size(); ++k) {
     float t = 0;
-    if (query_passes(filter, filter_of(o, k)) && ray_hits_sphere(ray, o.spheres[k], t)) hits.push_back({o.ids[k], t});
+    if (query_passes(filter, filter_of(o, k)) && o.shapes.ray_hit(k, ray, t)) hits.push_back({o.ids[k], t});
   }
 }
 
 void brute_ray_visit(const QueryObjects& o, const Ray& ray, const Filter* filter, RayVisitor& visitor) {
   Ray r = ray;  // r.max_t is the current max t
-  for (std::size_t k = 0; k < o.spheres.size(); ++k) {
+  for (std::size_t k = 0; k < o.shapes.size(); ++k) {
     float t = 0;
-    if (!query_passes(filter, filter_of(o, k)) || !ray_hits_sphere(r, o.spheres[k], t)) continue;
+    if (!query_passes(filter, filter_of(o, k)) || !o.shapes.ray_hit(k, r, t)) continue;
     if (!apply_ray_answer(visitor.on_hit({o.ids[k], t}), r.max_t)) return;
   }
 }
 
 void brute_overlap(const QueryObjects& o, const Sphere& sphere, const Filter* filter,
                    std::vector<std::uint32_t>& indices) {
-  for (std::size_t k = 0; k < o.spheres.size(); ++k)
-    if (query_passes(filter, filter_of(o, k)) && spheres_overlap(sphere, o.spheres[k])) indices.push_back(o.ids[k]);
+  for (std::size_t k = 0; k < o.shapes.size(); ++k)
+    if (query_passes(filter, filter_of(o, k)) && o.shapes.meets_sphere(k, sphere)) indices.push_back(o.ids[k]);
 }
 
 void brute_overlap_box(const QueryObjects& o, const Box& box, const Filter* filter,
                        std::vector<std::uint32_t>& indices) {
-  for (std::size_t k = 0; k < o.spheres.size(); ++k)
-    if (query_passes(filter, filter_of(o, k)) && sphere_box_exact(o.spheres[k], box.min, box.max))
-      indices.push_back(o.ids[k]);
+  for (std::size_t k = 0; k < o.shapes.size(); ++k)
+    if (query_passes(filter, filter_of(o, k)) && o.shapes.meets_box(k, box)) indices.push_back(o.ids[k]);
 }
 
 void brute_overlap_visit(const QueryObjects& o, const Sphere& sphere, const Filter* filter, OverlapVisitor& visitor) {
-  for (std::size_t k = 0; k < o.spheres.size(); ++k)
-    if (query_passes(filter, filter_of(o, k)) && spheres_overlap(sphere, o.spheres[k]) && !visitor.on_overlap(o.ids[k]))
+  for (std::size_t k = 0; k < o.shapes.size(); ++k)
+    if (query_passes(filter, filter_of(o, k)) && o.shapes.meets_sphere(k, sphere) && !visitor.on_overlap(o.ids[k]))
       return;
 }
 
 void brute_overlap_box_visit(const QueryObjects& o, const Box& box, const Filter* filter, OverlapVisitor& visitor) {
-  for (std::size_t k = 0; k < o.spheres.size(); ++k)
-    if (query_passes(filter, filter_of(o, k)) && sphere_box_exact(o.spheres[k], box.min, box.max) &&
-        !visitor.on_overlap(o.ids[k]))
-      return;
+  for (std::size_t k = 0; k < o.shapes.size(); ++k)
+    if (query_passes(filter, filter_of(o, k)) && o.shapes.meets_box(k, box) && !visitor.on_overlap(o.ids[k])) return;
 }
 
 bool Backend::query_ray_first(const Ray& ray, const Filter* filter, RayHit& hit) {
@@ -215,11 +218,72 @@ Status Detector::detect(std::span<const Sphere> spheres, const Camera* camera, F
   return detect(input, out);
 }
 
+// The active objects and the static set, for the brute-force queries; reserved for every object,
+// so that no allocation follows the active set as it changes.
+void Detector::keep_query_objects(detail::Backend& b, const FrameInput& input, const FrameResult& out) {
+  const detail::Shapes shapes = detail::Shapes::of(input);
+  const detail::StaticSet::Compact& stat = b.static_set_.compact();
+  const std::size_t n = shapes.size(), total = n + stat.shapes.size();
+  b.query_spheres_.clear();
+  b.query_boxes_.clear();
+  b.query_ids_.clear();
+  b.query_filters_.clear();
+  const bool boxes = shapes.is_box() || (n == 0 && stat.shapes.is_box());
+  if (boxes)
+    b.query_boxes_.reserve(total);
+  else
+    b.query_spheres_.reserve(total);
+  b.query_ids_.reserve(total);
+  const bool filters = !input.filters.empty() || stat.filtered;  // else every object has Filter{}: no copy
+  if (filters) b.query_filters_.reserve(total);
+  for (std::size_t k = 0; k < n; ++k) {
+    if (out.state[k] == ObjectState::culled) continue;
+    if (boxes)
+      b.query_boxes_.push_back(input.boxes[k]);
+    else
+      b.query_spheres_.push_back(input.spheres[k]);
+    b.query_ids_.push_back(static_cast<std::uint32_t>(k));
+    if (filters) b.query_filters_.push_back(input.filters.empty() ? Filter{} : input.filters[k]);
+  }
+  for (std::size_t k = 0; k < stat.shapes.size(); ++k) {
+    if (boxes)
+      b.query_boxes_.push_back(stat.shapes.boxes[k]);
+    else
+      b.query_spheres_.push_back(stat.shapes.spheres[k]);
+    b.query_ids_.push_back(static_index(stat.slots[k]));
+    if (filters) b.query_filters_.push_back(stat.filters[k]);
+  }
+}
+
+Status Detector::set_static_spheres(std::span<const Sphere> spheres, std::span<const Filter> filters) {
+  return backend_->static_set_.set(spheres, filters);
+}
+Status Detector::set_static_boxes(std::span<const Box> boxes, std::span<const Filter> filters) {
+  return backend_->static_set_.set(boxes, filters);
+}
+Result<std::uint32_t> Detector::add_static_sphere(const Sphere& sphere, const Filter& filter) {
+  return backend_->static_set_.add(sphere, filter);
+}
+Result<std::uint32_t> Detector::add_static_box(const Box& box, const Filter& filter) {
+  return backend_->static_set_.add(box, filter);
+}
+Status Detector::move_static_sphere(std::uint32_t k, const Sphere& sphere) {
+  return backend_->static_set_.move(k, sphere);
+}
+Status Detector::move_static_box(std::uint32_t k, const Box& box) { return backend_->static_set_.move(k, box); }
+Status Detector::remove_static(std::uint32_t k) { return backend_->static_set_.remove(k); }
+void Detector::clear_static() { backend_->static_set_.clear(); }
+std::size_t Detector::static_count() const { return backend_->static_set_.size(); }
+ShapeKind Detector::static_kind() const {
+  return backend_->static_set_.empty() ? ShapeKind::sphere : backend_->static_set_.kind();
+}
+
 Status Detector::detect(const FrameInput& input, FrameResult& out) {
   detail::Backend& b = *backend_;
   b.queries_ready_ = false;
   try {
     if (Status s = detail::validate_frame_input(input, b.config()); !s) return s;
+    if (Status s = detail::validate_static_kind(input, b.static_set_); !s) return s;
     if (Status s = b.run_frame(input, out); !s) return s;
     if (b.config().contact_events) {
       pair_differences(b.previous_pairs_, out.pairs, out.began, out.ended);
@@ -231,28 +295,13 @@ Status Detector::detect(const FrameInput& input, FrameResult& out) {
       out.ended.clear();
       b.previous_pairs_.clear();
     }
-    if (!b.answers_queries()) {
-      // The active objects, for the brute-force queries; reserved for every object, so that no
-      // allocation follows the active set as it changes.
-      b.query_spheres_.clear();
-      b.query_ids_.clear();
-      b.query_filters_.clear();
-      b.query_spheres_.reserve(input.spheres.size());
-      b.query_ids_.reserve(input.spheres.size());
-      const bool filters = !input.filters.empty();  // else every object has Filter{}: no copy
-      if (filters) b.query_filters_.reserve(input.spheres.size());
-      for (std::size_t k = 0; k < input.spheres.size(); ++k) {
-        if (out.state[k] == ObjectState::culled) continue;
-        b.query_spheres_.push_back(input.spheres[k]);
-        b.query_ids_.push_back(static_cast<std::uint32_t>(k));
-        if (filters) b.query_filters_.push_back(input.filters[k]);
-      }
-    }
+    if (!b.answers_queries()) keep_query_objects(b, input, out);
     b.queries_ready_ = true;
     return {};
   } catch (const std::bad_alloc&) {
     return Status::failure(ErrorKind::out_of_memory,
-                           detail::out_of_memory_message(input.spheres.size(), input.camera, b.config()));
+                           detail::out_of_memory_message(detail::Shapes::of(input).size() + b.static_set_.size(),
+                                                         input.camera, b.config()));
   }
 }
 
@@ -324,6 +373,39 @@ Status validate_spheres(std::span<const Sphere> spheres) {
     if (s.r < 0)
       return Status::failure(ErrorKind::invalid_input,
                              "sphere " + std::to_string(k) + ": negative radius " + std::to_string(s.r));
+  }
+  return {};
+}
+
+Status validate_boxes(std::span<const Box> boxes) {
+  if (boxes.size() > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
+    return Status::failure(ErrorKind::invalid_input,
+                           "too many boxes: " + std::to_string(boxes.size()) + " (at most 2^31 - 1)");
+  bool all_valid = true;  // branch-free first pass, as validate_spheres()
+  for (const Box& b : boxes)
+    for (int k = 0; k < 3; ++k)
+      all_valid &=
+          (std::fabs(b.min[k]) <= kMaxCoordinate) & (std::fabs(b.max[k]) <= kMaxCoordinate) & (b.min[k] <= b.max[k]);
+  if (all_valid) return {};
+  static constexpr const char* kNames[2][3] = {{"minx", "miny", "minz"}, {"maxx", "maxy", "maxz"}};
+  for (std::size_t i = 0; i < boxes.size(); ++i) {
+    const Box& b = boxes[i];
+    for (int side = 0; side < 2; ++side)
+      for (int k = 0; k < 3; ++k) {
+        const float v = side ? b.max[k] : b.min[k];
+        if (!std::isfinite(v))
+          return Status::failure(ErrorKind::invalid_input,
+                                 "box " + std::to_string(i) + ": " + kNames[side][k] + " is not a finite number");
+        if (std::fabs(v) > kMaxCoordinate)
+          return Status::failure(ErrorKind::invalid_input, "box " + std::to_string(i) + ": |" + kNames[side][k] +
+                                                               "| = " + std::to_string(v) +
+                                                               " exceeds the supported 1e18");
+      }
+    for (int k = 0; k < 3; ++k)
+      if (!(b.min[k] <= b.max[k]))
+        return Status::failure(ErrorKind::invalid_input, "box " + std::to_string(i) + ": " + kNames[0][k] + " = " +
+                                                             std::to_string(b.min[k]) + " exceeds " + kNames[1][k] +
+                                                             " = " + std::to_string(b.max[k]));
   }
   return {};
 }

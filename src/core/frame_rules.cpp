@@ -8,11 +8,11 @@
 
 namespace viscd::detail {
 
-Status validate_frame(std::span<const Sphere> spheres, const Camera* camera, const Config& config) {
+Status validate_frame(const Shapes& objects, const Camera* camera, const Config& config) {
   if (config.threads < 0)
     return Status::failure(ErrorKind::invalid_input, "Config::threads = " + std::to_string(config.threads) +
                                                          ": expected 0 (all cores) or a positive count");
-  if (Status s = validate_spheres(spheres); !s) return s;
+  if (Status s = objects.is_box() ? validate_boxes(objects.boxes) : validate_spheres(objects.spheres); !s) return s;
   if (camera) {
     if (Status s = validate_camera(*camera); !s) return s;
     if (config.map_width < 0 || config.map_height < 0 || (config.map_width == 0) != (config.map_height == 0))
@@ -33,17 +33,34 @@ bool counts_pixels(const FrameInput& in, const Config& config) {
   return has_callers_map(in) || renders_own_map(in, config);
 }
 
+Status validate_static_kind(const FrameInput& in, const StaticSet& set) {
+  const Shapes objects = Shapes::of(in);
+  if (set.empty() || objects.empty() || objects.kind == set.kind()) return {};
+  return Status::failure(ErrorKind::invalid_input, std::string("FrameInput: the frame's objects are ") +
+                                                       (objects.is_box() ? "boxes" : "spheres") +
+                                                       " but the detector's static set holds " +
+                                                       (set.kind() == ShapeKind::box ? "boxes" : "spheres") +
+                                                       "; a frame and its static set hold the same kind");
+}
+
 Status validate_frame_input(const FrameInput& in, const Config& config) {
+  if (!in.spheres.empty() && !in.boxes.empty())
+    return Status::failure(ErrorKind::invalid_input, "FrameInput: " + std::to_string(in.spheres.size()) +
+                                                         " spheres and " + std::to_string(in.boxes.size()) +
+                                                         " boxes; a frame holds spheres or boxes, not both");
+  const Shapes objects = Shapes::of(in);
+  const std::size_t n = objects.size();
+  const char* noun = objects.is_box() ? " boxes" : " spheres";
   if (!in.id_map.empty() && in.gl_id_texture != 0)
     return Status::failure(ErrorKind::invalid_input,
                            "FrameInput: id_map and gl_id_texture are both set; give the visibility map one way");
   if (!has_callers_map(in))
-    if (Status s = validate_frame(in.spheres, in.camera, config); !s) return s;
+    if (Status s = validate_frame(objects, in.camera, config); !s) return s;
   if (has_callers_map(in)) {
     // The caller's map: its own size replaces Config's, so only the rest of validate_frame().
     Config own = config;
     own.map_width = own.map_height = 0;
-    if (Status s = validate_frame(in.spheres, in.camera, own); !s) return s;
+    if (Status s = validate_frame(objects, in.camera, own); !s) return s;
     const int w = in.id_map_width, h = in.id_map_height;
     if (w < 1 || h < 1)
       return Status::failure(ErrorKind::invalid_input,
@@ -62,14 +79,14 @@ Status validate_frame_input(const FrameInput& in, const Config& config) {
         ErrorKind::invalid_input,
         "Config::shade needs the detector's own visibility map (depth and normals); with the caller's id map "
         "(FrameInput::id_map or gl_id_texture) no image can be shaded");
-  if (!in.always_active.empty() && in.always_active.size() != in.spheres.size())
-    return Status::failure(ErrorKind::invalid_input,
-                           "FrameInput: " + std::to_string(in.always_active.size()) + " always_active flags for " +
-                               std::to_string(in.spheres.size()) + " spheres; give none or one per sphere");
-  if (!in.filters.empty() && in.filters.size() != in.spheres.size())
+  if (!in.always_active.empty() && in.always_active.size() != n)
+    return Status::failure(ErrorKind::invalid_input, "FrameInput: " + std::to_string(in.always_active.size()) +
+                                                         " always_active flags for " + std::to_string(n) + noun +
+                                                         "; give none or one per object");
+  if (!in.filters.empty() && in.filters.size() != n)
     return Status::failure(ErrorKind::invalid_input, "FrameInput: " + std::to_string(in.filters.size()) +
-                                                         " filters for " + std::to_string(in.spheres.size()) +
-                                                         " spheres; give none or one per sphere");
+                                                         " filters for " + std::to_string(n) + noun +
+                                                         "; give none or one per object");
   return {};
 }
 
@@ -118,13 +135,17 @@ Status check_pair_cap(std::size_t pairs, std::size_t cap, bool at_least) {
                              " bytes (raise it with Config::pair_memory_cap, or the tool's --max-pair-memory)");
 }
 
-ActiveExtent extent_of(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, std::size_t begin,
+ActiveExtent extent_of(const Shapes& objects, std::span<const std::uint32_t> active, std::size_t begin,
                        std::size_t end) {
   ActiveExtent e;
-  for (std::size_t k = begin; k < end; ++k) {
-    const Sphere& s = spheres[active[k]];
+  auto add = [&](const Sphere& s) {
     e.bounds.grow(s.x, s.y, s.z);
     e.diameter_sum += 2.0 * s.r;
+  };
+  if (objects.is_box()) {
+    for (std::size_t k = begin; k < end; ++k) add(box_proxy(objects.boxes[active[k]]));
+  } else {
+    for (std::size_t k = begin; k < end; ++k) add(objects.spheres[active[k]]);
   }
   e.count = end > begin ? end - begin : 0;
   return e;

@@ -9,6 +9,8 @@
 #include <vector>
 
 #include "core/geometry.hpp"
+#include "core/shapes.hpp"
+#include "core/static_set.hpp"
 #include "viscd/config.hpp"
 #include "viscd/frame.hpp"
 #include "viscd/result.hpp"
@@ -22,8 +24,10 @@ std::uint64_t bytes_of(const std::vector<T>& v) {
   return static_cast<std::uint64_t>(v.capacity()) * sizeof(T);
 }
 
-/// The checks every backend makes on a frame's input: spheres, camera, the map size, threads.
-[[nodiscard]] Status validate_frame(std::span<const Sphere> spheres, const Camera* camera, const Config& config);
+/// The checks every backend makes on a frame's input: objects, camera, the map size, threads.
+[[nodiscard]] Status validate_frame(const Shapes& objects, const Camera* camera, const Config& config);
+/// A frame's objects and a non-empty static set must be of one kind.
+[[nodiscard]] Status validate_static_kind(const FrameInput& input, const StaticSet& set);
 /// validate_frame() for a whole FrameInput (Detector::detect() runs it before run_frame()): also
 /// the filter count, and the id map's size (which then replaces Config's map size); an id map
 /// and a gl texture together are an error. The ids themselves are checked where they are
@@ -77,8 +81,8 @@ struct ActiveExtent {
     return count ? static_cast<float>(diameter_sum / static_cast<double>(count)) : 0.f;
   }
 };
-/// The extent of spheres[active[k]] for k in [begin, end).
-[[nodiscard]] ActiveExtent extent_of(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
-                                     std::size_t begin, std::size_t end);
+/// The extent of objects[active[k]] for k in [begin, end) (boxes by box_proxy()).
+[[nodiscard]] ActiveExtent extent_of(const Shapes& objects, std::span<const std::uint32_t> active, std::size_t begin,
+                                     std::size_t end);
 
 }  // namespace viscd::detail

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include "viscd/types.hpp"
 
@@ -118,6 +119,49 @@ inline bool sphere_box_exact(const Sphere& s, const float lo[3], const float hi[
   }
   const double r = s.r;
   return d2 <= r * r;
+}
+
+/// The box test (boxes_overlap()): closed intervals on every axis, in float; false on NaN.
+inline bool box_overlap_exact(const Box& a, const Box& b) {
+  return (a.min[0] <= b.max[0]) & (b.min[0] <= a.max[0]) & (a.min[1] <= b.max[1]) & (b.min[1] <= a.max[1]) &
+         (a.min[2] <= b.max[2]) & (b.min[2] <= a.max[2]);
+}
+/// A box object as the tree's Aabb: itself (the box test is the same comparisons as overlaps(),
+/// so no margin is needed).
+inline Aabb box_aabb(const Box& b) { return Aabb{{b.min[0], b.min[1], b.min[2]}, {b.max[0], b.max[1], b.max[2]}}; }
+/// What stages 4-6 see of a box: its centre ((min + max) / 2 in float; no overflow within
+/// kMaxCoordinate) and, as the "radius", a sixth of its summed side lengths, so that the layout
+/// rule's mean diameter is the boxes' mean side length.
+inline Sphere box_proxy(const Box& b) {
+  return Sphere{(b.min[0] + b.max[0]) * 0.5f, (b.min[1] + b.max[1]) * 0.5f, (b.min[2] + b.max[2]) * 0.5f,
+                ((b.max[0] - b.min[0]) + (b.max[1] - b.min[1]) + (b.max[2] - b.min[2])) / 6.0f};
+}
+
+/// The ray-box test of the queries (ray_hits_box(); docs/architecture.md, "Queries"): slabs in
+/// double from the float inputs. Along an axis with d = 0 the origin must lie in [lo, hi]; else
+/// the slab is entered at (lo - o) / d and left at (hi - o) / d (the other way round for d < 0).
+/// t0 = max(0, entries), t1 = min(exits); a hit when t0 <= t1 and t0, rounded to float, is at most
+/// max_t. Preconditions: finite inputs, lo <= hi; a zero direction hits nothing.
+inline bool ray_box_exact(const float origin[3], const float dir[3], float max_t, const Box& b, float& t_out) {
+  if (dir[0] == 0 && dir[1] == 0 && dir[2] == 0) return false;
+  double t0 = 0, t1 = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < 3; ++k) {
+    const double o = origin[k], lo = b.min[k], hi = b.max[k];
+    if (dir[k] == 0) {
+      if (o < lo || o > hi) return false;
+      continue;
+    }
+    const double d = dir[k];
+    double a = (lo - o) / d, e = (hi - o) / d;
+    if (a > e) std::swap(a, e);
+    t0 = std::max(t0, a);
+    t1 = std::min(t1, e);
+  }
+  if (!(t0 <= t1)) return false;
+  const auto tf = static_cast<float>(t0);
+  if (!(tf <= max_t)) return false;
+  t_out = tf;
+  return true;
 }
 
 /// How far beyond a sphere's conservative box ray_sphere()'s hit point can lie for a ray from

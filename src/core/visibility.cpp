@@ -78,6 +78,18 @@ PixelRect sphere_rect(const CameraRig& cam, const Sphere& s) {
   return rect;
 }
 
+PixelRect box_rect(const CameraRig& cam, const Box& b) {
+  const double hx = 0.5 * (double{b.max[0]} - b.min[0]), hy = 0.5 * (double{b.max[1]} - b.min[1]),
+               hz = 0.5 * (double{b.max[2]} - b.min[2]);
+  const double cx = 0.5 * (double{b.min[0]} + b.max[0]), cy = 0.5 * (double{b.min[1]} + b.max[1]),
+               cz = 0.5 * (double{b.min[2]} + b.max[2]);
+  // The half diagonal, plus what rounding the centre to float can move it (2^-24 |c| per axis).
+  const double rd = std::sqrt(hx * hx + hy * hy + hz * hz) + 0x1p-22 * (std::fabs(cx) + std::fabs(cy) + std::fabs(cz));
+  const Sphere bound{static_cast<float>(cx), static_cast<float>(cy), static_cast<float>(cz),
+                     static_cast<float>(rd * (1.0 + 0x1p-20))};
+  return sphere_rect(cam, bound);
+}
+
 const ShadingModel& shading_model() {
   static const ShadingModel model{normalize({0.4f, 0.8f, 0.45f})};
   return model;

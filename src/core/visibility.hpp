@@ -4,8 +4,12 @@
 // so their id maps are equal bit for bit), the conservative screen rectangle of a sphere, culling
 // and m (stage 3), the map size and the shading model (stage 9).
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
+#include <limits>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include "core/geometry.hpp"
@@ -53,6 +57,30 @@ inline float hit(const CameraRig& cam, const Vec3& d, const Sphere& s) {
   return -1.0f;
 }
 
+/// Nearest visible intersection of the ray eye + t d with a box, by slabs in float: along an axis
+/// with d = 0 the eye must lie within [min, max]; else the slab is entered at (min - eye) / d and
+/// left at (max - eye) / d (swapped for d < 0). With t0 the largest entry and t1 the smallest exit
+/// (a miss when t0 > t1): t0 when near <= t0 <= far, else t1 when near <= t1 <= far (the camera
+/// inside the box or the front clipped by the near plane, as for spheres), else a negative number.
+inline float hit_box(const CameraRig& cam, const Vec3& d, const Box& b) {
+  const float e[3] = {cam.eye.x, cam.eye.y, cam.eye.z}, dd[3] = {d.x, d.y, d.z};
+  float t0 = -std::numeric_limits<float>::infinity(), t1 = std::numeric_limits<float>::infinity();
+  for (int k = 0; k < 3; ++k) {
+    if (dd[k] == 0.0f) {
+      if (e[k] < b.min[k] || e[k] > b.max[k]) return -1.0f;
+      continue;
+    }
+    float a = (b.min[k] - e[k]) / dd[k], c = (b.max[k] - e[k]) / dd[k];
+    if (a > c) std::swap(a, c);
+    t0 = std::max(t0, a);
+    t1 = std::min(t1, c);
+  }
+  if (!(t0 <= t1)) return -1.0f;
+  if (t0 >= cam.near_plane && t0 <= cam.far_plane) return t0;
+  if (t1 >= cam.near_plane && t1 <= cam.far_plane) return t1;
+  return -1.0f;
+}
+
 /// Conservative map-pixel rectangle [x0, x1) x [y0, y1) that contains every pixel whose centre
 /// ray can hit the sphere; empty (x0 >= x1) when the sphere is wholly outside near..far.
 struct PixelRect {
@@ -61,6 +89,9 @@ struct PixelRect {
   float near_depth = 0;
 };
 [[nodiscard]] PixelRect sphere_rect(const CameraRig& cam, const Sphere& s);
+/// The same for a box: the rectangle of its bounding sphere (centre, half diagonal), which holds
+/// every pixel hit_box() can accept (its rounding is far inside sphere_rect()'s slack).
+[[nodiscard]] PixelRect box_rect(const CameraRig& cam, const Box& b);
 
 /// Stage 3: screen-scaled pixels, mu over all N, active set (pixels >= lambda, or a non-zero
 /// `always_active` flag when there are flags, or all when culling is off), and m from Eq. (1) or

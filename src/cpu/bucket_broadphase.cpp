@@ -15,14 +15,25 @@ std::uint64_t BucketBroadphase::memory_bytes() const {
 
 Status BucketBroadphase::run(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
                              std::span<const Filter> filters, int bits, Layout layout, int threads,
-                             std::size_t pair_memory_cap, std::vector<Pair>& pairs, FrameStats& stats) {
+                             std::size_t pair_memory_cap, std::vector<Pair>& pairs, FrameStats& stats,
+                             const Extras& extras) {
+  extras_ = extras;
   build_tree(spheres, active, filters, bits, layout, threads, stats);
   return find_pairs(active, threads, pair_memory_cap, pairs, stats);
 }
 
 void BucketBroadphase::build(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
-                             Layout layout, int threads, FrameStats& stats) {
+                             Layout layout, int threads, FrameStats& stats, const Extras& extras) {
+  extras_ = extras;
   build_tree(spheres, active, {}, bits, layout, threads, stats);
+}
+
+template <class SphereAt>
+double BucketBroadphase::fill(std::span<const Sphere> spheres, std::size_t n, std::span<const std::uint32_t> ids,
+                              std::span<const Filter> filters, int threads, SphereAt&& sphere_at) {
+  if (!extras_.boxes.empty()) return buckets_.fill_boxes(extras_.boxes, n, ids, filters, threads);
+  (void)spheres;
+  return buckets_.fill(n, ids, filters, threads, sphere_at);
 }
 
 void BucketBroadphase::build_tree(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
@@ -42,9 +53,12 @@ void BucketBroadphase::build_tree(std::span<const Sphere> spheres, std::span<con
   const std::size_t n = active.size();
   const std::span<const std::uint32_t> ids = order_.sorted_ids();
   const double box_sum = order_.gathered()
-                             ? buckets_.fill(n, ids, filters, threads,
-                                             [&](std::size_t k) -> const Sphere& { return order_.gathered_sphere(k); })
-                             : buckets_.fill_in_order(spheres, n, ids, filters, threads);
+                             ? fill(spheres, n, ids, filters, threads,
+                                    [&](std::size_t k) -> const Sphere& { return order_.gathered_sphere(k); })
+                             : fill(spheres, n, ids, filters, threads, [&](std::size_t k) -> const Sphere& {
+                                 if (k + kPrefetchAhead < n) __builtin_prefetch(&spheres[ids[k + kPrefetchAhead]]);
+                                 return spheres[ids[k]];
+                               });
   stats.ms(Stage::build) = sw.lap() + attempt_ms;
   fit_tree(n, threads, stats);
   keep_order_.remember_sorted(spheres.size(), active, layout, box_sum);
@@ -71,7 +85,11 @@ bool BucketBroadphase::keep_last_order(std::span<const Sphere> spheres, std::spa
   stats.bits = bits;
   stats.layout = order_.layout().info();  // the layout of the codes that ordered the objects
   // The sorted ids hold the last order (the last sorted frame's stage 6 wrote them).
-  const double box_sum = buckets_.fill_in_order(spheres, n, order_.sorted_ids(), filters, threads);
+  const std::span<const std::uint32_t> ids = order_.sorted_ids();
+  const double box_sum = fill(spheres, n, ids, filters, threads, [&](std::size_t k) -> const Sphere& {
+    if (k + kPrefetchAhead < n) __builtin_prefetch(&spheres[ids[k + kPrefetchAhead]]);
+    return spheres[ids[k]];
+  });
   if (!keep_order_.keeps(box_sum)) return false;  // moved too much: sort
   stats.ms(Stage::build) = sw.lap();
   fit_tree(n, threads, stats);
@@ -84,11 +102,14 @@ Status BucketBroadphase::find_pairs(std::span<const std::uint32_t> active, int t
   Stopwatch sw;
   const std::span<const std::uint32_t> ids = order_.sorted_ids();
   const BucketSearchInput in{buckets_.lanes(),
+                             buckets_.box_lanes(),
+                             !extras_.boxes.empty(),
                              buckets_.boxes(),
                              &tree_,
                              ids,
                              buckets_.sorted_filters(),
-                             ids.empty() ? 0u : active.back() + 1};  // active is ascending
+                             ids.empty() ? 0u : active.back() + 1,  // active is ascending
+                             extras_.static_from};
   std::uint64_t bucket_pairs = 0;
   const Status found = search_buckets(in, simd_, threads, pair_memory_cap, pairs_, pairs, bucket_pairs);
   if (!found) {

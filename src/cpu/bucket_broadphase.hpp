@@ -36,15 +36,25 @@
 
 namespace viscd::detail {
 
+/// What a frame may add to its spheres: for a box frame the boxes (then the spheres are their
+/// box_proxy(), which stages 4-6 order, and stages 7-8 pack and test the boxes themselves); and
+/// where the static objects start (no pair of two of them is reported).
+struct BroadphaseExtras {
+  std::span<const Box> boxes;
+  std::uint32_t static_from = ~0u;
+};
+
 class BucketBroadphase {
  public:
+  using Extras = BroadphaseExtras;
   /// Finds all overlapping pairs among spheres[active[k]] (active ascending) with m-bit codes.
   /// Writes sorted pairs, stats.bits, stats.layout, stats.order_kept and the stage times of
   /// stages 4-8. Fails only when the pairs would exceed pair_memory_cap bytes (0 = no cap).
   /// `filters` is empty or one per sphere: a pair is reported only when pair_passes_filter().
   [[nodiscard]] Status run(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
                            std::span<const Filter> filters, int bits, Layout layout, int threads,
-                           std::size_t pair_memory_cap, std::vector<Pair>& pairs, FrameStats& stats);
+                           std::size_t pair_memory_cap, std::vector<Pair>& pairs, FrameStats& stats,
+                           const Extras& extras = {});
   /// run() without filters.
   [[nodiscard]] Status run(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
                            Layout layout, int threads, std::size_t pair_memory_cap, std::vector<Pair>& pairs,
@@ -54,7 +64,10 @@ class BucketBroadphase {
   /// Stages 4-7 only: the tree over spheres[active[k]], for queries. Writes stats.bits, layout and
   /// the stage times.
   void build(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits, Layout layout,
-             int threads, FrameStats& stats);
+             int threads, FrameStats& stats, const Extras& extras = {});
+  /// Whether the last tree holds boxes (its queries then are not answered here: the detector
+  /// answers them by brute force).
+  [[nodiscard]] bool holds_boxes() const { return !extras_.boxes.empty(); }
 
   /// What the queries report of the tree's objects. A tree object's id is its index in the
   /// spheres the tree was built from; it is reported as ids[id] when `ids` is not empty. Its
@@ -148,8 +161,14 @@ class BucketBroadphase {
   Buckets buckets_;
   WideTree tree_;
   PairCollector pairs_;
+  /// Stage 7's packing of the objects in `ids` order: box lanes in box frames, sphere lanes else.
+  template <class SphereAt>
+  double fill(std::span<const Sphere> spheres, std::size_t n, std::span<const std::uint32_t> ids,
+              std::span<const Filter> filters, int threads, SphereAt&& sphere_at);
+
   SimdLevel simd_ = best_simd_level();
   SortReport report_;
+  Extras extras_;  // this frame's
 };
 
 }  // namespace viscd::detail

@@ -9,20 +9,40 @@
 namespace viscd::detail {
 namespace {
 
+// The two tests of stage 8 for each kind of lanes: `near`, the lanes whose box reaches into a
+// box; `exact`, the lanes that pass the exact test with lane i of another bucket.
+template <class Simd>
+struct SphereTests {
+  static std::uint32_t near(const BucketLanes& l, const Aabb& box) { return Simd::box_lanes(l, box); }
+  static std::uint32_t exact(const BucketLanes& l, const BucketLanes& o, std::uint32_t i) {
+    return Simd::sphere_lanes(l, o.x[i], o.y[i], o.z[i], o.r[i]);
+  }
+};
+template <class Simd>
+struct BoxTests {
+  static std::uint32_t near(const BoxLanes& l, const Aabb& box) { return Simd::node_children(l, box); }
+  static std::uint32_t exact(const BoxLanes& l, const BoxLanes& o, std::uint32_t i) {
+    return Simd::node_children(l, o.box(i));
+  }
+};
+
 // What stage 8 searches, for search_group().
+template <class Lanes>
 struct SearchView {
-  const BucketLanes* lanes;
+  const Lanes* lanes;
   const Aabb* boxes;
   const WideTree* tree;
   const std::uint32_t* ids;  // sorted position -> object id
   const Filter* filter;      // in sorted order, when filtered
   bool filtered;
-  std::size_t n;        // objects
-  std::uint64_t* work;  // bucket pairs whose boxes overlap, summed over the groups (atomically)
+  std::size_t n;              // objects
+  std::uint64_t* work;        // bucket pairs whose boxes overlap, summed over the groups (atomically)
+  std::uint32_t static_from;  // ids from here on are static objects: never two of them
 
   // Emits the pair of sorted positions p and q when it passes the filters (when there are any).
   template <class Emit>
   void pair(std::uint32_t p, std::uint32_t q, Emit& emit) const {
+    if ((ids[p] >= static_from) & (ids[q] >= static_from)) return;
     if (!filtered || pair_passes_filter(filter[p], filter[q])) emit(ids[p], ids[q]);
   }
 };
@@ -30,27 +50,27 @@ struct SearchView {
 // The pairs of bucket b with the later bucket qb (whose box overlaps b's): per object of b whose box
 // reaches into qb's box, the exact test against all of qb's lanes; the filters come after the exact
 // test (few candidates pass it, and the lanes stay as they are).
-template <class Simd, class Emit>
-inline void bucket_pairs(const SearchView& v, std::size_t b, std::uint32_t qb, Emit& emit) {
-  const BucketLanes& lb = v.lanes[b];
-  const BucketLanes& lq = v.lanes[qb];
+template <class T, class Lanes, class Emit>
+inline void bucket_pairs(const SearchView<Lanes>& v, std::size_t b, std::uint32_t qb, Emit& emit) {
+  const Lanes& lb = v.lanes[b];
+  const Lanes& lq = v.lanes[qb];
   const auto first = static_cast<std::uint32_t>(b * kBucket);
   const std::uint32_t qfirst = qb * kBucket;
-  for (std::uint32_t near = Simd::box_lanes(lb, v.boxes[qb]); near; near &= near - 1) {
+  for (std::uint32_t near = T::near(lb, v.boxes[qb]); near; near &= near - 1) {
     const auto i = static_cast<std::uint32_t>(std::countr_zero(near));
-    for (std::uint32_t m = Simd::sphere_lanes(lq, lb.x[i], lb.y[i], lb.z[i], lb.r[i]); m; m &= m - 1)
+    for (std::uint32_t m = T::exact(lq, lb, i); m; m &= m - 1)
       v.pair(first + i, qfirst + static_cast<std::uint32_t>(std::countr_zero(m)), emit);
   }
 }
 
 // The pairs inside bucket b: lane i against the lanes after it.
-template <class Simd, class Emit>
-inline void pairs_inside(const SearchView& v, std::size_t b, Emit& emit) {
-  const BucketLanes& lb = v.lanes[b];
+template <class T, class Lanes, class Emit>
+inline void pairs_inside(const SearchView<Lanes>& v, std::size_t b, Emit& emit) {
+  const Lanes& lb = v.lanes[b];
   const auto first = static_cast<std::uint32_t>(b * kBucket);
   const auto count = static_cast<std::uint32_t>(std::min<std::size_t>(kBucket, v.n - first));
   for (std::uint32_t i = 0; i + 1 < count; ++i) {
-    std::uint32_t m = Simd::sphere_lanes(lb, lb.x[i], lb.y[i], lb.z[i], lb.r[i]) & (~0u << (i + 1));
+    std::uint32_t m = T::exact(lb, lb, i) & (~0u << (i + 1));
     for (; m; m &= m - 1) v.pair(first + i, first + static_cast<std::uint32_t>(std::countr_zero(m)), emit);
   }
 }
@@ -61,8 +81,9 @@ inline void pairs_inside(const SearchView& v, std::size_t b, Emit& emit) {
 // meet any of its buckets (in increasing order); then each bucket tests its box against those
 // candidates, 16 at a time. A walk per bucket would repeat most of the same walk 16 times. When
 // more than kMaxCandidates turn up (a huge sphere), each bucket walks the tree itself.
-template <class Simd, class Emit>
-inline void search_group(const SearchView& v, std::size_t g, Emit& emit) {
+template <class Simd, template <class> class Tests, class Lanes, class Emit>
+inline void search_group(const SearchView<Lanes>& v, std::size_t g, Emit& emit) {
+  using T = Tests<Simd>;
   constexpr std::uint32_t kMaxCandidates = 512;
   const std::size_t buckets = (v.n + kBucket - 1) / kBucket;
   const std::size_t b0 = g * kWide, b1 = std::min(buckets, b0 + kWide);
@@ -86,10 +107,10 @@ inline void search_group(const SearchView& v, std::size_t g, Emit& emit) {
     for_each_wide_overlap_after<Simd>(*v.tree, static_cast<std::uint32_t>(b0 - 1), group_box, collect);
   if (overflow) {
     for (std::size_t b = b0; b < b1 && !emit.stopped(); ++b) {
-      pairs_inside<Simd>(v, b, emit);
+      pairs_inside<T>(v, b, emit);
       for_each_wide_overlap_after<Simd>(*v.tree, static_cast<std::uint32_t>(b), v.boxes[b], [&](std::uint32_t qb) {
         ++tested;
-        bucket_pairs<Simd>(v, b, qb, emit);
+        bucket_pairs<T>(v, b, qb, emit);
       });
     }
     std::atomic_ref<std::uint64_t>(*v.work).fetch_add(tested, std::memory_order_relaxed);
@@ -99,14 +120,14 @@ inline void search_group(const SearchView& v, std::size_t g, Emit& emit) {
     box[count / kWide].set_child(l, Aabb{});
   std::uint32_t cut = 0;  // index[0..cut) <= b
   for (std::size_t b = b0; b < b1 && !emit.stopped(); ++b) {
-    pairs_inside<Simd>(v, b, emit);
+    pairs_inside<T>(v, b, emit);
     while (cut < count && index[cut] <= b) ++cut;
     for (std::uint32_t k = cut / kWide; k * kWide < count; ++k) {
       std::uint32_t m = Simd::node_children(box[k], v.boxes[b]);
       if (k == cut / kWide) m &= (0xFFFFu << (cut % kWide)) & 0xFFFFu;
       tested += static_cast<std::uint64_t>(std::popcount(m));
       for (; m; m &= m - 1)
-        bucket_pairs<Simd>(v, b, index[k * kWide + static_cast<std::uint32_t>(std::countr_zero(m))], emit);
+        bucket_pairs<T>(v, b, index[k * kWide + static_cast<std::uint32_t>(std::countr_zero(m))], emit);
     }
   }
   std::atomic_ref<std::uint64_t>(*v.work).fetch_add(tested, std::memory_order_relaxed);
@@ -114,37 +135,51 @@ inline void search_group(const SearchView& v, std::size_t g, Emit& emit) {
 
 #if VISCD_HAVE_AVX512
 // search_group() with every call inlined into code compiled for AVX-512 (cpu/simd.hpp).
-template <class Emit>
-VISCD_AVX512_FLATTEN void search_group_avx512(const SearchView& v, std::size_t g, Emit& emit) {
-  search_group<SimdAvx512>(v, g, emit);
+template <template <class> class Tests, class Lanes, class Emit>
+VISCD_AVX512_FLATTEN void search_group_avx512(const SearchView<Lanes>& v, std::size_t g, Emit& emit) {
+  search_group<SimdAvx512, Tests>(v, g, emit);
 }
 #endif
 
 }  // namespace
 
-Status search_buckets(const BucketSearchInput& in, SimdLevel simd, int threads, std::size_t pair_memory_cap,
-                      PairCollector& collector, std::vector<Pair>& pairs, std::uint64_t& bucket_pairs) {
+namespace {
+
+template <template <class> class Tests, class Lanes>
+Status search(const BucketSearchInput& in, std::span<const Lanes> lanes, SimdLevel simd, int threads,
+              std::size_t pair_memory_cap, PairCollector& collector, std::vector<Pair>& pairs,
+              std::uint64_t& bucket_pairs) {
   const std::size_t n = in.ids.size();
   const std::size_t buckets = buckets_for(n);
   const std::size_t groups = (buckets + kWide - 1) / kWide;
   const std::size_t chunks = threads_for(n, threads) == 1 ? 1 : std::min<std::size_t>(groups, 8 * threads);
   bucket_pairs = 0;
-  const SearchView view{in.lanes.data(),   in.boxes.data(),     in.tree, in.ids.data(),
-                        in.filters.data(), !in.filters.empty(), n,       &bucket_pairs};
+  const SearchView<Lanes> view{lanes.data(),      in.boxes.data(),     in.tree, in.ids.data(),
+                               in.filters.data(), !in.filters.empty(), n,       &bucket_pairs,
+                               in.static_from};
   return collector.collect(groups, chunks, threads, pair_memory_cap, in.objects, pairs, [&](std::size_t g, auto& emit) {
     switch (simd) {
 #if VISCD_HAVE_AVX512
       case SimdLevel::avx512:
-        return search_group_avx512(view, g, emit);
+        return search_group_avx512<Tests>(view, g, emit);
 #endif
 #if defined(__SSE2__)
       case SimdLevel::sse2:
-        return search_group<SimdSse2>(view, g, emit);
+        return search_group<SimdSse2, Tests>(view, g, emit);
 #endif
       default:
-        return search_group<SimdScalar>(view, g, emit);
+        return search_group<SimdScalar, Tests>(view, g, emit);
     }
   });
+}
+
+}  // namespace
+
+Status search_buckets(const BucketSearchInput& in, SimdLevel simd, int threads, std::size_t pair_memory_cap,
+                      PairCollector& collector, std::vector<Pair>& pairs, std::uint64_t& bucket_pairs) {
+  if (in.box_frame)
+    return search<BoxTests>(in, in.box_lanes, simd, threads, pair_memory_cap, collector, pairs, bucket_pairs);
+  return search<SphereTests>(in, in.lanes, simd, threads, pair_memory_cap, collector, pairs, bucket_pairs);
 }
 
 }  // namespace viscd::detail

@@ -38,6 +38,15 @@ struct alignas(32) BucketLanes {
   float h[kBucket];  ///< half extent of the object's conservative_box()
 };
 
+/// The boxes of one bucket's objects (box frames) in lanes, named as WideNode's children so that
+/// the same SIMD test (node_children(), the exact box test) serves both; unused lanes hold NaN.
+struct alignas(32) BoxLanes {
+  float lo_x[kBucket], lo_y[kBucket], lo_z[kBucket], hi_x[kBucket], hi_y[kBucket], hi_z[kBucket];
+  [[nodiscard]] Aabb box(std::uint32_t l) const {
+    return Aabb{{lo_x[l], lo_y[l], lo_z[l]}, {hi_x[l], hi_y[l], hi_z[l]}};
+  }
+};
+
 /// Buckets needed for n objects.
 [[nodiscard]] constexpr std::size_t buckets_for(std::size_t n) { return (n + kBucket - 1) / kBucket; }
 
@@ -49,26 +58,26 @@ class Buckets {
   template <class SphereAt>
   double fill(std::size_t n, std::span<const std::uint32_t> sorted_ids, std::span<const Filter> filters, int threads,
               SphereAt&& sphere_at);
-  /// fill() reading spheres[sorted_ids[k]], prefetched: the reads are out of the caller's order.
-  double fill_in_order(std::span<const Sphere> spheres, std::size_t n, std::span<const std::uint32_t> sorted_ids,
-                       std::span<const Filter> filters, int threads) {
-    return fill(n, sorted_ids, filters, threads, [&](std::size_t k) -> const Sphere& {
-      if (k + kPrefetchAhead < n) __builtin_prefetch(&spheres[sorted_ids[k + kPrefetchAhead]]);
-      return spheres[sorted_ids[k]];
-    });
-  }
+  /// fill() for box frames: the k-th object in sorted order is boxes[sorted_ids[k]], into box_lanes().
+  double fill_boxes(std::span<const Box> boxes, std::size_t n, std::span<const std::uint32_t> sorted_ids,
+                    std::span<const Filter> filters, int threads);
 
   [[nodiscard]] std::span<const BucketLanes> lanes() const { return lanes_; }
+  [[nodiscard]] std::span<const BoxLanes> box_lanes() const { return box_lanes_; }
   [[nodiscard]] std::span<const Aabb> boxes() const { return boxes_; }
   /// The filters in sorted order (frames with filters; else empty).
   [[nodiscard]] std::span<const Filter> sorted_filters() const { return sorted_filters_; }
   [[nodiscard]] std::uint64_t memory_bytes() const {
-    return lanes_.capacity() * sizeof(BucketLanes) + boxes_.capacity() * sizeof(Aabb) +
-           sorted_filters_.capacity() * sizeof(Filter);
+    return lanes_.capacity() * sizeof(BucketLanes) + box_lanes_.capacity() * sizeof(BoxLanes) +
+           boxes_.capacity() * sizeof(Aabb) + sorted_filters_.capacity() * sizeof(Filter);
   }
 
  private:
+  /// Summed size of the bucket boxes, in bucket order (the same for any thread count).
+  [[nodiscard]] double box_sum(std::size_t buckets) const;
+
   std::vector<BucketLanes> lanes_;
+  std::vector<BoxLanes> box_lanes_;
   std::vector<Aabb> boxes_;
   std::vector<Filter> sorted_filters_;
 };
@@ -78,7 +87,7 @@ double Buckets::fill(std::size_t n, std::span<const std::uint32_t> sorted_ids, s
                      int threads, SphereAt&& sphere_at) {
   constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
   const std::size_t buckets = buckets_for(n);
-  if (lanes_.size() != buckets) {
+  if (lanes_.size() != buckets || boxes_.size() != buckets) {
     resize_with_headroom(lanes_, buckets);
     resize_with_headroom(boxes_, buckets);
   }
@@ -102,6 +111,10 @@ double Buckets::fill(std::size_t n, std::span<const std::uint32_t> sorted_ids, s
     }
     boxes_[b] = box;
   });
+  return box_sum(buckets);
+}
+
+inline double Buckets::box_sum(std::size_t buckets) const {
   // Summed in bucket order, so the decisions that use it do not depend on the thread count.
   double sum = 0;
   for (std::size_t b = 0; b < buckets; ++b) {
@@ -109,6 +122,36 @@ double Buckets::fill(std::size_t n, std::span<const std::uint32_t> sorted_ids, s
     sum += double{box.hi.x - box.lo.x} + double{box.hi.y - box.lo.y} + double{box.hi.z - box.lo.z};
   }
   return sum;
+}
+
+inline double Buckets::fill_boxes(std::span<const Box> boxes, std::size_t n, std::span<const std::uint32_t> sorted_ids,
+                                  std::span<const Filter> filters, int threads) {
+  constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
+  const std::size_t buckets = buckets_for(n);
+  if (box_lanes_.size() != buckets || boxes_.size() != buckets) {
+    resize_with_headroom(box_lanes_, buckets);
+    resize_with_headroom(boxes_, buckets);
+  }
+  resize_with_headroom(sorted_filters_, filters.empty() ? 0 : n);
+  parallel_for(buckets, threads, [&](std::size_t b) {
+    BoxLanes& ln = box_lanes_[b];
+    Aabb box;
+    const std::size_t first = b * kBucket;
+    for (std::uint32_t l = 0; l < kBucket; ++l) {
+      if (first + l < n) {
+        if (first + l + kPrefetchAhead < n) __builtin_prefetch(&boxes[sorted_ids[first + l + kPrefetchAhead]]);
+        const Box& o = boxes[sorted_ids[first + l]];
+        box.grow(box_aabb(o));
+        ln.lo_x[l] = o.min[0], ln.lo_y[l] = o.min[1], ln.lo_z[l] = o.min[2];
+        ln.hi_x[l] = o.max[0], ln.hi_y[l] = o.max[1], ln.hi_z[l] = o.max[2];
+        if (!filters.empty()) sorted_filters_[first + l] = filters[sorted_ids[first + l]];
+      } else {
+        ln.lo_x[l] = ln.lo_y[l] = ln.lo_z[l] = ln.hi_x[l] = ln.hi_y[l] = ln.hi_z[l] = kNan;
+      }
+    }
+    boxes_[b] = box;
+  });
+  return box_sum(buckets);
 }
 
 }  // namespace viscd::detail

@@ -5,6 +5,50 @@
 namespace viscd {
 namespace detail {
 
+Status CpuDetector::broadphase(const Shapes& objects, std::span<const std::uint32_t> pairable,
+                               std::span<const std::uint32_t> unpaired, std::span<const Filter> filters,
+                               std::uint32_t static_from, int bits, int threads, std::vector<Pair>& pairs,
+                               FrameStats& stats) {
+  const std::size_t total = objects.size();
+  // Static objects are reported as static_index(slot).
+  const bool has_static = static_from < total;
+  if (has_static) {
+    resize_with_headroom(reported_, total);
+    parallel_for(total, threads, [&](std::size_t k) { reported_[k] = all_.reported(k); });
+  } else {
+    reported_.clear();
+  }
+  // Box frames: stages 4-6 order the boxes' proxies; stages 7-8 pack and test the boxes.
+  std::span<const Sphere> spheres = objects.spheres;
+  BucketBroadphase::Extras extras;
+  extras.static_from = static_from;
+  if (objects.is_box()) {
+    resize_with_headroom(proxies_, total);
+    parallel_for(total, threads, [&](std::size_t k) { proxies_[k] = box_proxy(objects.boxes[k]); });
+    spheres = std::span<const Sphere>(proxies_.data(), total);
+    extras.boxes = objects.boxes;
+  } else {
+    proxies_.clear();
+  }
+  // The objects left out of the tree, kept for queries with their filters (the tree's own
+  // filters are kept in sorted order by the broadphase); no copy without filters. (Box frames'
+  // queries are brute force: nothing to keep.)
+  unpaired_built_ = false;
+  const std::size_t kept = objects.is_box() ? 0 : unpaired.size();
+  resize_with_headroom(unpaired_ids_, kept);
+  resize_with_headroom(unpaired_spheres_, kept);
+  resize_with_headroom(unpaired_filters_, kept);
+  for (std::size_t k = 0; k < kept; ++k) {
+    unpaired_ids_[k] = has_static ? reported_[unpaired[k]] : unpaired[k];
+    unpaired_spheres_[k] = spheres[unpaired[k]];
+    unpaired_filters_[k] = filters[unpaired[k]];
+  }
+  broadphase_.set_keep_order(config_.keep_order);
+  broadphase_.set_simd(simd_level_for(config_.simd));
+  return broadphase_.run(spheres, pairable, filters, bits, config_.layout, threads, config_.pair_memory_cap, pairs,
+                         stats, extras);
+}
+
 const BucketBroadphase& CpuDetector::unpaired_tree() {
   if (!unpaired_built_) {
     const ExecutorScope scope(config_.executor);
@@ -26,39 +70,39 @@ const BucketBroadphase& CpuDetector::unpaired_tree() {
 // that needs it). Detector sorts the lists.
 
 bool CpuDetector::query_ray_first(const Ray& ray, const Filter* filter, RayHit& hit) {
-  bool found = broadphase_.ray_first(ray, {}, filter, hit, false);
+  bool found = broadphase_.ray_first(ray, main_objects(), filter, hit, false);
   if (!unpaired_ids_.empty()) found = unpaired_tree().ray_first(ray, unpaired_objects(), filter, hit, found);
   return found;
 }
 
 void CpuDetector::query_ray_all(const Ray& ray, const Filter* filter, std::vector<RayHit>& hits) {
-  broadphase_.ray_all(ray, {}, filter, hits);
+  broadphase_.ray_all(ray, main_objects(), filter, hits);
   if (!unpaired_ids_.empty()) unpaired_tree().ray_all(ray, unpaired_objects(), filter, hits);
 }
 
 void CpuDetector::query_ray_visit(const Ray& ray, const Filter* filter, RayVisitor& visitor) {
   float max_t = ray.max_t;  // lowered by the visitor in the first tree, it prunes the second
-  if (!broadphase_.ray_visit(ray, {}, filter, max_t, visitor)) return;
+  if (!broadphase_.ray_visit(ray, main_objects(), filter, max_t, visitor)) return;
   if (!unpaired_ids_.empty()) (void)unpaired_tree().ray_visit(ray, unpaired_objects(), filter, max_t, visitor);
 }
 
 void CpuDetector::query_sphere(const Sphere& sphere, const Filter* filter, std::vector<std::uint32_t>& indices) {
-  broadphase_.overlap(sphere, {}, filter, indices);
+  broadphase_.overlap(sphere, main_objects(), filter, indices);
   if (!unpaired_ids_.empty()) unpaired_tree().overlap(sphere, unpaired_objects(), filter, indices);
 }
 
 void CpuDetector::query_box(const Box& box, const Filter* filter, std::vector<std::uint32_t>& indices) {
-  broadphase_.overlap_box(box, {}, filter, indices);
+  broadphase_.overlap_box(box, main_objects(), filter, indices);
   if (!unpaired_ids_.empty()) unpaired_tree().overlap_box(box, unpaired_objects(), filter, indices);
 }
 
 void CpuDetector::query_sphere_visit(const Sphere& sphere, const Filter* filter, OverlapVisitor& visitor) {
-  if (!broadphase_.overlap_visit(sphere, {}, filter, visitor)) return;
+  if (!broadphase_.overlap_visit(sphere, main_objects(), filter, visitor)) return;
   if (!unpaired_ids_.empty()) (void)unpaired_tree().overlap_visit(sphere, unpaired_objects(), filter, visitor);
 }
 
 void CpuDetector::query_box_visit(const Box& box, const Filter* filter, OverlapVisitor& visitor) {
-  if (!broadphase_.overlap_box_visit(box, {}, filter, visitor)) return;
+  if (!broadphase_.overlap_box_visit(box, main_objects(), filter, visitor)) return;
   if (!unpaired_ids_.empty()) (void)unpaired_tree().overlap_box_visit(box, unpaired_objects(), filter, visitor);
 }
 

@@ -20,15 +20,18 @@ class CpuDetector final : public PipelineDetector {
   explicit CpuDetector(const Config& config) : PipelineDetector(config) {}
   [[nodiscard]] std::string_view name() const override { return "cpu"; }
   [[nodiscard]] std::uint64_t backend_memory_bytes() const override {
-    return raster_.memory_bytes() + broadphase_.memory_bytes() + unpaired_tree_.memory_bytes() +
-           bytes_of(unpaired_spheres_) + bytes_of(unpaired_ids_) + bytes_of(unpaired_filters_) + bytes_of(iota_);
+    return raster_.memory_bytes() + box_raster_.memory_bytes() + broadphase_.memory_bytes() +
+           unpaired_tree_.memory_bytes() + bytes_of(unpaired_spheres_) + bytes_of(unpaired_ids_) +
+           bytes_of(unpaired_filters_) + bytes_of(iota_) + bytes_of(proxies_) + bytes_of(reported_);
   }
   /// The broadphase of the last frame (its 16-wide tree over buckets, the sorted objects and codes),
   /// for tests.
   [[nodiscard]] const BucketBroadphase& bucket_broadphase() const { return broadphase_; }
 
  protected:
-  [[nodiscard]] bool answers_queries() const override { return true; }
+  /// Sphere frames: from the trees. Box frames: by brute force over the copy detect() keeps (the
+  /// trees' ray and overlap walks test sphere lanes).
+  [[nodiscard]] bool answers_queries() const override { return !broadphase_.holds_boxes(); }
   [[nodiscard]] bool query_ray_first(const Ray& ray, const Filter* filter, RayHit& hit) override;
   void query_ray_all(const Ray& ray, const Filter* filter, std::vector<RayHit>& hits) override;
   void query_ray_visit(const Ray& ray, const Filter* filter, RayVisitor& visitor) override;
@@ -38,36 +41,31 @@ class CpuDetector final : public PipelineDetector {
   void query_box_visit(const Box& box, const Filter* filter, OverlapVisitor& visitor) override;
 
  private:
-  void rasterize(const CameraRig& cam, std::span<const Sphere> spheres, int threads) override {
-    raster_.set_simd(simd_level_for(config_.simd));
-    raster_.run(cam, spheres, threads, map_);
-  }
-  Status broadphase(std::span<const Sphere> spheres, std::span<const std::uint32_t> pairable,
-                    std::span<const std::uint32_t> unpaired, std::span<const Filter> filters, int bits, int threads,
-                    std::vector<Pair>& pairs, FrameStats& stats) override {
-    // The objects left out of the tree, kept for queries with their filters (the tree's own
-    // filters are kept in sorted order by the broadphase); no copy without filters.
-    unpaired_built_ = false;
-    resize_with_headroom(unpaired_ids_, unpaired.size());
-    std::copy(unpaired.begin(), unpaired.end(), unpaired_ids_.begin());
-    resize_with_headroom(unpaired_spheres_, unpaired.size());
-    resize_with_headroom(unpaired_filters_, unpaired.size());
-    for (std::size_t k = 0; k < unpaired.size(); ++k) {
-      unpaired_spheres_[k] = spheres[unpaired[k]];
-      unpaired_filters_[k] = filters[unpaired[k]];
+  void rasterize(const CameraRig& cam, const Shapes& objects, int threads) override {
+    if (objects.is_box()) {
+      box_raster_.run(cam, objects.boxes, threads, map_);
+      return;
     }
-    broadphase_.set_keep_order(config_.keep_order);
-    broadphase_.set_simd(simd_level_for(config_.simd));
-    return broadphase_.run(spheres, pairable, filters, bits, config_.layout, threads, config_.pair_memory_cap, pairs,
-                           stats);
+    raster_.set_simd(simd_level_for(config_.simd));
+    raster_.run(cam, objects.spheres, threads, map_);
   }
+  Status broadphase(const Shapes& objects, std::span<const std::uint32_t> pairable,
+                    std::span<const std::uint32_t> unpaired, std::span<const Filter> filters, std::uint32_t static_from,
+                    int bits, int threads, std::vector<Pair>& pairs, FrameStats& stats) override;
   const BucketBroadphase& unpaired_tree();
   /// What the unpaired tree's queries report: its ids map to unpaired_ids_, with their filters.
   [[nodiscard]] BucketBroadphase::Objects unpaired_objects() const { return {unpaired_ids_, unpaired_filters_}; }
+  /// What the main tree's queries report: its ids as they are, or through reported_ when the
+  /// frame has static objects.
+  [[nodiscard]] BucketBroadphase::Objects main_objects() const { return {reported_, {}}; }
 
   TiledRasterizer raster_;
+  BoxRasterizer box_raster_;
+  std::vector<Sphere> proxies_;          // box frames: box_proxy() of each object, for stages 4-6
+  std::vector<std::uint32_t> reported_;  // frames with static objects: the index reported per object
   BucketBroadphase broadphase_;
-  // Active objects outside the tree (ascending ids, their spheres) and their tree, built lazily.
+  // Active objects outside the tree (their reported indices, spheres, filters) and their tree,
+  // built lazily.
   std::vector<std::uint32_t> unpaired_ids_, iota_;
   std::vector<Sphere> unpaired_spheres_;
   std::vector<Filter> unpaired_filters_;

@@ -11,7 +11,7 @@
 
 namespace viscd::detail {
 
-ActiveExtent active_extent(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int threads) {
+ActiveExtent active_extent(const Shapes& spheres, std::span<const std::uint32_t> active, int threads) {
   // Partial extents per chunk, merged in chunk order: the same for every executor.
   constexpr std::size_t kMaxChunks = 64;
   std::array<ActiveExtent, kMaxChunks> part{};
@@ -32,8 +32,8 @@ std::uint64_t MortonOrder::memory_bytes() const {
   return b;
 }
 
-MortonLayout layout_stage(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
-                          Layout layout, int threads, ActiveExtent& extent, FrameStats& stats) {
+MortonLayout layout_stage(const Shapes& spheres, std::span<const std::uint32_t> active, int bits, Layout layout,
+                          int threads, ActiveExtent& extent, FrameStats& stats) {
   VISCD_ASSERT(bits == 16 || bits == 32 || bits == 64, "Morton width must be 16, 32 or 64");
   Stopwatch sw;
   extent = active_extent(spheres, active, threads);

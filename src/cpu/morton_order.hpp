@@ -27,13 +27,12 @@ namespace viscd::detail {
 
 /// Stage 4's input: the extent of the active centres and their mean diameter, in parallel
 /// chunks (core's extent_of, merged in chunk order: the same for every thread count).
-[[nodiscard]] ActiveExtent active_extent(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
-                                         int threads);
+[[nodiscard]] ActiveExtent active_extent(const Shapes& spheres, std::span<const std::uint32_t> active, int threads);
 
 /// Stage 4: the extent of the active centres (`extent`) and the layout of m = `bits` over it;
 /// writes stats.bits, stats.layout and the stage's time.
-[[nodiscard]] MortonLayout layout_stage(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
-                                        int bits, Layout layout, int threads, ActiveExtent& extent, FrameStats& stats);
+[[nodiscard]] MortonLayout layout_stage(const Shapes& spheres, std::span<const std::uint32_t> active, int bits,
+                                        Layout layout, int threads, ActiveExtent& extent, FrameStats& stats);
 
 /// How a frame's stages 5-6 went (for tests and the bench).
 struct SortReport {

@@ -13,8 +13,9 @@
 namespace viscd::detail {
 
 std::uint64_t PipelineDetector::memory_bytes() const {
-  return map_.memory_bytes() + bytes_of(counts_) + bytes_of(hist_) + count_scratch_.memory_bytes() + bytes_of(active_) +
-         bytes_of(pairable_) + bytes_of(unpaired_) + backend_memory_bytes();
+  return map_.memory_bytes() + all_.memory_bytes() + bytes_of(counts_) + bytes_of(hist_) +
+         count_scratch_.memory_bytes() + bytes_of(active_) + bytes_of(pairable_) + bytes_of(unpaired_) +
+         backend_memory_bytes();
 }
 
 FilterSplit split_by_filters(std::span<const std::uint32_t> active, std::span<const Filter> filters,
@@ -38,7 +39,6 @@ FilterSplit split_by_filters(std::span<const std::uint32_t> active, std::span<co
 }
 
 Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
-  const std::span<const Sphere> spheres = in.spheres;
   const Camera* camera = in.camera;
   const bool callers_map = !in.id_map.empty();
   if (in.gl_id_texture != 0)
@@ -48,10 +48,13 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
   // Every parallel stage of this frame runs on the caller's executor, or on viscd's pool.
   const ExecutorScope scope(config_.executor);
   const int threads = resolve_threads(config_.threads, config_.executor ? config_.executor->concurrency() : 0);
-  const std::size_t n = spheres.size();
+  // The moving objects, then the static set's: drawn, always active, never paired with each other.
+  all_.build(in, static_set_);
+  const std::size_t n = all_.moving, total = all_.total();
   FrameStats& stats = out.stats;
   stats = FrameStats{};
   stats.objects = static_cast<std::uint32_t>(n);
+  stats.static_objects = static_cast<std::uint32_t>(total - n);
   stats.has_camera = camera != nullptr;
   stats.has_pixels = counts_pixels(in, config_);
   Stopwatch sw;
@@ -72,11 +75,12 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     const MapSize map = map_size(config_, *camera);
     rig.emplace(*camera, map.width, map.height);
     map_.resize(map.width, map.height, config_.shade);
-    rasterize(*rig, spheres, threads);
+    rasterize(*rig, all_.objects, threads);  // static objects occlude
     stats.ms(Stage::visibility) = sw.lap();
-    count_pixels(map_, n, threads, counts_, hist_, count_scratch_);
+    count_pixels(map_, total, threads, counts_, hist_, count_scratch_);
     stats.ms(Stage::count) = sw.lap();
-    bits = cull_and_choose_bits(counts_, rig->pixel_scale, config_, in.always_active, out.pixels, active_, stats);
+    bits = cull_and_choose_bits(std::span<const std::uint32_t>(counts_).first(n), rig->pixel_scale, config_,
+                                in.always_active, out.pixels, active_, stats);
     stats.ms(Stage::cull) = sw.lap();
   } else {
     // No camera, or one whose map nothing would use (culling off, fixed bits, no shading, no
@@ -88,34 +92,45 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     stats.active = static_cast<std::uint32_t>(n);
     bits = choose_bits(config_, false, 0.0);
   }
+  // Static objects are never culled (and stats.active counts the moving ones).
+  if (total > n) {
+    active_.reserve(total);
+    for (std::size_t k = n; k < total; ++k) active_.push_back(static_cast<std::uint32_t>(k));
+  }
+  const std::span<const Filter> filters = all_.filters;
 
   // Objects whose filters pair them with nothing active stay out of the tree.
   std::span<const std::uint32_t> pairable = active_, unpaired;
-  if (!in.filters.empty()) {
-    const FilterSplit split = split_by_filters(active_, in.filters, pairable_, unpaired_);
+  if (!filters.empty()) {
+    const FilterSplit split = split_by_filters(active_, filters, pairable_, unpaired_);
     pairable = split.pairable;
     unpaired = split.unpaired;
     stats.ms(Stage::cull) += sw.lap();
   }
 
-  if (Status s = broadphase(spheres, pairable, unpaired, in.filters, bits, threads, out.pairs, stats); !s) return s;
+  if (Status s = broadphase(all_.objects, pairable, unpaired, filters, static_cast<std::uint32_t>(n), bits, threads,
+                            out.pairs, stats);
+      !s)
+    return s;
   stats.pairs = out.pairs.size();
 
   sw.lap();
   // States: culled, free when active, colliding when in a pair. The pairs' writes may meet at an
   // object from two threads (the same value), so they are relaxed atomic stores.
   out.state.resize(n);
-  if (active_.size() == n) {
+  if (active_.size() == total) {
     parallel_for(n, threads, [&](std::size_t k) { out.state[k] = ObjectState::free; });
   } else {
     std::fill(out.state.begin(), out.state.end(), ObjectState::culled);
-    for (std::uint32_t k : active_) out.state[k] = ObjectState::free;
+    for (std::uint32_t k : active_)
+      if (k < n) out.state[k] = ObjectState::free;
   }
   parallel_for(out.pairs.size(), threads, [&](std::size_t k) {
-    const Pair& p = out.pairs[k];
+    const Pair& p = out.pairs[k];  // i is moving (no pair of two static objects); j may be static
     std::atomic_ref<ObjectState>(out.state[p.i]).store(ObjectState::colliding, std::memory_order_relaxed);
-    std::atomic_ref<ObjectState>(out.state[p.j]).store(ObjectState::colliding, std::memory_order_relaxed);
+    if (p.j < n) std::atomic_ref<ObjectState>(out.state[p.j]).store(ObjectState::colliding, std::memory_order_relaxed);
   });
+  all_.report(out.pairs);  // static objects as static_index(slot)
   stats.ms(Stage::query) += sw.lap();
 
   if (rig && config_.shade) {

@@ -9,6 +9,7 @@
 
 #include "core/backend.hpp"
 #include "core/frame_rules.hpp"
+#include "core/with_static.hpp"
 #include "cpu/visibility.hpp"
 
 namespace viscd::detail {
@@ -23,20 +24,23 @@ class PipelineDetector : public Backend {
  protected:
   explicit PipelineDetector(const Config& config) : Backend(config) {}
   [[nodiscard]] Status run_frame(const FrameInput& input, FrameResult& out) final;
-  /// Stage 1 into map_ (already sized).
-  virtual void rasterize(const CameraRig& cam, std::span<const Sphere> spheres, int threads) = 0;
+  /// Stage 1 into map_ (already sized): every object, the static ones after the moving ones.
+  virtual void rasterize(const CameraRig& cam, const Shapes& objects, int threads) = 0;
   /// Bytes held by the backend's own stages (raster, broadphase).
   [[nodiscard]] virtual std::uint64_t backend_memory_bytes() const = 0;
   /// Stages 4-8 over `pairable` (ascending: the active objects that can pair with another under
-  /// the filters, all active objects without filters); `filters` is empty or one per sphere and
-  /// decides each candidate pair. Writes sorted pairs and stats (bits, layout, stage times).
-  /// `unpaired` (ascending) are the active objects left out of `pairable`: they pair with nothing
-  /// but queries see them.
-  [[nodiscard]] virtual Status broadphase(std::span<const Sphere> spheres, std::span<const std::uint32_t> pairable,
+  /// the filters, all active objects without filters); `filters` is empty or one per object and
+  /// decides each candidate pair. Objects from `static_from` on are the static set's: no pair of
+  /// two of them is reported. Writes sorted pairs (of object indices; run_frame() reports the
+  /// static ones) and stats (bits, layout, stage times). `unpaired` (ascending) are the active
+  /// objects left out of `pairable`: they pair with nothing but queries see them.
+  [[nodiscard]] virtual Status broadphase(const Shapes& objects, std::span<const std::uint32_t> pairable,
                                           std::span<const std::uint32_t> unpaired, std::span<const Filter> filters,
-                                          int bits, int threads, std::vector<Pair>& pairs, FrameStats& stats) = 0;
+                                          std::uint32_t static_from, int bits, int threads, std::vector<Pair>& pairs,
+                                          FrameStats& stats) = 0;
 
   VisibilityMap map_;
+  WithStatic all_;  // this frame's objects with the static set's
 
  private:
   std::vector<std::uint32_t> counts_, hist_, active_, pairable_, unpaired_;

@@ -1,4 +1,4 @@
-// The reference backend: per-pixel ray casting against every sphere and brute-force pairs.
+// The reference backend: per-pixel ray casting against every object and brute-force pairs.
 // Deliberately simple; every other backend is tested against it.
 
 #include "core/stopwatch.hpp"
@@ -17,18 +17,17 @@ class ReferenceDetector final : public PipelineDetector {
   [[nodiscard]] std::uint64_t backend_memory_bytes() const override { return 0; }
 
  private:
-  void rasterize(const CameraRig& cam, std::span<const Sphere> spheres, int) override {
-    rasterize_reference(cam, spheres, map_);
-  }
+  void rasterize(const CameraRig& cam, const Shapes& objects, int) override { rasterize_reference(cam, objects, map_); }
   // Queries: the base class's brute force over the active spheres (answers_queries() is false).
-  Status broadphase(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
-                    std::span<const std::uint32_t>, std::span<const Filter> filters, int bits, int threads,
+  Status broadphase(const Shapes& objects, std::span<const std::uint32_t> active, std::span<const std::uint32_t>,
+                    std::span<const Filter> filters, std::uint32_t static_from, int bits, int threads,
                     std::vector<Pair>& pairs, FrameStats& stats) override {
     // Report the same m and layout as the LBVH backends would, so stats compare one to one.
     ActiveExtent extent;
-    (void)layout_stage(spheres, active, bits, config_.layout, threads, extent, stats);
+    (void)layout_stage(objects, active, bits, config_.layout, threads, extent, stats);
     Stopwatch sw;
-    const bool complete = brute_force_pairs(spheres, active, pairs, pairs_within_cap(config_.pair_memory_cap), filters);
+    const bool complete =
+        brute_force_pairs(objects, active, pairs, pairs_within_cap(config_.pair_memory_cap), filters, static_from);
     stats.ms(Stage::query) = sw.lap();
     if (!complete) return check_pair_cap(pairs.size() + 1, config_.pair_memory_cap, true);
     return {};

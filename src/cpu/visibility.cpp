@@ -4,6 +4,7 @@
 #include <atomic>
 #include <bit>
 #include <cmath>
+#include <limits>
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -30,7 +31,7 @@ void VisibilityMap::resize(int w, int h, bool with_normals) {
   has_counts = false;
 }
 
-void write_normal(const CameraRig& cam, std::span<const Sphere> spheres, VisibilityMap& map, int px, int py) {
+void write_normal(const CameraRig& cam, const Shapes& objects, VisibilityMap& map, int px, int py) {
   const std::size_t i =
       static_cast<std::size_t>(py) * static_cast<std::size_t>(map.width) + static_cast<std::size_t>(px);
   float* n = &map.normal[3 * i];
@@ -39,10 +40,26 @@ void write_normal(const CameraRig& cam, std::span<const Sphere> spheres, Visibil
     n[0] = n[1] = n[2] = 0;
     return;
   }
-  const Sphere& s = spheres[id - 1];
   const Vec3 d = cam.dir(px, py);
   const float t = map.depth[i];
-  const Vec3 p = {cam.eye.x + t * d.x - s.x, cam.eye.y + t * d.y - s.y, cam.eye.z + t * d.z - s.z};
+  const Vec3 hit_point = {cam.eye.x + t * d.x, cam.eye.y + t * d.y, cam.eye.z + t * d.z};
+  if (objects.is_box()) {
+    // The face nearest the hit point.
+    const Box& b = objects.boxes[id - 1];
+    const float p[3] = {hit_point.x, hit_point.y, hit_point.z};
+    int axis = 0;
+    float sign = -1, best = std::numeric_limits<float>::infinity();
+    for (int k = 0; k < 3; ++k) {
+      const float to_min = std::fabs(p[k] - b.min[k]), to_max = std::fabs(p[k] - b.max[k]);
+      if (to_min < best) best = to_min, axis = k, sign = -1;
+      if (to_max < best) best = to_max, axis = k, sign = 1;
+    }
+    n[0] = n[1] = n[2] = 0;
+    n[axis] = sign;
+    return;
+  }
+  const Sphere& s = objects.spheres[id - 1];
+  const Vec3 p = {hit_point.x - s.x, hit_point.y - s.y, hit_point.z - s.z};
   const float l = std::sqrt(dot(p, p));
   if (l > 0) {
     n[0] = p.x / l, n[1] = p.y / l, n[2] = p.z / l;
@@ -51,15 +68,15 @@ void write_normal(const CameraRig& cam, std::span<const Sphere> spheres, Visibil
   }
 }
 
-void rasterize_reference(const CameraRig& cam, std::span<const Sphere> spheres, VisibilityMap& map) {
+void rasterize_reference(const CameraRig& cam, const Shapes& objects, VisibilityMap& map) {
   map.stamp = 0;  // (bookkeeping: the content is no longer the cpu rasterizer's)
   for (int py = 0; py < map.height; ++py) {
     for (int px = 0; px < map.width; ++px) {
       const Vec3 d = cam.dir(px, py);
       float best = std::numeric_limits<float>::infinity();
       std::uint32_t best_id = 0;
-      for (std::size_t k = 0; k < spheres.size(); ++k) {
-        const float t = hit(cam, d, spheres[k]);
+      for (std::size_t k = 0; k < objects.size(); ++k) {
+        const float t = objects.is_box() ? hit_box(cam, d, objects.boxes[k]) : hit(cam, d, objects.spheres[k]);
         if (t >= 0.0f && t < best) {  // ascending k: ties keep the smaller id
           best = t;
           best_id = static_cast<std::uint32_t>(k + 1);
@@ -69,9 +86,61 @@ void rasterize_reference(const CameraRig& cam, std::span<const Sphere> spheres, 
           static_cast<std::size_t>(py) * static_cast<std::size_t>(map.width) + static_cast<std::size_t>(px);
       map.ids[i] = best_id;
       map.depth[i] = best_id ? best : cam.far_plane;
-      if (!map.normal.empty()) write_normal(cam, spheres, map, px, py);
+      if (!map.normal.empty()) write_normal(cam, objects, map, px, py);
     }
   }
+}
+
+void BoxRasterizer::run(const CameraRig& cam, std::span<const Box> boxes, int threads, VisibilityMap& map) {
+  map.stamp = 0;
+  map.has_counts = false;
+  const int bands = (map.height + kBand - 1) / kBand;
+  // Each box's rectangle, and the boxes binned by band of rows (in ascending index in each band:
+  // a counting sort), so that each band's pixels see their boxes in index order.
+  rects_.resize(boxes.size());
+  parallel_for(boxes.size(), threads, [&](std::size_t k) { rects_[k] = box_rect(cam, boxes[k]); });
+  band_start_.assign(static_cast<std::size_t>(bands) + 1, 0);
+  for (const PixelRect& r : rects_)
+    if (r.x0 < r.x1 && r.y0 < r.y1)
+      for (int b = r.y0 / kBand; b <= (r.y1 - 1) / kBand; ++b) ++band_start_[static_cast<std::size_t>(b) + 1];
+  for (std::size_t b = 0; b < static_cast<std::size_t>(bands); ++b) band_start_[b + 1] += band_start_[b];
+  items_.resize(band_start_.back());
+  fill_.assign(band_start_.begin(), band_start_.end() - 1);
+  for (std::size_t k = 0; k < rects_.size(); ++k) {
+    const PixelRect& r = rects_[k];
+    if (r.x0 < r.x1 && r.y0 < r.y1)
+      for (int b = r.y0 / kBand; b <= (r.y1 - 1) / kBand; ++b)
+        items_[fill_[static_cast<std::size_t>(b)]++] = static_cast<std::uint32_t>(k);
+  }
+  const std::size_t w = static_cast<std::size_t>(map.width);
+  const Shapes objects(boxes);
+  parallel_for(static_cast<std::size_t>(bands), threads, [&](std::size_t band) {
+    const int y_begin = static_cast<int>(band) * kBand, y_end = std::min(map.height, y_begin + kBand);
+    for (int y = y_begin; y < y_end; ++y) {
+      std::fill_n(&map.ids[static_cast<std::size_t>(y) * w], w, 0u);
+      std::fill_n(&map.depth[static_cast<std::size_t>(y) * w], w, std::numeric_limits<float>::infinity());
+    }
+    for (std::size_t item = band_start_[band]; item < band_start_[band + 1]; ++item) {
+      const std::uint32_t k = items_[item];
+      const PixelRect& r = rects_[k];
+      const int y0 = std::max(r.y0, y_begin), y1 = std::min(r.y1, y_end);
+      for (int y = y0; y < y1; ++y)
+        for (int x = r.x0; x < r.x1; ++x) {
+          const float t = hit_box(cam, cam.dir(x, y), boxes[k]);
+          const std::size_t i = static_cast<std::size_t>(y) * w + static_cast<std::size_t>(x);
+          if (t >= 0.0f && t < map.depth[i]) {  // ascending k: ties keep the smaller id
+            map.depth[i] = t;
+            map.ids[i] = k + 1;
+          }
+        }
+    }
+    for (int y = y_begin; y < y_end; ++y)
+      for (int x = 0; x < map.width; ++x) {
+        const std::size_t i = static_cast<std::size_t>(y) * w + static_cast<std::size_t>(x);
+        if (map.ids[i] == 0) map.depth[i] = cam.far_plane;
+        if (!map.normal.empty()) write_normal(cam, objects, map, x, y);
+      }
+  });
 }
 
 namespace {
@@ -194,7 +263,8 @@ void shade(const CameraRig& cam, const VisibilityMap& map, std::span<const Objec
       out[0] = kBackgroundColour.r, out[1] = kBackgroundColour.g, out[2] = kBackgroundColour.b;
       return;
     }
-    const Rgb8 base = state_colour(state[id - 1]);
+    // Ids beyond the moving objects' are the static set's (drawn after them).
+    const Rgb8 base = id <= state.size() ? state_colour(state[id - 1]) : kStaticColour;
     const Vec3 nrm = {map.normal[3 * i], map.normal[3 * i + 1], map.normal[3 * i + 2]};
     // Lambert plus a little ambient and a rim from the view direction, so spheres read as round.
     const float diffuse = std::max(0.0f, dot(nrm, model.light));

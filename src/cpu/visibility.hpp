@@ -10,6 +10,7 @@
 #include <span>
 #include <vector>
 
+#include "core/shapes.hpp"
 #include "core/visibility.hpp"
 
 namespace viscd::detail {
@@ -54,11 +55,31 @@ struct VisibilityMap {
   }
 };
 
-/// Fills the normal of a map pixel from its id and depth.
-void write_normal(const CameraRig& cam, std::span<const Sphere> spheres, VisibilityMap& map, int px, int py);
+/// Fills the normal of a map pixel from its id and depth (a box: the normal of the face nearest
+/// the hit point).
+void write_normal(const CameraRig& cam, const Shapes& objects, VisibilityMap& map, int px, int py);
 
-/// The reference rasterizer: for every pixel, every sphere. O(W H N); the oracle.
-void rasterize_reference(const CameraRig& cam, std::span<const Sphere> spheres, VisibilityMap& map);
+/// The reference rasterizer: for every pixel, every object (hit(), hit_box()). O(W H N); the oracle.
+void rasterize_reference(const CameraRig& cam, const Shapes& objects, VisibilityMap& map);
+
+/// The cpu backend's map of boxes: each box's conservative rectangle (box_rect()), the boxes
+/// binned by bands of kBand rows, and per band, in parallel, hit_box() over each box's pixels in
+/// index order, so the map equals the reference's bit for bit (nearest hit, ties to the smaller
+/// id). O(N + the pixels of the rectangles). Counts are left to count_pixels().
+class BoxRasterizer {
+ public:
+  static constexpr int kBand = 16;
+  void run(const CameraRig& cam, std::span<const Box> boxes, int threads, VisibilityMap& map);
+  [[nodiscard]] std::uint64_t memory_bytes() const {
+    return rects_.capacity() * sizeof(PixelRect) + (band_start_.capacity() + fill_.capacity()) * sizeof(std::size_t) +
+           items_.capacity() * sizeof(std::uint32_t);
+  }
+
+ private:
+  std::vector<PixelRect> rects_;
+  std::vector<std::size_t> band_start_, fill_;
+  std::vector<std::uint32_t> items_;
+};
 
 /// count_ids()'s buffers, kept between frames: per range of rows but the first, a histogram (all
 /// zero between calls) and the ids it touched.
@@ -86,7 +107,8 @@ struct CountScratch {
 void count_pixels(const VisibilityMap& map, std::size_t objects, int threads, std::vector<std::uint32_t>& counts,
                   std::vector<std::uint32_t>& hist, CountScratch& scratch);
 
-/// Stage 9: lit spheres, red colliding, blue free, yellow culled; dark background. RGBA8.
+/// Stage 9: lit objects, red colliding, blue free, yellow culled, grey static (ids above
+/// state.size()); dark background. RGBA8.
 void shade(const CameraRig& cam, const VisibilityMap& map, std::span<const ObjectState> state, int threads,
            std::vector<std::uint8_t>& rgba);
 

@@ -73,6 +73,12 @@ void GlDetector::wait_for_stage_times(FrameStats& stats) {
 // ---- the frame ----
 
 Status GlDetector::run_frame(const FrameInput& input, FrameResult& out) {
+  if (!input.boxes.empty())
+    return Status::failure(ErrorKind::unsupported_input,
+                           "the gl backend does not take boxes yet; use cpu or reference");
+  if (!static_set_.empty())
+    return Status::failure(ErrorKind::unsupported_input,
+                           "the gl backend does not take a static set yet; use cpu or reference");
   try {
     return detect_frame(input, out);
   } catch (const std::bad_alloc&) {

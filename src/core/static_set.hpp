@@ -1,0 +1,68 @@
+#pragma once
+// The detector's static set (Detector::set_static_spheres and the rest): objects in slots, each
+// live or free, with a filter. Changes cost O(1) each (plus O(log) for the free slots). Backends
+// read the set two ways: compact() lists the live objects in slot order (rebuilt on the first call
+// after a change: O(live objects)), and version() tells a backend that keeps structures of its own
+// over the set whether anything changed since it last looked.
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "core/shapes.hpp"
+#include "viscd/result.hpp"
+#include "viscd/types.hpp"
+
+namespace viscd::detail {
+
+class StaticSet {
+ public:
+  [[nodiscard]] ShapeKind kind() const { return kind_; }
+  [[nodiscard]] std::size_t size() const { return live_count_; }
+  [[nodiscard]] bool empty() const { return live_count_ == 0; }
+  /// Bumped by every change.
+  [[nodiscard]] std::uint64_t version() const { return version_; }
+
+  [[nodiscard]] Status set(std::span<const Sphere> spheres, std::span<const Filter> filters);
+  [[nodiscard]] Status set(std::span<const Box> boxes, std::span<const Filter> filters);
+  [[nodiscard]] Result<std::uint32_t> add(const Sphere& sphere, const Filter& filter);
+  [[nodiscard]] Result<std::uint32_t> add(const Box& box, const Filter& filter);
+  [[nodiscard]] Status move(std::uint32_t k, const Sphere& sphere);
+  [[nodiscard]] Status move(std::uint32_t k, const Box& box);
+  [[nodiscard]] Status remove(std::uint32_t k);
+  void clear();
+
+  /// The live objects in slot order, their filters and slots.
+  struct Compact {
+    Shapes shapes;
+    std::span<const Filter> filters;  ///< one per live object
+    bool filtered = false;            ///< some filter is not Filter{}
+    std::span<const std::uint32_t> slots;
+  };
+  [[nodiscard]] const Compact& compact();
+
+  [[nodiscard]] std::uint64_t memory_bytes() const;
+
+ private:
+  [[nodiscard]] Status check_kind(ShapeKind kind, const char* what) const;
+  [[nodiscard]] Status check_slot(std::uint32_t k) const;
+  std::uint32_t take_slot();
+  void changed() { ++version_; }
+
+  ShapeKind kind_ = ShapeKind::sphere;
+  std::vector<Sphere> spheres_;  // by slot (sphere sets)
+  std::vector<Box> boxes_;       // by slot (box sets)
+  std::vector<Filter> filters_;  // by slot
+  std::vector<std::uint8_t> live_;
+  std::vector<std::uint32_t> free_;  // free slots, a min-heap
+  std::size_t live_count_ = 0;
+  std::uint64_t version_ = 0, compact_version_ = ~std::uint64_t{0};
+
+  std::vector<Sphere> compact_spheres_;
+  std::vector<Box> compact_boxes_;
+  std::vector<Filter> compact_filters_;
+  std::vector<std::uint32_t> compact_slots_;
+  Compact compact_;
+};
+
+}  // namespace viscd::detail
