@@ -67,41 +67,49 @@ const BucketBroadphase& CpuDetector::unpaired_tree() {
 }
 
 // Each query searches the main tree, then the unpaired objects' tree (built on the first query
-// that needs it). Detector sorts the lists.
+// that needs it); after a box frame, the base class's brute force over detect()'s copy. Detector
+// sorts the lists.
 
 bool CpuDetector::query_ray_first(const Ray& ray, const Filter* filter, RayHit& hit) {
+  if (broadphase_.holds_boxes()) return PipelineDetector::query_ray_first(ray, filter, hit);
   bool found = broadphase_.ray_first(ray, main_objects(), filter, hit, false);
   if (!unpaired_ids_.empty()) found = unpaired_tree().ray_first(ray, unpaired_objects(), filter, hit, found);
   return found;
 }
 
 void CpuDetector::query_ray_all(const Ray& ray, const Filter* filter, std::vector<RayHit>& hits) {
+  if (broadphase_.holds_boxes()) return PipelineDetector::query_ray_all(ray, filter, hits);
   broadphase_.ray_all(ray, main_objects(), filter, hits);
   if (!unpaired_ids_.empty()) unpaired_tree().ray_all(ray, unpaired_objects(), filter, hits);
 }
 
 void CpuDetector::query_ray_visit(const Ray& ray, const Filter* filter, RayVisitor& visitor) {
+  if (broadphase_.holds_boxes()) return PipelineDetector::query_ray_visit(ray, filter, visitor);
   float max_t = ray.max_t;  // lowered by the visitor in the first tree, it prunes the second
   if (!broadphase_.ray_visit(ray, main_objects(), filter, max_t, visitor)) return;
   if (!unpaired_ids_.empty()) (void)unpaired_tree().ray_visit(ray, unpaired_objects(), filter, max_t, visitor);
 }
 
 void CpuDetector::query_sphere(const Sphere& sphere, const Filter* filter, std::vector<std::uint32_t>& indices) {
+  if (broadphase_.holds_boxes()) return PipelineDetector::query_sphere(sphere, filter, indices);
   broadphase_.overlap(sphere, main_objects(), filter, indices);
   if (!unpaired_ids_.empty()) unpaired_tree().overlap(sphere, unpaired_objects(), filter, indices);
 }
 
 void CpuDetector::query_box(const Box& box, const Filter* filter, std::vector<std::uint32_t>& indices) {
+  if (broadphase_.holds_boxes()) return PipelineDetector::query_box(box, filter, indices);
   broadphase_.overlap_box(box, main_objects(), filter, indices);
   if (!unpaired_ids_.empty()) unpaired_tree().overlap_box(box, unpaired_objects(), filter, indices);
 }
 
 void CpuDetector::query_sphere_visit(const Sphere& sphere, const Filter* filter, OverlapVisitor& visitor) {
+  if (broadphase_.holds_boxes()) return PipelineDetector::query_sphere_visit(sphere, filter, visitor);
   if (!broadphase_.overlap_visit(sphere, main_objects(), filter, visitor)) return;
   if (!unpaired_ids_.empty()) (void)unpaired_tree().overlap_visit(sphere, unpaired_objects(), filter, visitor);
 }
 
 void CpuDetector::query_box_visit(const Box& box, const Filter* filter, OverlapVisitor& visitor) {
+  if (broadphase_.holds_boxes()) return PipelineDetector::query_box_visit(box, filter, visitor);
   if (!broadphase_.overlap_box_visit(box, main_objects(), filter, visitor)) return;
   if (!unpaired_ids_.empty()) (void)unpaired_tree().overlap_box_visit(box, unpaired_objects(), filter, visitor);
 }
