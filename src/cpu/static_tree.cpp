@@ -133,33 +133,59 @@ std::size_t StaticTree::parts(Part out[2]) const {
 
 namespace {
 
+// The pairs of the moving buckets of group g (the 16 under node g of the moving tree's lowest
+// level) with one static tree: one walk of the static tree with the group's box collects the
+// static buckets that can meet any of them, then each moving bucket tests its box against those
+// candidates 16 at a time (as the moving search does, cpu/bucket_search.cpp); per static bucket
+// met, the moving lanes that reach it against all 16 static lanes. Past kMaxCandidates (a huge
+// object), each moving bucket walks the tree itself.
 template <class K>
 void cross_pairs(const BucketBroadphase& moving, std::span<const Filter> moving_filters, const BucketBroadphase& st,
-                 std::span<const std::uint32_t> st_reported, std::span<const Filter> st_filters, std::size_t b,
+                 std::span<const std::uint32_t> st_reported, std::span<const Filter> st_filters, std::size_t g,
                  std::vector<std::uint64_t>& out) {
+  constexpr std::uint32_t kMaxCandidates = 512;
   const auto ml = K::of(moving);
   const auto sl = K::of(st);
   const std::span<const Aabb> mboxes = moving.leaf_boxes();
   const std::span<const Aabb> sboxes = st.leaf_boxes();
   const std::span<const std::uint32_t> mids = moving.sorted_objects();
   const std::span<const std::uint32_t> sids = st.sorted_objects();
-  const std::span<const Filter> sfil = st_filters;
-  const std::size_t m_first = b * kBucket;
-  for_each_wide_overlap(st.tree(), mboxes[b], [&](std::uint32_t sb) {
-    const std::size_t s_first = std::size_t{sb} * kBucket;
+  const std::size_t buckets = buckets_for(mids.size());
+  const std::size_t b0 = g * kWide, b1 = std::min(buckets, b0 + kWide);
+  auto bucket_pair = [&](std::size_t b, std::uint32_t sb) {
+    const std::size_t m_first = b * kBucket, s_first = std::size_t{sb} * kBucket;
     for (std::uint32_t near = K::near(ml[b], sboxes[sb]); near; near &= near - 1) {
       const auto i = static_cast<std::uint32_t>(std::countr_zero(near));
       const std::size_t p = m_first + i;
-      if (p >= mids.size()) break;
       const Filter mf = moving_filters.empty() ? Filter{} : moving_filters[p];
       for (std::uint32_t m = K::exact(sl[sb], ml[b], i); m; m &= m - 1) {
-        const std::size_t q = s_first + static_cast<std::size_t>(std::countr_zero(m));
-        const std::uint32_t id = sids[q];
-        if (!pair_passes_filter(mf, sfil[id])) continue;
-        out.push_back(std::uint64_t{mids[p]} << 32 | st_reported[id]);
+        const std::uint32_t id = sids[s_first + static_cast<std::size_t>(std::countr_zero(m))];
+        if (pair_passes_filter(mf, st_filters[id])) out.push_back(std::uint64_t{mids[p]} << 32 | st_reported[id]);
       }
     }
+  };
+  WideNode box[kMaxCandidates / kWide];
+  std::uint32_t index[kMaxCandidates];
+  std::uint32_t count = 0;
+  bool overflow = false;
+  for_each_wide_overlap(st.tree(), moving.tree().level[0][g].box(), [&](std::uint32_t sb) {
+    if (count == kMaxCandidates) {
+      overflow = true;
+      return;
+    }
+    box[count / kWide].set_child(count % kWide, sboxes[sb]);
+    index[count++] = sb;
   });
+  if (overflow) {
+    for (std::size_t b = b0; b < b1; ++b)
+      for_each_wide_overlap(st.tree(), mboxes[b], [&](std::uint32_t sb) { bucket_pair(b, sb); });
+    return;
+  }
+  for (std::uint32_t l = count % kWide; l != 0 && l < kWide; ++l) box[count / kWide].set_child(l, Aabb{});
+  for (std::size_t b = b0; b < b1; ++b)
+    for (std::uint32_t k = 0; k * kWide < count; ++k)
+      for (std::uint32_t m = SimdBaseline::node_children(box[k], mboxes[b]); m; m &= m - 1)
+        bucket_pair(b, index[k * kWide + static_cast<std::uint32_t>(std::countr_zero(m))]);
 }
 
 }  // namespace
@@ -169,11 +195,11 @@ bool StaticTree::pairs(const BucketBroadphase& moving, std::span<const Filter> m
   out.clear();
   const std::size_t n = moving.sorted_objects().size();
   if (n == 0 || live_ == 0) return true;
-  const std::size_t buckets = buckets_for(n);
-  const std::size_t chunks = threads_for(n, threads) == 1 ? 1 : std::min<std::size_t>(buckets, 8 * threads);
+  const std::size_t groups = (buckets_for(n) + kWide - 1) / kWide;
+  const std::size_t chunks = threads_for(n, threads) == 1 ? 1 : std::min<std::size_t>(groups, 8 * threads);
   if (lists_.size() < chunks) lists_.resize(chunks);
   std::atomic<bool> over{false};
-  for_chunks(buckets, chunks, [&](std::size_t begin, std::size_t end, std::size_t c) {
+  for_chunks(groups, chunks, [&](std::size_t begin, std::size_t end, std::size_t c) {
     std::vector<std::uint64_t>& list = lists_[c];
     list.clear();
     for (std::size_t b = begin; b < end && !over.load(std::memory_order_relaxed); ++b) {

@@ -9,10 +9,11 @@
 // in it. When delta and the objects taken out of main pass an eighth of main (and a floor), main
 // is rebuilt from the whole set, so each change costs O(log) amortised and the trees stay tight.
 //
-// Each frame the moving objects' tree (already built) meets both trees: per moving bucket, a walk
-// of each static tree with the bucket's box, then per static bucket whose box it meets, the
-// moving lanes that reach it tested against all 16 static lanes at once (the exact test of the
-// frame's kind). Pairs come out as (moving object, static_index(slot)), sorted.
+// Each frame the moving objects' tree (already built) meets both trees: per group of 16 moving
+// buckets, a walk of each static tree with the group's box for candidate static buckets, each
+// moving bucket's box against those, then per static bucket met, the moving lanes that reach it
+// tested against all 16 static lanes at once (the exact test of the frame's kind). Pairs come out
+// as (moving object, static_index(slot)), sorted.
 
 #include <cstdint>
 #include <span>
