@@ -259,7 +259,9 @@ TEST_P(ConformanceFrames, QueriesOnBoxes) {
     EXPECT_EQ(hits, want) << "ray " << q;
     RayHit first;
     EXPECT_EQ(detector_->ray_cast(ray, first), !want.empty());
-    if (!want.empty()) EXPECT_EQ(first, want.front());
+    if (!want.empty()) {
+      EXPECT_EQ(first, want.front());
+    }
     const Sphere qs{u(rng), u(rng), u(rng), 1.5f};
     const Box qb = cube(u(rng), u(rng), u(rng), 1.5f);
     std::vector<std::uint32_t> want_s, want_b, got_s, got_b;
