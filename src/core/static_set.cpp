@@ -31,6 +31,31 @@ Status filter_count_error(std::size_t filters, std::size_t objects) {
 
 }  // namespace
 
+void StaticSet::touched(std::uint32_t k) {
+  changed();
+  if (changes_.reset) return;
+  // A list longer than the set says less than a reset.
+  if (changes_.slots.size() >= live_.size() + 64) {
+    changes_.reset = true;
+    changes_.slots.clear();
+    return;
+  }
+  changes_.slots.push_back(k);
+}
+
+void StaticSet::replaced() {
+  changed();
+  changes_.reset = true;
+  changes_.slots.clear();
+}
+
+StaticSet::Changes StaticSet::take_changes() {
+  Changes out = std::move(changes_);
+  changes_ = Changes{false, {}};
+  changes_.slots.reserve(out.slots.capacity());
+  return out;
+}
+
 Status StaticSet::check_kind(ShapeKind kind, const char* what) const {
   if (live_count_ == 0 || kind == kind_) return {};
   return Status::failure(ErrorKind::invalid_input, std::string(what) + ": the static set holds " + kind_name(kind_) +
@@ -74,6 +99,8 @@ Status StaticSet::set(std::span<const Sphere> spheres, std::span<const Filter> f
     filters_.assign(filters.begin(), filters.end());
   live_.assign(spheres.size(), 1);
   live_count_ = spheres.size();
+  for (const Filter& f : filters_) groups_ |= f.group, masks_ |= f.mask;
+  replaced();
   return {};
 }
 
@@ -89,6 +116,8 @@ Status StaticSet::set(std::span<const Box> boxes, std::span<const Filter> filter
     filters_.assign(filters.begin(), filters.end());
   live_.assign(boxes.size(), 1);
   live_count_ = boxes.size();
+  for (const Filter& f : filters_) groups_ |= f.group, masks_ |= f.mask;
+  replaced();
   return {};
 }
 
@@ -105,9 +134,10 @@ Result<std::uint32_t> StaticSet::add(const Sphere& sphere, const Filter& filter)
   const std::uint32_t k = take_slot();
   spheres_[k] = sphere;
   filters_[k] = filter;
+  groups_ |= filter.group, masks_ |= filter.mask;
   live_[k] = 1;
   ++live_count_;
-  changed();
+  touched(k);
   return k;
 }
 
@@ -123,9 +153,10 @@ Result<std::uint32_t> StaticSet::add(const Box& box, const Filter& filter) {
   const std::uint32_t k = take_slot();
   boxes_[k] = box;
   filters_[k] = filter;
+  groups_ |= filter.group, masks_ |= filter.mask;
   live_[k] = 1;
   ++live_count_;
-  changed();
+  touched(k);
   return k;
 }
 
@@ -134,7 +165,7 @@ Status StaticSet::move(std::uint32_t k, const Sphere& sphere) {
   if (kind_ != ShapeKind::sphere) return check_kind(ShapeKind::sphere, "move_static_sphere");
   if (Status s = validate_spheres({&sphere, 1}); !s) return one_object_error(s, "sphere");
   spheres_[k] = sphere;
-  changed();
+  touched(k);
   return {};
 }
 
@@ -143,7 +174,7 @@ Status StaticSet::move(std::uint32_t k, const Box& box) {
   if (kind_ != ShapeKind::box) return check_kind(ShapeKind::box, "move_static_box");
   if (Status s = validate_boxes({&box, 1}); !s) return one_object_error(s, "box");
   boxes_[k] = box;
-  changed();
+  touched(k);
   return {};
 }
 
@@ -153,7 +184,7 @@ Status StaticSet::remove(std::uint32_t k) {
   --live_count_;
   free_.push_back(k);
   std::push_heap(free_.begin(), free_.end(), std::greater<>());
-  changed();
+  touched(k);
   return {};
 }
 
@@ -164,7 +195,8 @@ void StaticSet::clear() {
   live_.clear();
   free_.clear();
   live_count_ = 0;
-  changed();
+  groups_ = masks_ = 0;
+  replaced();
 }
 
 const StaticSet::Compact& StaticSet::compact() {

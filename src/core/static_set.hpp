@@ -41,6 +41,26 @@ class StaticSet {
   };
   [[nodiscard]] const Compact& compact();
 
+  /// The slots added, moved or removed since the last take_changes() (with repeats), or `reset`
+  /// when the set was replaced or cleared (or too much changed to list): then all of it is new.
+  struct Changes {
+    bool reset = true;
+    std::vector<std::uint32_t> slots;
+  };
+  /// Hands the changes over and starts a new list.
+  [[nodiscard]] Changes take_changes();
+  /// The live object in slot k (of the set's kind), and its filter.
+  [[nodiscard]] const Sphere& sphere(std::uint32_t k) const { return spheres_[k]; }
+  [[nodiscard]] const Box& box(std::uint32_t k) const { return boxes_[k]; }
+  [[nodiscard]] const Filter& filter(std::uint32_t k) const { return filters_[k]; }
+  [[nodiscard]] bool live(std::uint32_t k) const { return k < live_.size() && live_[k] != 0; }
+  /// Slots in use or free (every slot is below this).
+  [[nodiscard]] std::size_t slot_count() const { return live_.size(); }
+  /// The OR of the groups and of the masks of every filter the set held since it was last
+  /// replaced or cleared: never less than the live objects' (the filters' pre-pass needs no more).
+  [[nodiscard]] std::uint32_t groups() const { return groups_; }
+  [[nodiscard]] std::uint32_t masks() const { return masks_; }
+
   [[nodiscard]] std::uint64_t memory_bytes() const;
 
  private:
@@ -48,6 +68,8 @@ class StaticSet {
   [[nodiscard]] Status check_slot(std::uint32_t k) const;
   std::uint32_t take_slot();
   void changed() { ++version_; }
+  void touched(std::uint32_t k);
+  void replaced();
 
   ShapeKind kind_ = ShapeKind::sphere;
   std::vector<Sphere> spheres_;  // by slot (sphere sets)
@@ -57,6 +79,8 @@ class StaticSet {
   std::vector<std::uint32_t> free_;  // free slots, a min-heap
   std::size_t live_count_ = 0;
   std::uint64_t version_ = 0, compact_version_ = ~std::uint64_t{0};
+  Changes changes_;
+  std::uint32_t groups_ = 0, masks_ = 0;
 
   std::vector<Sphere> compact_spheres_;
   std::vector<Box> compact_boxes_;

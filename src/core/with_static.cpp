@@ -2,16 +2,16 @@
 
 namespace viscd::detail {
 
-void WithStatic::build(const FrameInput& in, StaticSet& set) {
+void WithStatic::build(const FrameInput& in, StaticSet* static_set) {
   const Shapes frame = Shapes::of(in);
   moving = frame.size();
-  if (set.empty()) {
+  if (static_set == nullptr || static_set->empty()) {
     objects = frame;
     filters = in.filters;
     slots = {};
     return;
   }
-  const StaticSet::Compact& st = set.compact();
+  const StaticSet::Compact& st = static_set->compact();
   const std::size_t k = st.shapes.size();
   if (st.shapes.is_box()) {
     boxes_.resize(moving + k);

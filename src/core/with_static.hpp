@@ -18,8 +18,9 @@ namespace viscd::detail {
 
 class WithStatic {
  public:
-  /// The frame's objects and the set's (a view of the input, no copy, when the set is empty).
-  void build(const FrameInput& in, StaticSet& set);
+  /// The frame's objects and the set's (a view of the input, no copy, when the set is null or
+  /// empty).
+  void build(const FrameInput& in, StaticSet* set);
 
   Shapes objects;                        ///< moving, then static
   std::span<const Filter> filters;       ///< one per object, or empty when neither the frame nor the set has any

@@ -1,5 +1,7 @@
 #include "cpu/bucket_broadphase.hpp"
 
+#include <algorithm>
+
 #include "core/stopwatch.hpp"
 #include "cpu/bucket_search.hpp"
 #include "viscd/assert.hpp"
@@ -7,8 +9,8 @@
 namespace viscd::detail {
 
 std::uint64_t BucketBroadphase::memory_bytes() const {
-  std::uint64_t b =
-      order_.memory_bytes() + buckets_.memory_bytes() + keep_order_.memory_bytes() + pairs_.memory_bytes();
+  std::uint64_t b = order_.memory_bytes() + buckets_.memory_bytes() + keep_order_.memory_bytes() +
+                    pairs_.memory_bytes() + bytes_of(position_);
   for (const auto& level : tree_.level) b += bytes_of(level);
   return b;
 }
@@ -36,10 +38,22 @@ double BucketBroadphase::fill(std::span<const Sphere> spheres, std::size_t n, st
   return buckets_.fill(n, ids, filters, threads, sphere_at);
 }
 
+void BucketBroadphase::erase(std::uint32_t id) {
+  const std::span<const std::uint32_t> ids = order_.sorted_ids();
+  if (position_.empty()) {
+    std::uint32_t most = 0;
+    for (const std::uint32_t i : ids) most = std::max(most, i);
+    position_.assign(ids.empty() ? 0 : std::size_t{most} + 1, ~0u);
+    for (std::size_t p = 0; p < ids.size(); ++p) position_[ids[p]] = static_cast<std::uint32_t>(p);
+  }
+  if (id < position_.size() && position_[id] != ~0u) buckets_.erase_lane(position_[id], holds_boxes());
+}
+
 void BucketBroadphase::build_tree(std::span<const Sphere> spheres, std::span<const std::uint32_t> active,
                                   std::span<const Filter> filters, int bits, Layout layout, int threads,
                                   FrameStats& stats) {
   VISCD_ASSERT(bits == 16 || bits == 32 || bits == 64, "Morton width must be 16, 32 or 64");
+  position_.clear();
   Stopwatch attempt;
   if (keep_last_order(spheres, active, filters, bits, layout, threads, stats)) return;
   const double attempt_ms = attempt.lap();  // an attempt that found the buckets spread: counted in build

@@ -106,6 +106,15 @@ class BucketBroadphase {
   /// sorted order, the sorted codes (widened to 64 bits) and how the sort went.
   [[nodiscard]] const WideTree& tree() const { return tree_; }
   [[nodiscard]] std::span<const Aabb> leaf_boxes() const { return buckets_.boxes(); }
+  /// The objects in lanes (sphere or box lanes, as holds_boxes()), and their filters in sorted
+  /// order (frames with filters).
+  [[nodiscard]] std::span<const BucketLanes> lanes() const { return buckets_.lanes(); }
+  [[nodiscard]] std::span<const BoxLanes> box_lanes() const { return buckets_.box_lanes(); }
+  [[nodiscard]] std::span<const Filter> sorted_filters() const { return buckets_.sorted_filters(); }
+  /// Takes object `id` (an index into the spheres the tree was built from) out of the tree, so
+  /// that no pair or query finds it; the tree's boxes stay. For trees kept across frames (the
+  /// static set's).
+  void erase(std::uint32_t id);
   [[nodiscard]] std::span<const std::uint32_t> sorted_objects() const { return order_.sorted_ids(); }
   [[nodiscard]] std::vector<std::uint64_t> sorted_codes() const { return order_.sorted_codes(); }
   [[nodiscard]] const SortReport& sort_report() const { return report_; }
@@ -168,7 +177,8 @@ class BucketBroadphase {
 
   SimdLevel simd_ = best_simd_level();
   SortReport report_;
-  Extras extras_;  // this frame's
+  Extras extras_;                        // this frame's
+  std::vector<std::uint32_t> position_;  // erase(): object id -> sorted position, made on first use
 };
 
 }  // namespace viscd::detail

@@ -129,9 +129,11 @@ bool BucketBroadphase::overlap_walk(const Aabb& box, const Objects& objects, con
     if (!go_on) return;
     const BucketLanes& ln = buckets_.lanes()[b];
     const std::size_t first = std::size_t{b} * kBucket;
-    // Only the lanes in use: the exact tests need not reject the padding's NaN centres.
+    // Only the lanes in use, and of those not the ones taken out (erase(): NaN centres, which
+    // sphere_box_exact() would count as inside).
     const std::size_t lanes = std::min<std::size_t>(kBucket, n - first);
     for (std::size_t l = 0; l < lanes && go_on; ++l) {
+      if (std::isnan(ln.x[l])) continue;
       if (!passes(filter, first + l, objects) || !exact(Sphere{ln.x[l], ln.y[l], ln.z[l], ln.r[l]})) continue;
       go_on = found(reported(first + l, objects));
     }

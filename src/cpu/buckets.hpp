@@ -72,6 +72,22 @@ class Buckets {
            boxes_.capacity() * sizeof(Aabb) + sorted_filters_.capacity() * sizeof(Filter);
   }
 
+  /// Takes the object at sorted position p out: its lane becomes padding (NaN), which no test
+  /// passes. The bucket's box stays as it was (still around what is left). `boxes_frame`: the
+  /// buckets hold box lanes.
+  void erase_lane(std::size_t p, bool boxes_frame) {
+    constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
+    const std::size_t b = p / kBucket, l = p % kBucket;
+    if (boxes_frame) {
+      BoxLanes& ln = box_lanes_[b];
+      ln.lo_x[l] = ln.lo_y[l] = ln.lo_z[l] = ln.hi_x[l] = ln.hi_y[l] = ln.hi_z[l] = kNan;
+    } else {
+      BucketLanes& ln = lanes_[b];
+      ln.x[l] = ln.y[l] = ln.z[l] = ln.h[l] = kNan;
+      ln.r[l] = 0;
+    }
+  }
+
  private:
   /// Summed size of the bucket boxes, in bucket order (the same for any thread count).
   [[nodiscard]] double box_sum(std::size_t buckets) const;

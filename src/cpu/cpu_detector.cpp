@@ -1,5 +1,6 @@
 #include "cpu/cpu_detector.hpp"
 
+#include "core/stopwatch.hpp"
 #include "cpu/parallel.hpp"
 
 namespace viscd {
@@ -45,8 +46,39 @@ Status CpuDetector::broadphase(const Shapes& objects, std::span<const std::uint3
   }
   broadphase_.set_keep_order(config_.keep_order);
   broadphase_.set_simd(simd_level_for(config_.simd));
-  return broadphase_.run(spheres, pairable, filters, bits, config_.layout, threads, config_.pair_memory_cap, pairs,
-                         stats, extras);
+  if (Status s = broadphase_.run(spheres, pairable, filters, bits, config_.layout, threads, config_.pair_memory_cap,
+                                 pairs, stats, extras);
+      !s)
+    return s;
+  return static_pairs(threads, pairs, stats);
+}
+
+Status CpuDetector::static_pairs(int threads, std::vector<Pair>& pairs, FrameStats& stats) {
+  Stopwatch sw;
+  static_tree_.update(static_set_, config_.layout, threads);
+  if (static_tree_.size() == 0) return {};
+  const std::size_t allowed = pairs_within_cap(config_.pair_memory_cap);
+  const std::size_t room = allowed > pairs.size() ? allowed - pairs.size() : 0;
+  if (!static_tree_.pairs(broadphase_, broadphase_.sorted_filters(), threads, room, cross_))
+    return check_pair_cap(pairs.size() + room + 1, config_.pair_memory_cap, true);
+  // Merge: for each i the moving pairs come first (every static index is above every moving one).
+  if (!cross_.empty()) {
+    merged_.resize(pairs.size() + cross_.size());
+    std::size_t a = 0, b = 0, o = 0;
+    while (a < pairs.size() || b < cross_.size()) {
+      const bool take_cross = a == pairs.size() || (b < cross_.size() && (cross_[b] >> 32) < pairs[a].i);
+      if (take_cross) {
+        merged_[o++] = Pair{static_cast<std::uint32_t>(cross_[b] >> 32), static_cast<std::uint32_t>(cross_[b])};
+        ++b;
+      } else {
+        merged_[o++] = pairs[a++];
+      }
+    }
+    pairs.swap(merged_);
+  }
+  stats.pairs = pairs.size();
+  stats.ms(Stage::query) += sw.lap();
+  return {};
 }
 
 const BucketBroadphase& CpuDetector::unpaired_tree() {
@@ -67,43 +99,72 @@ const BucketBroadphase& CpuDetector::unpaired_tree() {
 }
 
 // Each query searches the main tree, then the unpaired objects' tree (built on the first query
-// that needs it). Detector sorts the lists.
+// that needs it); after a box frame, the base class's brute force over detect()'s copy. Detector
+// sorts the lists.
 
 bool CpuDetector::query_ray_first(const Ray& ray, const Filter* filter, RayHit& hit) {
+  if (broadphase_.holds_boxes()) return PipelineDetector::query_ray_first(ray, filter, hit);
   bool found = broadphase_.ray_first(ray, main_objects(), filter, hit, false);
   if (!unpaired_ids_.empty()) found = unpaired_tree().ray_first(ray, unpaired_objects(), filter, hit, found);
+  StaticTree::Part parts[2];
+  for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)
+    found = parts[k].tree->ray_first(ray, parts[k].objects, filter, hit, found);
   return found;
 }
 
 void CpuDetector::query_ray_all(const Ray& ray, const Filter* filter, std::vector<RayHit>& hits) {
+  if (broadphase_.holds_boxes()) return PipelineDetector::query_ray_all(ray, filter, hits);
   broadphase_.ray_all(ray, main_objects(), filter, hits);
   if (!unpaired_ids_.empty()) unpaired_tree().ray_all(ray, unpaired_objects(), filter, hits);
+  StaticTree::Part parts[2];
+  for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)
+    parts[k].tree->ray_all(ray, parts[k].objects, filter, hits);
 }
 
 void CpuDetector::query_ray_visit(const Ray& ray, const Filter* filter, RayVisitor& visitor) {
+  if (broadphase_.holds_boxes()) return PipelineDetector::query_ray_visit(ray, filter, visitor);
   float max_t = ray.max_t;  // lowered by the visitor in the first tree, it prunes the second
   if (!broadphase_.ray_visit(ray, main_objects(), filter, max_t, visitor)) return;
-  if (!unpaired_ids_.empty()) (void)unpaired_tree().ray_visit(ray, unpaired_objects(), filter, max_t, visitor);
+  if (!unpaired_ids_.empty() && !unpaired_tree().ray_visit(ray, unpaired_objects(), filter, max_t, visitor)) return;
+  StaticTree::Part parts[2];
+  for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)
+    if (!parts[k].tree->ray_visit(ray, parts[k].objects, filter, max_t, visitor)) return;
 }
 
 void CpuDetector::query_sphere(const Sphere& sphere, const Filter* filter, std::vector<std::uint32_t>& indices) {
+  if (broadphase_.holds_boxes()) return PipelineDetector::query_sphere(sphere, filter, indices);
   broadphase_.overlap(sphere, main_objects(), filter, indices);
   if (!unpaired_ids_.empty()) unpaired_tree().overlap(sphere, unpaired_objects(), filter, indices);
+  StaticTree::Part parts[2];
+  for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)
+    parts[k].tree->overlap(sphere, parts[k].objects, filter, indices);
 }
 
 void CpuDetector::query_box(const Box& box, const Filter* filter, std::vector<std::uint32_t>& indices) {
+  if (broadphase_.holds_boxes()) return PipelineDetector::query_box(box, filter, indices);
   broadphase_.overlap_box(box, main_objects(), filter, indices);
   if (!unpaired_ids_.empty()) unpaired_tree().overlap_box(box, unpaired_objects(), filter, indices);
+  StaticTree::Part parts[2];
+  for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)
+    parts[k].tree->overlap_box(box, parts[k].objects, filter, indices);
 }
 
 void CpuDetector::query_sphere_visit(const Sphere& sphere, const Filter* filter, OverlapVisitor& visitor) {
+  if (broadphase_.holds_boxes()) return PipelineDetector::query_sphere_visit(sphere, filter, visitor);
   if (!broadphase_.overlap_visit(sphere, main_objects(), filter, visitor)) return;
-  if (!unpaired_ids_.empty()) (void)unpaired_tree().overlap_visit(sphere, unpaired_objects(), filter, visitor);
+  if (!unpaired_ids_.empty() && !unpaired_tree().overlap_visit(sphere, unpaired_objects(), filter, visitor)) return;
+  StaticTree::Part parts[2];
+  for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)
+    if (!parts[k].tree->overlap_visit(sphere, parts[k].objects, filter, visitor)) return;
 }
 
 void CpuDetector::query_box_visit(const Box& box, const Filter* filter, OverlapVisitor& visitor) {
+  if (broadphase_.holds_boxes()) return PipelineDetector::query_box_visit(box, filter, visitor);
   if (!broadphase_.overlap_box_visit(box, main_objects(), filter, visitor)) return;
-  if (!unpaired_ids_.empty()) (void)unpaired_tree().overlap_box_visit(box, unpaired_objects(), filter, visitor);
+  if (!unpaired_ids_.empty() && !unpaired_tree().overlap_box_visit(box, unpaired_objects(), filter, visitor)) return;
+  StaticTree::Part parts[2];
+  for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)
+    if (!parts[k].tree->overlap_box_visit(box, parts[k].objects, filter, visitor)) return;
 }
 
 }  // namespace detail

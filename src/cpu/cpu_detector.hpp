@@ -6,6 +6,7 @@
 #include "cpu/grow.hpp"
 #include "cpu/pipeline.hpp"
 #include "cpu/raster.hpp"
+#include "cpu/static_tree.hpp"
 
 namespace viscd::detail {
 
@@ -22,7 +23,8 @@ class CpuDetector final : public PipelineDetector {
   [[nodiscard]] std::uint64_t backend_memory_bytes() const override {
     return raster_.memory_bytes() + box_raster_.memory_bytes() + broadphase_.memory_bytes() +
            unpaired_tree_.memory_bytes() + bytes_of(unpaired_spheres_) + bytes_of(unpaired_ids_) +
-           bytes_of(unpaired_filters_) + bytes_of(iota_) + bytes_of(proxies_) + bytes_of(reported_);
+           bytes_of(unpaired_filters_) + bytes_of(iota_) + bytes_of(proxies_) + bytes_of(reported_) +
+           static_tree_.memory_bytes() + bytes_of(cross_) + bytes_of(merged_);
   }
   /// The broadphase of the last frame (its 16-wide tree over buckets, the sorted objects and codes),
   /// for tests.
@@ -32,6 +34,8 @@ class CpuDetector final : public PipelineDetector {
   /// Sphere frames: from the trees. Box frames: by brute force over the copy detect() keeps (the
   /// trees' ray and overlap walks test sphere lanes).
   [[nodiscard]] bool answers_queries() const override { return !broadphase_.holds_boxes(); }
+  /// The static set lives in static_tree_ (cpu/static_tree.hpp).
+  [[nodiscard]] bool handles_static() const override { return true; }
   [[nodiscard]] bool query_ray_first(const Ray& ray, const Filter* filter, RayHit& hit) override;
   void query_ray_all(const Ray& ray, const Filter* filter, std::vector<RayHit>& hits) override;
   void query_ray_visit(const Ray& ray, const Filter* filter, RayVisitor& visitor) override;
@@ -52,6 +56,8 @@ class CpuDetector final : public PipelineDetector {
   Status broadphase(const Shapes& objects, std::span<const std::uint32_t> pairable,
                     std::span<const std::uint32_t> unpaired, std::span<const Filter> filters, std::uint32_t static_from,
                     int bits, int threads, std::vector<Pair>& pairs, FrameStats& stats) override;
+  /// The pairs of the moving tree's objects with the static set, merged into `pairs`.
+  Status static_pairs(int threads, std::vector<Pair>& pairs, FrameStats& stats);
   const BucketBroadphase& unpaired_tree();
   /// What the unpaired tree's queries report: its ids map to unpaired_ids_, with their filters.
   [[nodiscard]] BucketBroadphase::Objects unpaired_objects() const { return {unpaired_ids_, unpaired_filters_}; }
@@ -63,6 +69,9 @@ class CpuDetector final : public PipelineDetector {
   BoxRasterizer box_raster_;
   std::vector<Sphere> proxies_;          // box frames: box_proxy() of each object, for stages 4-6
   std::vector<std::uint32_t> reported_;  // frames with static objects: the index reported per object
+  StaticTree static_tree_;
+  std::vector<std::uint64_t> cross_;  // the frame's pairs with static objects (keys i << 32 | j)
+  std::vector<Pair> merged_;
   BucketBroadphase broadphase_;
   // Active objects outside the tree (their reported indices, spheres, filters) and their tree,
   // built lazily.

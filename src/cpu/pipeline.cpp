@@ -13,14 +13,14 @@
 namespace viscd::detail {
 
 std::uint64_t PipelineDetector::memory_bytes() const {
-  return map_.memory_bytes() + all_.memory_bytes() + bytes_of(counts_) + bytes_of(hist_) +
+  return map_.memory_bytes() + all_.memory_bytes() + draw_.memory_bytes() + bytes_of(counts_) + bytes_of(hist_) +
          count_scratch_.memory_bytes() + bytes_of(active_) + bytes_of(pairable_) + bytes_of(unpaired_) +
          backend_memory_bytes();
 }
 
 FilterSplit split_by_filters(std::span<const std::uint32_t> active, std::span<const Filter> filters,
-                             std::vector<std::uint32_t>& pairable, std::vector<std::uint32_t>& unpaired) {
-  std::uint32_t groups = 0, masks = 0;
+                             std::vector<std::uint32_t>& pairable, std::vector<std::uint32_t>& unpaired,
+                             std::uint32_t groups, std::uint32_t masks) {
   for (const std::uint32_t k : active) groups |= filters[k].group, masks |= filters[k].mask;
   // Sized once for every object and never shrunk: no allocation, and no clearing, per frame.
   if (pairable.size() < filters.size()) pairable.resize(filters.size());
@@ -48,13 +48,15 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
   // Every parallel stage of this frame runs on the caller's executor, or on viscd's pool.
   const ExecutorScope scope(config_.executor);
   const int threads = resolve_threads(config_.threads, config_.executor ? config_.executor->concurrency() : 0);
-  // The moving objects, then the static set's: drawn, always active, never paired with each other.
-  all_.build(in, static_set_);
+  // The moving objects, then the static set's: drawn, always active, never paired with each other
+  // (appended here, or kept by the backend: handles_static()).
+  const bool own_static = handles_static();
+  all_.build(in, own_static ? nullptr : &static_set_);
   const std::size_t n = all_.moving, total = all_.total();
   FrameStats& stats = out.stats;
   stats = FrameStats{};
   stats.objects = static_cast<std::uint32_t>(n);
-  stats.static_objects = static_cast<std::uint32_t>(total - n);
+  stats.static_objects = static_cast<std::uint32_t>(static_set_.size());
   stats.has_camera = camera != nullptr;
   stats.has_pixels = counts_pixels(in, config_);
   Stopwatch sw;
@@ -75,9 +77,10 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     const MapSize map = map_size(config_, *camera);
     rig.emplace(*camera, map.width, map.height);
     map_.resize(map.width, map.height, config_.shade);
-    rasterize(*rig, all_.objects, threads);  // static objects occlude
+    draw_.build(in, &static_set_);
+    rasterize(*rig, draw_.objects, threads);  // static objects occlude
     stats.ms(Stage::visibility) = sw.lap();
-    count_pixels(map_, total, threads, counts_, hist_, count_scratch_);
+    count_pixels(map_, draw_.total(), threads, counts_, hist_, count_scratch_);
     stats.ms(Stage::count) = sw.lap();
     bits = cull_and_choose_bits(std::span<const std::uint32_t>(counts_).first(n), rig->pixel_scale, config_,
                                 in.always_active, out.pixels, active_, stats);
@@ -102,14 +105,16 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
   // Objects whose filters pair them with nothing active stay out of the tree.
   std::span<const std::uint32_t> pairable = active_, unpaired;
   if (!filters.empty()) {
-    const FilterSplit split = split_by_filters(active_, filters, pairable_, unpaired_);
+    const FilterSplit split =
+        own_static ? split_by_filters(active_, filters, pairable_, unpaired_, static_set_.groups(), static_set_.masks())
+                   : split_by_filters(active_, filters, pairable_, unpaired_);
     pairable = split.pairable;
     unpaired = split.unpaired;
     stats.ms(Stage::cull) += sw.lap();
   }
 
-  if (Status s = broadphase(all_.objects, pairable, unpaired, filters, static_cast<std::uint32_t>(n), bits, threads,
-                            out.pairs, stats);
+  const std::uint32_t static_from = own_static ? ~0u : static_cast<std::uint32_t>(n);
+  if (Status s = broadphase(all_.objects, pairable, unpaired, filters, static_from, bits, threads, out.pairs, stats);
       !s)
     return s;
   stats.pairs = out.pairs.size();
@@ -125,12 +130,12 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     for (std::uint32_t k : active_)
       if (k < n) out.state[k] = ObjectState::free;
   }
+  all_.report(out.pairs);  // appended static objects as static_index(slot)
   parallel_for(out.pairs.size(), threads, [&](std::size_t k) {
     const Pair& p = out.pairs[k];  // i is moving (no pair of two static objects); j may be static
     std::atomic_ref<ObjectState>(out.state[p.i]).store(ObjectState::colliding, std::memory_order_relaxed);
     if (p.j < n) std::atomic_ref<ObjectState>(out.state[p.j]).store(ObjectState::colliding, std::memory_order_relaxed);
   });
-  all_.report(out.pairs);  // static objects as static_index(slot)
   stats.ms(Stage::query) += sw.lap();
 
   if (rig && config_.shade) {

@@ -39,8 +39,15 @@ class PipelineDetector : public Backend {
                                           std::uint32_t static_from, int bits, int threads, std::vector<Pair>& pairs,
                                           FrameStats& stats) = 0;
 
+  /// Whether the backend keeps the static set in a structure of its own (cpu): then broadphase()
+  /// gets the moving objects only and adds their pairs with the static set itself (reported as
+  /// static_index(slot), the pairs sorted). Otherwise the static objects are appended to the
+  /// frame's (WithStatic).
+  [[nodiscard]] virtual bool handles_static() const { return false; }
+
   VisibilityMap map_;
-  WithStatic all_;  // this frame's objects with the static set's
+  WithStatic all_;   // what the broadphase gets: the frame's objects, with the static set's unless handles_static()
+  WithStatic draw_;  // what the map shows: the frame's objects and the static set's
 
  private:
   std::vector<std::uint32_t> counts_, hist_, active_, pairable_, unpaired_;
@@ -54,7 +61,9 @@ class PipelineDetector : public Backend {
 struct FilterSplit {
   std::span<const std::uint32_t> pairable, unpaired;
 };
+/// `groups` and `masks` start the ORs (the static set's, when it is not among `active`).
 FilterSplit split_by_filters(std::span<const std::uint32_t> active, std::span<const Filter> filters,
-                             std::vector<std::uint32_t>& pairable, std::vector<std::uint32_t>& unpaired);
+                             std::vector<std::uint32_t>& pairable, std::vector<std::uint32_t>& unpaired,
+                             std::uint32_t groups = 0, std::uint32_t masks = 0);
 
 }  // namespace viscd::detail

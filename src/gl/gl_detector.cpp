@@ -149,7 +149,7 @@ void GlDetector::begin_frame(const FrameInput& in) {
   // The frame's objects then the static set's, as one array (a view of the input, no copy,
   // without a static set). The static set is uploaded with every frame: the gl backend keeps no
   // structure of its own for it (docs/gl.md).
-  all_.build(in, static_set_);
+  all_.build(in, &static_set_);
   const auto n = static_cast<std::uint32_t>(all_.moving);
   const auto total = static_cast<std::uint32_t>(all_.total());
   frame_.upload_objects(all_.objects, n);

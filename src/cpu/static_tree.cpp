@@ -1,0 +1,225 @@
+#include "cpu/static_tree.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <bit>
+
+#include "cpu/bucket_search.hpp"
+#include "cpu/parallel.hpp"
+#include "cpu/wide_tree.hpp"
+
+namespace viscd::detail {
+namespace {
+
+constexpr std::size_t kRebuildFloor = 4096;
+
+// The stage 8 tests of each kind of lanes (as bucket_search.cpp's), on the baseline kernels.
+struct SphereSide {
+  using Lanes = BucketLanes;
+  static std::span<const Lanes> of(const BucketBroadphase& t) { return t.lanes(); }
+  static std::uint32_t near(const Lanes& l, const Aabb& box) { return SimdBaseline::box_lanes(l, box); }
+  static std::uint32_t exact(const Lanes& l, const Lanes& o, std::uint32_t i) {
+    return SimdBaseline::sphere_lanes(l, o.x[i], o.y[i], o.z[i], o.r[i]);
+  }
+};
+struct BoxSide {
+  using Lanes = BoxLanes;
+  static std::span<const Lanes> of(const BucketBroadphase& t) { return t.box_lanes(); }
+  static std::uint32_t near(const Lanes& l, const Aabb& box) { return SimdBaseline::node_children(l, box); }
+  static std::uint32_t exact(const Lanes& l, const Lanes& o, std::uint32_t i) {
+    return SimdBaseline::node_children(l, o.box(i));
+  }
+};
+
+}  // namespace
+
+void StaticTree::Side::build(const StaticSet& set, std::span<const std::uint32_t> slots, Layout layout, int threads) {
+  count = slots.size();
+  const bool box = set.kind() == ShapeKind::box;
+  spheres.resize(count);
+  boxes.resize(box ? count : 0);
+  reported.resize(count);
+  filters.resize(count);
+  if (iota.size() < count) {
+    const std::size_t old = iota.size();
+    iota.resize(count);
+    for (std::size_t k = old; k < count; ++k) iota[k] = static_cast<std::uint32_t>(k);
+  }
+  parallel_for(count, threads, [&](std::size_t k) {
+    const std::uint32_t slot = slots[k];
+    if (box) {
+      boxes[k] = set.box(slot);
+      spheres[k] = box_proxy(boxes[k]);
+    } else {
+      spheres[k] = set.sphere(slot);
+    }
+    reported[k] = static_index(slot);
+    filters[k] = set.filter(slot);
+  });
+  FrameStats unused;
+  tree.reset_order();
+  tree.set_keep_order(false);
+  BucketBroadphase::Extras extras;
+  extras.boxes = boxes;
+  tree.build(spheres, std::span<const std::uint32_t>(iota.data(), count), 32, layout, threads, unused, extras);
+}
+
+std::uint64_t StaticTree::Side::memory_bytes() const {
+  return tree.memory_bytes() + bytes_of(spheres) + bytes_of(boxes) + bytes_of(reported) + bytes_of(iota) +
+         bytes_of(filters);
+}
+
+std::uint64_t StaticTree::memory_bytes() const {
+  std::uint64_t b = main_.memory_bytes() + delta_.memory_bytes() + bytes_of(main_index_) + bytes_of(in_delta_) +
+                    bytes_of(delta_slots_);
+  for (const auto& l : lists_) b += bytes_of(l);
+  return b;
+}
+
+void StaticTree::rebuild_all(StaticSet& set, Layout layout, int threads) {
+  const StaticSet::Compact& c = set.compact();
+  main_.build(set, c.slots, layout, threads);
+  main_index_.assign(set.slot_count(), ~0u);
+  for (std::size_t k = 0; k < c.slots.size(); ++k) main_index_[c.slots[k]] = static_cast<std::uint32_t>(k);
+  in_delta_.assign(set.slot_count(), 0);
+  delta_slots_.clear();
+  delta_.build(set, delta_slots_, layout, threads);
+  erased_ = 0;
+}
+
+void StaticTree::update(StaticSet& set, Layout layout, int threads) {
+  StaticSet::Changes changes = set.take_changes();
+  live_ = set.size();
+  boxes_ = set.kind() == ShapeKind::box;
+  if (changes.reset) {
+    rebuild_all(set, layout, threads);
+    return;
+  }
+  if (changes.slots.empty()) return;
+  main_index_.resize(set.slot_count(), ~0u);
+  in_delta_.resize(set.slot_count(), 0);
+  for (const std::uint32_t slot : changes.slots) {
+    // Out of main (moved or removed: main holds where it was), into delta when it lives.
+    if (main_index_[slot] != ~0u) {
+      main_.tree.erase(main_index_[slot]);
+      main_index_[slot] = ~0u;
+      ++erased_;
+    }
+    in_delta_[slot] = set.live(slot) ? 1 : 0;
+  }
+  // Delta: the slots flagged, old and new (a sort of the few that changed, then a merge).
+  std::sort(changes.slots.begin(), changes.slots.end());
+  changes.slots.erase(std::unique(changes.slots.begin(), changes.slots.end()), changes.slots.end());
+  std::vector<std::uint32_t> merged;
+  merged.reserve(delta_slots_.size() + changes.slots.size());
+  std::set_union(delta_slots_.begin(), delta_slots_.end(), changes.slots.begin(), changes.slots.end(),
+                 std::back_inserter(merged));
+  delta_slots_.clear();
+  for (const std::uint32_t slot : merged)
+    if (in_delta_[slot]) delta_slots_.push_back(slot);
+  if (delta_slots_.size() + erased_ > std::max(kRebuildFloor, main_.count / 8)) {
+    rebuild_all(set, layout, threads);
+    return;
+  }
+  delta_.build(set, delta_slots_, layout, threads);
+}
+
+std::size_t StaticTree::parts(Part out[2]) const {
+  std::size_t n = 0;
+  for (const Side* s : {&main_, &delta_})
+    if (s->count > 0) out[n++] = Part{&s->tree, {s->reported, s->filters}};
+  return n;
+}
+
+namespace {
+
+// The pairs of the moving buckets of group g (the 16 under node g of the moving tree's lowest
+// level) with one static tree: one walk of the static tree with the group's box collects the
+// static buckets that can meet any of them, then each moving bucket tests its box against those
+// candidates 16 at a time (as the moving search does, cpu/bucket_search.cpp); per static bucket
+// met, the moving lanes that reach it against all 16 static lanes. Past kMaxCandidates (a huge
+// object), each moving bucket walks the tree itself.
+template <class K>
+void cross_pairs(const BucketBroadphase& moving, std::span<const Filter> moving_filters, const BucketBroadphase& st,
+                 std::span<const std::uint32_t> st_reported, std::span<const Filter> st_filters, std::size_t g,
+                 std::vector<std::uint64_t>& out) {
+  constexpr std::uint32_t kMaxCandidates = 512;
+  const auto ml = K::of(moving);
+  const auto sl = K::of(st);
+  const std::span<const Aabb> mboxes = moving.leaf_boxes();
+  const std::span<const Aabb> sboxes = st.leaf_boxes();
+  const std::span<const std::uint32_t> mids = moving.sorted_objects();
+  const std::span<const std::uint32_t> sids = st.sorted_objects();
+  const std::size_t buckets = buckets_for(mids.size());
+  const std::size_t b0 = g * kWide, b1 = std::min(buckets, b0 + kWide);
+  auto bucket_pair = [&](std::size_t b, std::uint32_t sb) {
+    const std::size_t m_first = b * kBucket, s_first = std::size_t{sb} * kBucket;
+    for (std::uint32_t near = K::near(ml[b], sboxes[sb]); near; near &= near - 1) {
+      const auto i = static_cast<std::uint32_t>(std::countr_zero(near));
+      const std::size_t p = m_first + i;
+      const Filter mf = moving_filters.empty() ? Filter{} : moving_filters[p];
+      for (std::uint32_t m = K::exact(sl[sb], ml[b], i); m; m &= m - 1) {
+        const std::uint32_t id = sids[s_first + static_cast<std::size_t>(std::countr_zero(m))];
+        if (pair_passes_filter(mf, st_filters[id])) out.push_back(std::uint64_t{mids[p]} << 32 | st_reported[id]);
+      }
+    }
+  };
+  WideNode box[kMaxCandidates / kWide];
+  std::uint32_t index[kMaxCandidates];
+  std::uint32_t count = 0;
+  bool overflow = false;
+  for_each_wide_overlap(st.tree(), moving.tree().level[0][g].box(), [&](std::uint32_t sb) {
+    if (count == kMaxCandidates) {
+      overflow = true;
+      return;
+    }
+    box[count / kWide].set_child(count % kWide, sboxes[sb]);
+    index[count++] = sb;
+  });
+  if (overflow) {
+    for (std::size_t b = b0; b < b1; ++b)
+      for_each_wide_overlap(st.tree(), mboxes[b], [&](std::uint32_t sb) { bucket_pair(b, sb); });
+    return;
+  }
+  for (std::uint32_t l = count % kWide; l != 0 && l < kWide; ++l) box[count / kWide].set_child(l, Aabb{});
+  for (std::size_t b = b0; b < b1; ++b)
+    for (std::uint32_t k = 0; k * kWide < count; ++k)
+      for (std::uint32_t m = SimdBaseline::node_children(box[k], mboxes[b]); m; m &= m - 1)
+        bucket_pair(b, index[k * kWide + static_cast<std::uint32_t>(std::countr_zero(m))]);
+}
+
+}  // namespace
+
+bool StaticTree::pairs(const BucketBroadphase& moving, std::span<const Filter> moving_filters, int threads,
+                       std::size_t max_pairs, std::vector<std::uint64_t>& out) {
+  out.clear();
+  const std::size_t n = moving.sorted_objects().size();
+  if (n == 0 || live_ == 0) return true;
+  const std::size_t groups = (buckets_for(n) + kWide - 1) / kWide;
+  const std::size_t chunks = threads_for(n, threads) == 1 ? 1 : std::min<std::size_t>(groups, 8 * threads);
+  if (lists_.size() < chunks) lists_.resize(chunks);
+  std::atomic<bool> over{false};
+  for_chunks(groups, chunks, [&](std::size_t begin, std::size_t end, std::size_t c) {
+    std::vector<std::uint64_t>& list = lists_[c];
+    list.clear();
+    for (std::size_t b = begin; b < end && !over.load(std::memory_order_relaxed); ++b) {
+      for (const Side* s : {&main_, &delta_}) {
+        if (s->count == 0) continue;
+        if (boxes_)
+          cross_pairs<BoxSide>(moving, moving_filters, s->tree, s->reported, s->filters, b, list);
+        else
+          cross_pairs<SphereSide>(moving, moving_filters, s->tree, s->reported, s->filters, b, list);
+      }
+      if (list.size() > max_pairs) over.store(true, std::memory_order_relaxed);
+    }
+  });
+  std::size_t total = 0;
+  for (std::size_t c = 0; c < chunks; ++c) total += lists_[c].size();
+  if (over.load() || total > max_pairs) return false;
+  out.reserve(total);
+  for (std::size_t c = 0; c < chunks; ++c) out.insert(out.end(), lists_[c].begin(), lists_[c].end());
+  std::sort(out.begin(), out.end());
+  return true;
+}
+
+}  // namespace viscd::detail

@@ -1,0 +1,119 @@
+// The cpu backend's static set structure (cpu/static_tree.hpp): main tree, delta tree, objects
+// taken out of main in place, and the rebuild once enough changed. Long sequences of adds,
+// removes and moves on sets large enough to cross the rebuild threshold, each frame checked
+// against the reference backend (brute force) given the same operations; queries too.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "core/backend.hpp"
+#include "cpu/cpu_detector.hpp"
+#include "test_util.hpp"
+#include "viscd/viscd.hpp"
+
+namespace viscd {
+namespace {
+
+Box box_at(float x, float y, float z, float s) { return Box{{x, y, z}, {x + s, y + s, z + s}}; }
+
+template <class Shape>
+struct Ops {
+  std::mt19937_64 rng;
+  std::uniform_real_distribution<float> pos{-40.0f, 40.0f}, size{0.2f, 2.0f};
+  explicit Ops(std::uint64_t seed) : rng(seed) {}
+  Shape make() {
+    if constexpr (std::is_same_v<Shape, Sphere>)
+      return Sphere{pos(rng), pos(rng), pos(rng), size(rng)};
+    else
+      return box_at(pos(rng), pos(rng), pos(rng), size(rng));
+  }
+};
+
+Result<std::uint32_t> add(Detector& d, const Sphere& s, const Filter& f) { return d.add_static_sphere(s, f); }
+Result<std::uint32_t> add(Detector& d, const Box& b, const Filter& f) { return d.add_static_box(b, f); }
+Status move(Detector& d, std::uint32_t k, const Sphere& s) { return d.move_static_sphere(k, s); }
+Status move(Detector& d, std::uint32_t k, const Box& b) { return d.move_static_box(k, b); }
+FrameInput frame_of(std::span<const Sphere> s, std::span<const Filter> f) {
+  FrameInput in;
+  in.spheres = s;
+  in.filters = f;
+  return in;
+}
+FrameInput frame_of(std::span<const Box> b, std::span<const Filter> f) {
+  FrameInput in;
+  in.boxes = b;
+  in.filters = f;
+  return in;
+}
+
+template <class Shape>
+void run(std::uint64_t seed, std::size_t statics, std::size_t changes_per_frame, int frames) {
+  auto cpu = make_cpu_detector();
+  auto ref = make_reference_detector();
+  Ops<Shape> ops(seed);
+  std::vector<Shape> initial(statics);
+  for (Shape& s : initial) s = ops.make();
+  const std::vector<Filter> filters = test::random_filters(statics, seed);
+  if constexpr (std::is_same_v<Shape, Sphere>) {
+    ASSERT_TRUE(cpu->set_static_spheres(initial, filters).ok());
+    ASSERT_TRUE(ref->set_static_spheres(initial, filters).ok());
+  } else {
+    ASSERT_TRUE(cpu->set_static_boxes(initial, filters).ok());
+    ASSERT_TRUE(ref->set_static_boxes(initial, filters).ok());
+  }
+  std::vector<std::uint32_t> live(statics);
+  for (std::uint32_t k = 0; k < statics; ++k) live[k] = k;
+  std::vector<Shape> moving(1500);
+  FrameResult a, b;
+  for (int f = 0; f < frames; ++f) {
+    SCOPED_TRACE("frame " + std::to_string(f));
+    for (std::size_t c = 0; c < changes_per_frame; ++c) {
+      const int what = static_cast<int>(ops.rng() % 3);
+      if (what == 0 && !live.empty()) {  // remove
+        const std::size_t at = ops.rng() % live.size();
+        ASSERT_TRUE(cpu->remove_static(live[at]).ok());
+        ASSERT_TRUE(ref->remove_static(live[at]).ok());
+        live.erase(live.begin() + static_cast<std::ptrdiff_t>(at));
+      } else if (what == 1 && !live.empty()) {  // move
+        const Shape s = ops.make();
+        const std::uint32_t k = live[ops.rng() % live.size()];
+        ASSERT_TRUE(move(*cpu, k, s).ok());
+        ASSERT_TRUE(move(*ref, k, s).ok());
+      } else {  // add
+        const Shape s = ops.make();
+        const Filter fl = filters[ops.rng() % filters.size()];
+        const auto x = add(*cpu, s, fl), y = add(*ref, s, fl);
+        ASSERT_TRUE(x.ok() && y.ok());
+        ASSERT_EQ(x.value(), y.value());
+        live.push_back(x.value());
+      }
+    }
+    for (Shape& s : moving) s = ops.make();
+    const std::vector<Filter> mf = test::random_filters(moving.size(), seed + static_cast<std::uint64_t>(f));
+    const std::span<const Filter> use = f % 2 ? std::span<const Filter>(mf) : std::span<const Filter>();
+    ASSERT_TRUE(cpu->detect(frame_of(std::span<const Shape>(moving), use), a).ok());
+    ASSERT_TRUE(ref->detect(frame_of(std::span<const Shape>(moving), use), b).ok());
+    EXPECT_TRUE(test::same_pairs(a.pairs, b.pairs));
+    EXPECT_EQ(a.state, b.state);
+    EXPECT_EQ(a.stats.static_objects, live.size());
+    // Queries see the static trees (sphere frames search them; box frames are brute force).
+    const Ray ray = test::make_ray(ops.pos(ops.rng), 60, ops.pos(ops.rng), 0.01f, -1, 0.02f, 200);
+    std::vector<RayHit> ha, hb;
+    cpu->ray_cast_all(ray, ha);
+    ref->ray_cast_all(ray, hb);
+    EXPECT_EQ(ha, hb);
+    const Box q = box_at(ops.pos(ops.rng), ops.pos(ops.rng), ops.pos(ops.rng), 6);
+    std::vector<std::uint32_t> oa, ob;
+    cpu->overlap_box(q, oa);
+    ref->overlap_box(q, ob);
+    EXPECT_EQ(oa, ob);
+  }
+}
+
+TEST(StaticTree, SpheresAcrossTheRebuildThreshold) { run<Sphere>(1, 20000, 1500, 6); }
+TEST(StaticTree, BoxesAcrossTheRebuildThreshold) { run<Box>(2, 20000, 1500, 6); }
+TEST(StaticTree, FewChangesStayInDelta) { run<Sphere>(3, 5000, 7, 8); }
+TEST(StaticTree, EverythingRemovedThenRefilled) { run<Box>(4, 300, 400, 6); }
+
+}  // namespace
+}  // namespace viscd
