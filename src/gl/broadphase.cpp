@@ -50,8 +50,9 @@ void Broadphase::reserve(std::uint32_t n) {
 // and each pass is dispatched indirectly from DispatchArgs (written from n on the GPU); the host
 // only knows the bound n_bound >= n, which sizes the buffers. In the default mode n_bound is N;
 // in sync mode, and in the tests' GlInspector::run_broadphase, it is n itself.
-Result<std::uint32_t> Broadphase::run(std::uint32_t n_bound, std::uint32_t objects, const detail::MortonLayout& layout,
-                                      const detail::Aabb& bounds, FrameStats& stats) {
+Result<std::uint32_t> Broadphase::run(std::uint32_t n_bound, std::uint32_t objects, std::uint32_t static_from,
+                                      const detail::MortonLayout& layout, const detail::Aabb& bounds,
+                                      FrameStats& stats) {
   const std::uint32_t n = n_bound;
   reserve(n);
   constexpr GLintptr per_object = offsetof(shader::DispatchArgs, per_object);
@@ -86,7 +87,7 @@ Result<std::uint32_t> Broadphase::run(std::uint32_t n_bound, std::uint32_t objec
   sorted_in_ = sort_.sort(keys_, values_, n, layout.bits, true);
   timers_.end(Stage::sort);
 
-  // Stage 7: build, then fit.
+  // Stage 7: build, then fit (leaf boxes: conservative_box() of a sphere, a box itself).
   timers_.begin(Stage::build);
   keys_[sorted_in_].bind_storage(VISCD_BIND_KEYS_IN);
   nodes_.bind_storage(VISCD_BIND_NODES);
@@ -103,6 +104,8 @@ Result<std::uint32_t> Broadphase::run(std::uint32_t n_bound, std::uint32_t objec
   leaf_boxes_.bind_storage(VISCD_BIND_LEAF_BOXES);
   arrivals_.bind_storage(VISCD_BIND_ARRIVALS);
   frame_.info.bind_storage(VISCD_BIND_INFO);
+  if (frame_.has_boxes) frame_.boxes.bind_storage(VISCD_BIND_BOXES);
+  glProgramUniform1ui(fit_.get(), fit_.uniform("u_boxes"), frame_.has_boxes ? 1u : 0u);
   frame_.dispatch_indirect(fit_, per_object);
   barrier();
   timers_.end(Stage::fit);
@@ -121,6 +124,8 @@ Result<std::uint32_t> Broadphase::run(std::uint32_t n_bound, std::uint32_t objec
     pairs_.bind_storage(VISCD_BIND_PAIRS);
     glProgramUniform1ui(query_.get(), query_.uniform("u_capacity"), pair_capacity_);
     glProgramUniform1ui(query_.get(), query_.uniform("u_has_filters"), frame_.has_filters ? 1u : 0u);
+    glProgramUniform1ui(query_.get(), query_.uniform("u_boxes"), frame_.has_boxes ? 1u : 0u);
+    glProgramUniform1ui(query_.get(), query_.uniform("u_static_from"), static_from);
     if (frame_.has_filters) frame_.filters.bind_storage(VISCD_BIND_FILTERS);
     timers_.begin(Stage::query, 0);
     frame_.dispatch_indirect(query_, per_object);
@@ -138,7 +143,8 @@ Result<std::uint32_t> Broadphase::run(std::uint32_t n_bound, std::uint32_t objec
     pair_capacity_ = count;
     pairs_.reserve(static_cast<GLsizeiptr>(pair_capacity_) * 8);
   }
-  // Sort the pairs as 64-bit keys (i << 32 | j): x = j, y = i; i, j < objects.
+  // Sort the pairs as 64-bit keys (i << 32 | j): x = j, y = i; i, j < objects (static ones
+  // included: the caller reports them afterwards).
   pairs_tmp_.reserve(static_cast<GLsizeiptr>(std::max<std::uint32_t>(count, 1)) * 8);
   Buffer* pair_bufs = nullptr;
   Buffer tmp[2];

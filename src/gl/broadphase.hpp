@@ -36,11 +36,12 @@ class Broadphase {
   /// pairs. The context must be current.
   [[nodiscard]] Status init();
   /// Stages 5-8 over FrameInfo.active_count active objects (on the GPU) out of `objects`,
-  /// dispatched from DispatchArgs; `n_bound` >= that count sizes the buffers. Ends with the
-  /// frame's one wait (frame_info() holds this frame's FrameInfo afterwards) and the pair sort.
-  /// Returns the pair count, whose pairs lie sorted in pairs(); fails when they exceed
+  /// dispatched from DispatchArgs; `n_bound` >= that count sizes the buffers. Objects from
+  /// `static_from` on are static: no pair of two of them is found. Ends with the frame's one
+  /// wait (frame_info() holds this frame's FrameInfo afterwards) and the pair sort. Returns the
+  /// pair count, whose pairs (of object indices) lie sorted in pairs(); fails when they exceed
   /// Config::pair_memory_cap. Writes stats.pairs.
-  [[nodiscard]] Result<std::uint32_t> run(std::uint32_t n_bound, std::uint32_t objects,
+  [[nodiscard]] Result<std::uint32_t> run(std::uint32_t n_bound, std::uint32_t objects, std::uint32_t static_from,
                                           const detail::MortonLayout& layout, const detail::Aabb& bounds,
                                           FrameStats& stats);
   /// After run(): the sorted pairs, uvec2 (x = j, y = i) each.

@@ -31,7 +31,7 @@ std::uint64_t Culling::buffer_bytes() const {
   return b;
 }
 
-void Culling::cull(std::uint32_t objects) {
+void Culling::cull(std::uint32_t objects, std::uint32_t moving) {
   timers_.begin(Stage::cull);
   frame_.counts.bind_storage(VISCD_BIND_COUNTS);
   frame_.pixels.bind_storage(VISCD_BIND_PIXELS);
@@ -42,6 +42,7 @@ void Culling::cull(std::uint32_t objects) {
   if (frame_.has_always) frame_.always.bind_storage(VISCD_BIND_ALWAYS);
   const GLuint p = cull_.get();
   glProgramUniform1ui(p, cull_.uniform("u_n"), objects);
+  glProgramUniform1ui(p, cull_.uniform("u_moving"), moving);
   glProgramUniform1ui(p, cull_.uniform("u_has_counts"), frame_.has_pixels ? 1u : 0u);
   glProgramUniform1ui(p, cull_.uniform("u_culling"), config_.culling ? 1u : 0u);
   glProgramUniform1ui(p, cull_.uniform("u_has_filters"), frame_.has_filters ? 1u : 0u);

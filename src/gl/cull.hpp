@@ -27,10 +27,12 @@ class Culling {
   [[nodiscard]] Status init();
   /// Sizes the flags and scan buffers for `objects` objects.
   void reserve(std::uint32_t objects);
-  /// Stage 3 over `objects` objects: reads FrameData::counts and writes FrameData::pixels when
-  /// pixels are counted; writes FrameData::states, active, FrameInfo's active count, visible
-  /// count, pixel total and filter OR, and DispatchArgs.
-  void cull(std::uint32_t objects);
+  /// Stage 3 over `objects` objects, the first `moving` of them the frame's and the rest static
+  /// (always active, never counted): reads FrameData::counts and writes FrameData::pixels of the
+  /// moving ones when pixels are counted; writes FrameData::states, active, FrameInfo's active
+  /// count (static objects included), visible count (moving ones only), pixel total and filter
+  /// OR, and DispatchArgs.
+  void cull(std::uint32_t objects, std::uint32_t moving);
   /// Writes DispatchArgs from FrameInfo.active_count (one invocation on the GPU).
   void write_dispatch_args();
   /// Bytes held by the part's buffers (Detector::memory_bytes()).

@@ -73,17 +73,12 @@ void GlDetector::wait_for_stage_times(FrameStats& stats) {
 // ---- the frame ----
 
 Status GlDetector::run_frame(const FrameInput& input, FrameResult& out) {
-  if (!input.boxes.empty())
-    return Status::failure(ErrorKind::unsupported_input,
-                           "the gl backend does not take boxes yet; use cpu or reference");
-  if (!static_set_.empty())
-    return Status::failure(ErrorKind::unsupported_input,
-                           "the gl backend does not take a static set yet; use cpu or reference");
   try {
     return detect_frame(input, out);
   } catch (const std::bad_alloc&) {
-    return Status::failure(ErrorKind::out_of_memory,
-                           detail::out_of_memory_message(input.spheres.size(), input.camera, config_));
+    return Status::failure(
+        ErrorKind::out_of_memory,
+        detail::out_of_memory_message(detail::Shapes::of(input).size() + static_set_.size(), input.camera, config_));
   }
 }
 
@@ -94,47 +89,53 @@ Status GlDetector::detect_frame(const FrameInput& in, FrameResult& out) {
   // dispatch each: the driver's work-group limit bounds N.
   const std::uint64_t max_objects =
       std::min<std::uint64_t>((std::uint64_t{1} << 29) - 1, std::uint64_t{max_groups_} * VISCD_WG_SIZE);
-  if (in.spheres.size() > max_objects)
-    return Status::failure(ErrorKind::unsupported_input,
-                           "the gl backend handles at most " + std::to_string(max_objects) +
-                               " objects on this driver (GL_MAX_COMPUTE_WORK_GROUP_COUNT = " +
-                               std::to_string(max_groups_) + " groups of " + std::to_string(VISCD_WG_SIZE) +
-                               "); the frame has " + std::to_string(in.spheres.size()) + ": use the cpu backend");
+  const std::uint64_t frame_objects = detail::Shapes::of(in).size() + static_set_.size();
+  if (frame_objects > max_objects)
+    return Status::failure(
+        ErrorKind::unsupported_input,
+        "the gl backend handles at most " + std::to_string(max_objects) +
+            " objects on this driver (GL_MAX_COMPUTE_WORK_GROUP_COUNT = " + std::to_string(max_groups_) +
+            " groups of " + std::to_string(VISCD_WG_SIZE) + "); the frame has " + std::to_string(frame_objects) +
+            " (its static set included): use the cpu backend");
   if (!ctx_->make_current())
     return Status::failure(ErrorKind::backend_failure, "OpenGL: cannot make the detector's context current");
   if (Status s = gl_errors("an earlier call"); !s) return s;
-  const auto n_all = static_cast<std::uint32_t>(in.spheres.size());
   const bool has_camera = in.camera != nullptr;
   const bool callers_map = detail::has_callers_map(in);
-  FrameStats& stats = out.stats;
-  stats = FrameStats{};
-  stats.objects = n_all;
-  stats.has_camera = has_camera;
 
   begin_frame(in);
+  // Every pass runs over all objects, the moving ones and then the static set's; the static
+  // ones are drawn, always active and never paired with each other.
+  const std::uint32_t total = frame_.objects, n = frame_.moving;
+  FrameStats& stats = out.stats;
+  stats = FrameStats{};
+  stats.objects = n;
+  stats.static_objects = total - n;
+  stats.has_camera = has_camera;
   stats.has_pixels = frame_.has_pixels;
-  readback_.begin_frame(n_all);  // the spheres and states on the GPU are this frame's now
+  readback_.begin_frame(total, n, all_.slots);  // the objects and states on the GPU are this frame's now
   // 1-2: the detector's own map and its counts, or counting on the caller's map.
   if (callers_map) {
     if (Status s = visibility_.count_callers_map(in); !s) return s;
   } else if (frame_.rig) {  // a camera whose map something uses (core's renders_own_map())
-    if (Status s = visibility_.render(n_all); !s) return s;
+    if (Status s = visibility_.render(total); !s) return s;
   }
   // 3: cull, compact, dispatch sizes.
-  culling_.cull(n_all);
+  culling_.cull(total, n);
   // 4: the active centres' bounds on the GPU, m and the layout on the host.
   layout_.measure_extent();
-  const LayoutChoice choice = layout_.choose(n_all, frame_.has_pixels, stats);
+  const LayoutChoice choice = layout_.choose(total, n, frame_.has_pixels, stats);
   // 5-8: codes, sort, build, fit, query, the frame's final wait, pair sort; the pairs back.
-  const auto pairs = broadphase_.run(choice.n_bound, n_all, choice.layout, choice.bounds, stats);
+  const auto pairs = broadphase_.run(choice.n_bound, total, n, choice.layout, choice.bounds, stats);
   if (!pairs) return pairs.status();
   readback_.read_pairs(broadphase_.pairs(), pairs.value(), out.pairs);
+  all_.report(out.pairs);  // static objects as static_index(slot); the order stays sorted
   // What the final wait read: the caller's map's id check, the next frame's layout inputs.
   if (Status s = Visibility::id_check(in, broadphase_.frame_info()); !s) return s;
-  layout_.remember(n_all, frame_.has_pixels, broadphase_.frame_info(), stats);
-  // 8, last part: the colliding states; then states and pixels back.
+  layout_.remember(n, frame_.has_pixels, broadphase_.frame_info(), stats);
+  // 8, last part: the colliding states; then states and pixels back (the moving objects').
   broadphase_.mark_colliding(pairs.value());
-  readback_.read_states_and_pixels(n_all, frame_.has_pixels, out);
+  readback_.read_states_and_pixels(n, frame_.has_pixels, out);
   // 9: shading, the image back.
   visibility_.shade(out);
   // GPU times of the previous frame; `layout` keeps this frame's host time.
@@ -145,13 +146,18 @@ Status GlDetector::detect_frame(const FrameInput& in, FrameResult& out) {
 }
 
 void GlDetector::begin_frame(const FrameInput& in) {
-  const auto n = static_cast<std::uint32_t>(in.spheres.size());
-  frame_.upload_spheres(in.spheres);
-  frame_.has_filters = !in.filters.empty();
+  // The frame's objects then the static set's, as one array (a view of the input, no copy,
+  // without a static set). The static set is uploaded with every frame: the gl backend keeps no
+  // structure of its own for it (docs/gl.md).
+  all_.build(in, &static_set_);
+  const auto n = static_cast<std::uint32_t>(all_.moving);
+  const auto total = static_cast<std::uint32_t>(all_.total());
+  frame_.upload_objects(all_.objects, n);
+  frame_.has_filters = !all_.filters.empty();  // the frame's or the static set's
   if (frame_.has_filters) {
     static_assert(sizeof(Filter) == 8, "Filter must match GLSL uvec2 (group, mask)");
-    frame_.filters.reserve(8 * static_cast<GLsizeiptr>(n));
-    glNamedBufferSubData(frame_.filters.get(), 0, 8 * static_cast<GLsizeiptr>(n), in.filters.data());
+    frame_.filters.reserve(8 * static_cast<GLsizeiptr>(total));
+    glNamedBufferSubData(frame_.filters.get(), 0, 8 * static_cast<GLsizeiptr>(total), all_.filters.data());
   }
   frame_.has_always = !in.always_active.empty();
   if (frame_.has_always) {
@@ -160,9 +166,9 @@ void GlDetector::begin_frame(const FrameInput& in) {
     glNamedBufferSubData(frame_.always.get(), 0, static_cast<GLsizeiptr>(n), in.always_active.data());
   }
   for (Buffer* b : {&frame_.counts, &frame_.pixels, &frame_.active, &frame_.states})
-    b->reserve(4 * static_cast<GLsizeiptr>(n));
-  culling_.reserve(n);
-  layout_.reserve(n);
+    b->reserve(4 * static_cast<GLsizeiptr>(total));
+  culling_.reserve(total);
+  layout_.reserve(total);
   shader::FrameInfo zero_info{};
   zero_info.id_check.y = 0xFFFFFFFFu;  // atomicMin's start: no bad pixel
   glNamedBufferSubData(frame_.info.get(), 0, sizeof zero_info, &zero_info);

@@ -35,6 +35,7 @@
 #include <vector>
 
 #include "core/backend.hpp"
+#include "core/with_static.hpp"
 #include "gl/broadphase.hpp"
 #include "gl/context.hpp"
 #include "gl/cull.hpp"
@@ -60,12 +61,12 @@ class GlDetector final : public detail::Backend {
   void wait_for_stage_times(FrameStats& stats) override;
 
  protected:
-  /// The frame: any input detect() accepts, filters and the caller's id map (an array, or
-  /// FrameInput::gl_id_texture) included.
+  /// The frame: any input detect() accepts, boxes, the static set, filters and the caller's id
+  /// map (an array, or FrameInput::gl_id_texture) included.
   [[nodiscard]] Status run_frame(const FrameInput& input, FrameResult& out) override;
-  // Queries: the frame's spheres, states and filters stay on the GPU; the first query after a
+  // Queries: the frame's objects, states and filters stay on the GPU; the first query after a
   // frame reads them back once (Readback; no host copy in frames nobody queries), then Backend's
-  // brute force searches the active ones.
+  // brute force searches the active ones and the static set's.
   [[nodiscard]] bool answers_queries() const override { return true; }
   [[nodiscard]] detail::QueryObjects query_objects() override;
 
@@ -79,8 +80,8 @@ class GlDetector final : public detail::Backend {
   [[nodiscard]] Status gl_errors(const char* where);
   /// run_frame() without the bad_alloc guard: the stages in order.
   [[nodiscard]] Status detect_frame(const FrameInput& in, FrameResult& out);
-  /// Uploads the spheres (and filters), sizes the per-object buffers, zeroes FrameInfo, sets up
-  /// the camera and the map's pixel scale (FrameData).
+  /// Uploads the objects, the static set's after the frame's (and filters), sizes the per-object
+  /// buffers, zeroes FrameInfo, sets up the camera and the map's pixel scale (FrameData).
   void begin_frame(const FrameInput& in);
 
   GlOptions options_;
@@ -92,6 +93,7 @@ class GlDetector final : public detail::Backend {
   // ~GlDetector has made it current. The parts hold config_, options_, timers_ and frame_ by
   // reference: declared after them, they are destroyed first.
   StageTimers timers_;
+  detail::WithStatic all_;  // this frame's objects with the static set's, on the host
   FrameData frame_;
   Visibility visibility_;
   Culling culling_;

@@ -39,6 +39,11 @@ static_assert(offsetof(Sphere, x) == offsetof(vec4, x) && offsetof(Sphere, y) ==
               offsetof(Sphere, z) == offsetof(vec4, z) && offsetof(Sphere, r) == offsetof(vec4, w));
 static_assert(std::is_same_v<decltype(Sphere::x), float>);
 
+// Boxes upload unchanged as LeafBox (min xyz, max xyz), the layout of the leaf boxes they become.
+static_assert(sizeof(Box) == sizeof(LeafBox));
+static_assert(offsetof(Box, min) == 0 && offsetof(Box, max) == 3 * sizeof(float));
+static_assert(std::is_same_v<std::remove_extent_t<decltype(Box::min)>, float>);
+
 // Pairs are stored as uvec2 (x = j, y = i), read back into Pair {i, j} and swapped.
 static_assert(sizeof(Pair) == 2 * sizeof(uint));
 static_assert(offsetof(Pair, i) == 0 && offsetof(Pair, j) == sizeof(uint));

@@ -32,11 +32,13 @@ void LayoutChooser::measure_extent() {
   timers_.end(Stage::layout);
 }
 
-LayoutChoice LayoutChooser::choose(std::uint32_t objects, bool has_pixels, FrameStats& stats) {
+LayoutChoice LayoutChooser::choose(std::uint32_t objects, std::uint32_t moving, bool has_pixels, FrameStats& stats) {
   detail::Stopwatch sw;
   // The default mode needs a previous frame of the same N (and pixel counts in both or neither:
-  // mu exists only with them); otherwise this frame runs as sync_layout.
-  const bool use_prev = !options_.sync_layout && have_prev_ && prev_objects_ == objects && prev_pixels_ == has_pixels;
+  // mu exists only with them); otherwise this frame runs as sync_layout. A change of the static
+  // set alone does not force a wait: the previous bounds are a frame late for static objects as
+  // they are for moving ones, which costs the tree some quality, never a pair.
+  const bool use_prev = !options_.sync_layout && have_prev_ && prev_moving_ == moving && prev_pixels_ == has_pixels;
   // `info` is the FrameInfo whose active count, bounds and diameter sum choose the layout, `mu`
   // the mean pixels that choose m: the previous frame's (default) or this frame's (sync).
   shader::FrameInfo info{};
@@ -50,10 +52,10 @@ LayoutChoice LayoutChooser::choose(std::uint32_t objects, bool has_pixels, Frame
     glGetNamedBufferSubData(frame_.info.get(), 0, sizeof info, &info);  // the sync mode's wait
     ++mid_frame_waits_;
     choice.n_bound = info.active_count;
-    // mu over all N objects, culled ones included (docs/architecture.md, "Contracts"). The cpu
-    // backend sums count * scale in double; with scale 1 (map = screen) both sums are exact and
-    // equal, otherwise they may differ in the last ulp.
-    if (has_pixels) mu = objects ? static_cast<double>(info.total_pixels) * frame_.pixel_scale / objects : 0.0;
+    // mu over all N moving objects, culled ones included (docs/architecture.md, "Contracts");
+    // static objects are not counted. The cpu backend sums count * scale in double; with scale 1
+    // (map = screen) both sums are exact and equal, otherwise they may differ in the last ulp.
+    if (has_pixels) mu = moving ? static_cast<double>(info.total_pixels) * frame_.pixel_scale / moving : 0.0;
   }
   const int bits = detail::choose_bits(config_, has_pixels, mu);
   choice.bounds.lo = {info.lo.x, info.lo.y, info.lo.z};
@@ -69,16 +71,16 @@ LayoutChoice LayoutChooser::choose(std::uint32_t objects, bool has_pixels, Frame
   return choice;
 }
 
-void LayoutChooser::remember(std::uint32_t objects, bool has_pixels, const shader::FrameInfo& info, FrameStats& stats) {
+void LayoutChooser::remember(std::uint32_t moving, bool has_pixels, const shader::FrameInfo& info, FrameStats& stats) {
   stats.pairs = info.pair_count;
   stats.active = info.visible_count;
   if (has_pixels)
-    stats.mean_pixels = objects ? static_cast<double>(info.total_pixels) * frame_.pixel_scale / objects : 0.0;
+    stats.mean_pixels = moving ? static_cast<double>(info.total_pixels) * frame_.pixel_scale / moving : 0.0;
   // They become the next frame's layout inputs in the default mode.
   have_prev_ = true;
   prev_info_ = info;
   prev_mean_pixels_ = stats.mean_pixels;
-  prev_objects_ = objects;
+  prev_moving_ = moving;
   prev_pixels_ = has_pixels;
 }
 

@@ -44,12 +44,14 @@ class LayoutChooser {
   /// Stage 4's inputs on the GPU, dispatched from DispatchArgs: the bounds of the active centres
   /// and their diameter sum into FrameInfo.
   void measure_extent();
-  /// Stage 4 on the host: m and the layout for a frame of `objects` objects; writes stats.bits,
-  /// stats.layout and stats.ms(Stage::layout) (host time, the mid-frame wait included).
-  [[nodiscard]] LayoutChoice choose(std::uint32_t objects, bool has_pixels, FrameStats& stats);
+  /// Stage 4 on the host: m and the layout for a frame of `objects` objects, the first `moving`
+  /// of them the frame's (mu is theirs) and the rest static; writes stats.bits, stats.layout and
+  /// stats.ms(Stage::layout) (host time, the mid-frame wait included).
+  [[nodiscard]] LayoutChoice choose(std::uint32_t objects, std::uint32_t moving, bool has_pixels, FrameStats& stats);
   /// After the broadphase's final wait read `info` (this frame's FrameInfo): this frame's pair
-  /// count, active count and mu into stats, and kept as the next frame's layout inputs.
-  void remember(std::uint32_t objects, bool has_pixels, const shader::FrameInfo& info, FrameStats& stats);
+  /// count, active count and mu (over its `moving` objects) into stats, and kept as the next
+  /// frame's layout inputs.
+  void remember(std::uint32_t moving, bool has_pixels, const shader::FrameInfo& info, FrameStats& stats);
   /// Frames so far that waited mid-frame for their own FrameInfo (sync_layout, a first frame,
   /// or a change of N or of whether pixels are counted); default-mode frames do not count.
   [[nodiscard]] std::uint64_t mid_frame_waits() const { return mid_frame_waits_; }
@@ -65,10 +67,10 @@ class LayoutChooser {
   Buffer partials_;  // shader::BoundsPartial per work group of bounds.comp
   // The previous frame's values, the default mode's source of m, the layout and the bounds.
   bool have_prev_ = false;
-  shader::FrameInfo prev_info_{};   // its active count, active-centre bounds, diameter sum
-  double prev_mean_pixels_ = 0.0;   // its mu
-  std::uint32_t prev_objects_ = 0;  // its N
-  bool prev_pixels_ = false;        // it counted pixels (a camera or the caller's map)
+  shader::FrameInfo prev_info_{};  // its active count, active-centre bounds, diameter sum
+  double prev_mean_pixels_ = 0.0;  // its mu
+  std::uint32_t prev_moving_ = 0;  // its N
+  bool prev_pixels_ = false;       // it counted pixels (a camera or the caller's map)
   std::uint64_t mid_frame_waits_ = 0;
 };
 

@@ -1,6 +1,8 @@
 // For tests only (test_access.hpp): GlInspector's calls into a GlDetector's parts.
 #include "gl/test_access.hpp"
 
+#include <algorithm>
+
 #include "core/frame_rules.hpp"
 #include "core/morton.hpp"
 #include "viscd/assert.hpp"
@@ -16,32 +18,33 @@ std::uint64_t GlInspector::mid_frame_waits() const { return d_->layout_.mid_fram
 
 std::uint32_t GlInspector::pair_capacity() const { return d_->broadphase_.pair_capacity(); }
 
-Status GlInspector::run_broadphase(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
-                                   std::vector<Pair>& pairs, FrameStats& stats) {
+Status GlInspector::run_broadphase(const detail::Shapes& objects, std::span<const std::uint32_t> active, int bits,
+                                   std::vector<Pair>& pairs, FrameStats& stats, std::uint32_t static_from) {
   VISCD_ASSERT(bits == 16 || bits == 32 || bits == 64, "Morton width must be 16, 32 or 64");
-  if (Status s = validate_spheres(spheres); !s) return s;
+  if (Status s = objects.is_box() ? validate_boxes(objects.boxes) : validate_spheres(objects.spheres); !s) return s;
   GlDetector& d = *d_;
   if (!d.ctx_->make_current())
     return Status::failure(ErrorKind::backend_failure, "OpenGL: cannot make the detector's context current");
   FrameData& frame = d.frame_;
-  frame.upload_spheres(spheres);
+  const auto total = static_cast<std::uint32_t>(objects.size());
+  frame.upload_objects(objects, std::min(static_from, total));
   frame.has_filters = false;
-  d.readback_.begin_frame(0);  // a stage test, not a frame: queries see no objects
+  d.readback_.begin_frame(0, 0, {});  // a stage test, not a frame: queries see no objects
   const auto n = static_cast<std::uint32_t>(active.size());
   frame.active.reserve(4 * static_cast<GLsizeiptr>(n));
-  frame.states.reserve(4 * static_cast<GLsizeiptr>(spheres.size()));
+  frame.states.reserve(4 * static_cast<GLsizeiptr>(total));
   if (n) glNamedBufferSubData(frame.active.get(), 0, 4 * static_cast<GLsizeiptr>(n), active.data());
   shader::FrameInfo zero_info{};
   zero_info.active_count = n;  // the shaders read n from FrameInfo
   glNamedBufferSubData(frame.info.get(), 0, sizeof zero_info, &zero_info);
   d.culling_.write_dispatch_args();
-  const detail::ActiveExtent e = detail::extent_of(spheres, active, 0, active.size());
+  const detail::ActiveExtent e = detail::extent_of(objects, active, 0, active.size());
   const detail::MortonLayout layout = detail::make_layout(d.config_.layout, bits, e.bounds, e.mean_diameter());
   stats.bits = bits;
   stats.layout = layout.info();
   stats.active = n;
-  stats.objects = static_cast<std::uint32_t>(spheres.size());
-  const auto count = d.broadphase_.run(n, static_cast<std::uint32_t>(spheres.size()), layout, e.bounds, stats);
+  stats.objects = total;
+  const auto count = d.broadphase_.run(n, total, static_from, layout, e.bounds, stats);
   if (!count) return count.status();
   d.readback_.read_pairs(d.broadphase_.pairs(), count.value(), pairs);
   return d.gl_errors("run_broadphase()");

@@ -12,6 +12,7 @@
 
 #include "core/geometry.hpp"
 #include "core/lbvh.hpp"
+#include "core/shapes.hpp"
 #include "gl/gl_detector.hpp"
 #include "viscd/frame.hpp"
 #include "viscd/gl.hpp"
@@ -35,11 +36,14 @@ class GlInspector {
   /// Pairs the pair buffer holds now (Broadphase).
   [[nodiscard]] std::uint32_t pair_capacity() const;
 
-  /// Stages 5-8 alone over a given active set (ascending) of `spheres`, with the layout and
-  /// bounds computed on the host as the cpu backend does them: writes the sorted pairs and
-  /// stats.bits/layout/active/objects/pairs. Queries see no objects afterwards.
-  [[nodiscard]] Status run_broadphase(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits,
-                                      std::vector<Pair>& pairs, FrameStats& stats);
+  /// Stages 5-8 alone over a given active set (ascending) of `objects` (spheres, or boxes with
+  /// their box_proxy() for stages 4-6), with the layout and bounds computed on the host as the
+  /// cpu backend does them: writes the sorted pairs (of object indices) and
+  /// stats.bits/layout/active/objects/pairs. Objects from `static_from` on are treated as
+  /// static: never paired with each other. Queries see no objects afterwards.
+  [[nodiscard]] Status run_broadphase(const detail::Shapes& objects, std::span<const std::uint32_t> active, int bits,
+                                      std::vector<Pair>& pairs, FrameStats& stats,
+                                      std::uint32_t static_from = 0xFFFFFFFFu);
   /// After a frame or run_broadphase(): sorted codes (widened), sorted object ids, the tree with
   /// its leaf boxes (a core Lbvh, ready for validate_lbvh).
   [[nodiscard]] std::vector<std::uint64_t> read_sorted_codes();

@@ -42,6 +42,9 @@ Status Visibility::init() {
   auto mesh = Program::graphics("gbuffer_mesh.vert", "gbuffer_mesh.frag");
   if (!mesh) return mesh.status();
   mesh_ = std::move(mesh.value());
+  auto box = Program::graphics("gbuffer_box.vert", "gbuffer_box.frag");
+  if (!box) return box.status();
+  box_ = std::move(box.value());
   GLuint name = 0;
   glCreateVertexArrays(1, &name);
   empty_vao_ = VertexArray(name);
@@ -65,7 +68,7 @@ void Visibility::set_camera_uniforms(const Program& prog) const {
   glProgramUniform3f(p, prog.uniform("u_up"), rig.up.x, rig.up.y, rig.up.z);
   glProgramUniform2f(p, prog.uniform("u_tan_half"), rig.tan_half_x, rig.tan_half_y);
   glProgramUniform2f(p, prog.uniform("u_near_far"), rig.near_plane, rig.far_plane);
-  if (prog.has_uniform("u_map")) glProgramUniform2i(p, prog.uniform("u_map"), rig.map_w, rig.map_h);  // impostor only
+  if (prog.has_uniform("u_map")) glProgramUniform2i(p, prog.uniform("u_map"), rig.map_w, rig.map_h);  // not the mesh
 }
 
 Status Visibility::render(std::uint32_t objects) {
@@ -93,7 +96,8 @@ Status Visibility::render(std::uint32_t objects) {
 
 Status Visibility::count_callers_map(const FrameInput& in) {
   const int w = in.id_map_width, h = in.id_map_height;
-  const auto objects = static_cast<std::uint32_t>(in.spheres.size());
+  // The frame's moving objects: static ones are not in the caller's map (their pixels are 0).
+  const auto objects = static_cast<std::uint32_t>(detail::Shapes::of(in).size());
   GLuint ids = in.gl_id_texture;
   if (ids == 0) {
     // The caller's array as a texture of our own. Its row 0 is the top; counting does not care.
@@ -136,13 +140,14 @@ Status Visibility::count_callers_map(const FrameInput& in) {
 Status Visibility::id_check(const FrameInput& in, const shader::FrameInfo& info) {
   const std::uint32_t bad = info.id_check.x;
   if (bad == 0) return {};
-  if (!in.id_map.empty()) return detail::id_map_error(in.id_map, in.id_map_width, in.spheres.size());
+  const std::size_t n = detail::Shapes::of(in).size();
+  if (!in.id_map.empty()) return detail::id_map_error(in.id_map, in.id_map_width, n);
   const std::uint32_t first = info.id_check.y;
   const auto w = static_cast<std::uint32_t>(in.id_map_width);
   return Status::failure(ErrorKind::invalid_input, "FrameInput::gl_id_texture: texel (" + std::to_string(first % w) +
                                                        ", " + std::to_string(first / w) + ") and " +
                                                        std::to_string(bad - 1) + " more hold ids above the frame's " +
-                                                       std::to_string(in.spheres.size()) +
+                                                       std::to_string(n) +
                                                        " objects (an id is an object index + 1, 0 is background)");
 }
 
@@ -205,8 +210,9 @@ void Visibility::make_mesh() {
   glVertexArrayAttribBinding(vao, 0, 0);
 }
 
-// Stage 1: instanced draw of every sphere, ids ascending; depth test LESS keeps the nearest hit
-// and, on equal depth, the first drawn (smaller id), GL's primitive order guarantee.
+// Stage 1: instanced draw of every object (the static ones after the moving ones, so that they
+// occlude), ids ascending; depth test LESS keeps the nearest hit and, on equal depth, the first
+// drawn (smaller id), GL's primitive order guarantee.
 void Visibility::draw_gbuffer(std::uint32_t n) {
   const detail::CameraRig& rig = *frame_.rig;
   const GLuint zero_id[4] = {0, 0, 0, 0};
@@ -224,7 +230,18 @@ void Visibility::draw_gbuffer(std::uint32_t n) {
   glDepthFunc(GL_LESS);
   glDisable(GL_CULL_FACE);  // a camera inside a sphere sees its back faces (CameraRig hit())
   frame_.spheres.bind_storage(VISCD_BIND_SPHERES);
-  if (options_.geometry == GlGeometry::mesh) {
+  if (frame_.has_boxes) {
+    // Boxes are cubes in both geometry modes. The cube may reach behind the near plane (its
+    // fragments ray-cast the box and keep the far side, as for spheres) and beyond the far
+    // plane: depth clamping keeps such parts from being clipped away; gl_FragDepth is the hit's.
+    frame_.boxes.bind_storage(VISCD_BIND_BOXES);
+    set_camera_uniforms(box_);
+    glEnable(GL_DEPTH_CLAMP);
+    glUseProgram(box_.get());
+    glBindVertexArray(empty_vao_.get());
+    glDrawArraysInstanced(GL_TRIANGLES, 0, 36, static_cast<GLsizei>(n));
+    glDisable(GL_DEPTH_CLAMP);
+  } else if (options_.geometry == GlGeometry::mesh) {
     if (!mesh_vao_) make_mesh();
     set_camera_uniforms(mesh_);
     glUseProgram(mesh_.get());
@@ -298,15 +315,16 @@ void Visibility::shade(FrameResult& out) {
   glProgramUniform3f(p, shade_.uniform("u_terms"), model.ambient, model.diffuse, model.rim);
   glProgramUniform3f(p, shade_.uniform("u_view"), -frame_.rig->forward.x, -frame_.rig->forward.y,
                      -frame_.rig->forward.z);
-  float colours[12];
-  const Rgb8 c[4] = {state_colour(ObjectState::colliding), state_colour(ObjectState::free),
-                     state_colour(ObjectState::culled), kBackgroundColour};
-  for (int k = 0; k < 4; ++k) {
+  float colours[15];
+  const Rgb8 c[5] = {state_colour(ObjectState::colliding), state_colour(ObjectState::free),
+                     state_colour(ObjectState::culled), kBackgroundColour, kStaticColour};
+  for (int k = 0; k < 5; ++k) {
     colours[3 * k] = c[k].r;
     colours[3 * k + 1] = c[k].g;
     colours[3 * k + 2] = c[k].b;
   }
-  glProgramUniform3fv(p, shade_.uniform("u_colour"), 4, colours);
+  glProgramUniform3fv(p, shade_.uniform("u_colour"), 5, colours);
+  glProgramUniform1ui(p, shade_.uniform("u_moving"), frame_.moving);
   glBindTextureUnit(VISCD_UNIT_IDS, ids_tex_.get());
   glBindTextureUnit(VISCD_UNIT_NORMAL, normal_tex_.get());
   frame_.states.bind_storage(VISCD_BIND_STATE);

@@ -1,9 +1,10 @@
 #pragma once
 // Stages 1, 2 and 9 of the gl backend, the part that owns the visibility map: the G-buffer
-// (ids, view depth, normals, depth buffer), the sphere draws that fill it (impostor or mesh), the
-// pixel count per object (ssbo or atomic_uint), the caller's id map (an array uploaded into the
-// id texture, or the caller's own texture checked and read), and the shading that reads the
-// G-buffer back. Counting and shading live here because both read the map this part draws.
+// (ids, view depth, normals, depth buffer), the draws that fill it (spheres as impostors or
+// meshes, boxes as cubes whose fragments ray-cast the box), the pixel count per object (ssbo or
+// atomic_uint), the caller's id map (an array uploaded into the id texture, or the caller's own
+// texture checked and read), and the shading that reads the G-buffer back. Counting and shading live here because both
+// read the map this part draws.
 
 #include <cstdint>
 #include <span>
@@ -31,13 +32,13 @@ class Visibility {
   /// Builds the programs and the map-independent objects, reads the atomic-counter limits. The
   /// context must be current.
   [[nodiscard]] Status init();
-  /// Stages 1-2 with the frame's camera (FrameData::rig): the G-buffer, then `objects` counts
-  /// into FrameData::counts in GlOptions::counter's mode. Fails before any work when the
-  /// atomic_uint mode cannot count so many objects on this driver.
+  /// Stages 1-2 with the frame's camera (FrameData::rig): the G-buffer of `objects` objects (the
+  /// static ones included), then their counts into FrameData::counts in GlOptions::counter's mode. Fails before any
+  /// work when the atomic_uint mode cannot count so many objects on this driver.
   [[nodiscard]] Status render(std::uint32_t objects);
   /// Stage 2 on the caller's map: FrameInput::id_map uploaded into the id texture, or
   /// FrameInput::gl_id_texture checked (a texture, R32UI, the map's size) and read. Always the
-  /// ssbo counter, which counts ids above N into FrameInfo.id_check.
+  /// ssbo counter, which counts ids above N (the moving objects) into FrameInfo.id_check.
   [[nodiscard]] Status count_callers_map(const FrameInput& in);
   /// The frame's error when the caller's map held ids above N (FrameInfo.id_check as the final
   /// wait read it back); success otherwise.
@@ -60,7 +61,7 @@ class Visibility {
  private:
   /// (Re)creates the G-buffer when the map's size changes.
   void ensure_map(int w, int h);
-  /// Stage 1: clears the G-buffer and draws n spheres into it.
+  /// Stage 1: clears the G-buffer and draws n objects into it.
   void draw_gbuffer(std::uint32_t n);
   /// Counts the ids of `ids` (w x h) into FrameData::counts[0..n) in the given mode (ssbo: ids
   /// above n into FrameInfo.id_check).
@@ -73,7 +74,7 @@ class Visibility {
   StageTimers& timers_;
   const Config& config_;
   const GlOptions& options_;
-  Program impostor_, mesh_, count_, shade_;
+  Program impostor_, mesh_, box_, count_, shade_;
   // The atomic_uint counting program: its counter array's size is compiled in, so it is built
   // on first use and rebuilt when N changes.
   Program count_atomic_;

@@ -48,5 +48,61 @@ TEST(GlAllocation, SteadyStateFramesAllocateNothing) {
   }
 }
 
+TEST(GlAllocation, SteadyStateFramesWithBoxesAndAStaticSetAllocateNothing) {
+  for (const bool boxes : {false, true}) {
+    SCOPED_TRACE(boxes ? "boxes" : "spheres");
+    Config c;
+    c.map_width = 256;
+    c.map_height = 144;
+    c.shade = true;
+    c.lambda = 10;
+    VISCD_GL_OR_SKIP(gl, c);
+    Detector& d = gl->detector();
+    d.clear_static();
+    std::vector<Sphere> spheres = random_spheres_by_edge(3000, 40.0f, 0.3f, 1.5f, 4);
+    std::vector<Box> moving(spheres.size());
+    for (std::size_t k = 0; k < spheres.size(); ++k)
+      for (int a = 0; a < 3; ++a) {
+        const float centre = a == 0 ? spheres[k].x : a == 1 ? spheres[k].y : spheres[k].z;
+        moving[k].min[a] = centre - spheres[k].r;
+        moving[k].max[a] = centre + spheres[k].r;
+      }
+    const std::vector<Sphere> static_spheres = random_spheres_by_edge(500, 40.0f, 0.5f, 3.0f, 5);
+    std::vector<Box> static_boxes(static_spheres.size());
+    for (std::size_t k = 0; k < static_boxes.size(); ++k)
+      for (int a = 0; a < 3; ++a) {
+        const float centre = a == 0 ? static_spheres[k].x : a == 1 ? static_spheres[k].y : static_spheres[k].z;
+        static_boxes[k].min[a] = centre - static_spheres[k].r;
+        static_boxes[k].max[a] = centre + static_spheres[k].r;
+      }
+    ASSERT_TRUE((boxes ? d.set_static_boxes(static_boxes) : d.set_static_spheres(static_spheres)).ok());
+    Camera cam;
+    cam.eye[2] = 60;
+    cam.width = 256;
+    cam.height = 144;
+    FrameResult f;
+    std::vector<RayHit> hits;
+    // Each frame moves the objects and queries once (the query copy is read back per frame).
+    const auto [n, st] = steady_state_allocations([&] {
+      for (Sphere& s : spheres) s.x += 0.01f;
+      for (Box& b : moving) b.min[0] += 0.01f, b.max[0] += 0.01f;
+      FrameInput in;
+      in.camera = &cam;
+      if (boxes)
+        in.boxes = moving;
+      else
+        in.spheres = spheres;
+      const Status s = d.detect(in, f);
+      d.ray_cast_all(Ray{{0, 0, 60}, {0, 0, -1}}, hits);
+      return s;
+    });
+    d.clear_static();
+    ASSERT_TRUE(st.ok()) << st.error();
+    EXPECT_GT(f.pairs.size(), 0u);
+    EXPECT_GT(f.stats.static_objects, 0u);
+    EXPECT_EQ(n, 0) << "allocations in 4 steady-state frames";
+  }
+}
+
 }  // namespace
 }  // namespace viscd::test

@@ -4,7 +4,9 @@
 // or camera), the object's first
 // state (free when active, culled otherwise; the pair pass later marks colliding ones), the
 // integer pixel total, the count of active objects and, with filters, the OR of their groups and
-// of their masks (pairable.comp's inputs).
+// of their masks (pairable.comp's inputs). Objects from u_moving on are the static set's: always
+// active, not counted (no pixels, not in the pixel total nor in visible_count), but their filters
+// enter the OR, as the cpu backend's split_by_filters sees them.
 #include "shared/layout.h"
 layout(local_size_x = VISCD_WG_SIZE) in;
 layout(std430, binding = VISCD_BIND_COUNTS) readonly buffer Counts { uint counts[]; };
@@ -16,6 +18,7 @@ layout(std430, binding = VISCD_BIND_FILTERS) readonly buffer Filters { uvec2 fil
 // FrameInput::always_active as uploaded: byte k of the array is byte k % 4 of word k / 4.
 layout(std430, binding = VISCD_BIND_ALWAYS) readonly buffer Always { uint always[]; };
 uniform uint u_n;
+uniform uint u_moving;  // N: the frame's moving objects, the rest of u_n are static
 uniform uint u_has_filters;
 uniform uint u_has_always;  // FrameInput::always_active was given
 uniform uint u_has_counts;  // 0: no camera, every object active
@@ -34,8 +37,9 @@ void main() {
   }
   barrier();
   if (k < u_n) {
+    const bool moving = k < u_moving;
     uint flag = 1u;
-    if (u_has_counts != 0u) {
+    if (moving && u_has_counts != 0u) {
       const uint c = counts[k];
       const double px = double(c) * u_scale;
       pixels[k] = float(px);
@@ -46,7 +50,7 @@ void main() {
     flags[k] = flag;
     state[k] = flag != 0u ? VISCD_STATE_FREE : VISCD_STATE_CULLED;
     if (flag != 0u) {
-      atomicAdd(s_active, 1u);
+      if (moving) atomicAdd(s_active, 1u);
       if (u_has_filters != 0u) {
         atomicOr(s_group, filters[k].x);
         atomicOr(s_mask, filters[k].y);

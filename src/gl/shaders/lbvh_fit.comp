@@ -1,6 +1,7 @@
 #version 450 core
-// Stage 7b: leaf boxes (core/geometry.hpp conservative_box, bit for bit with `precise`) and the
-// bottom-up fit, one invocation per leaf. At each internal node the first invocation to arrive
+// Stage 7b: leaf boxes (a sphere's core/geometry.hpp conservative_box, bit for bit with
+// `precise`; a box itself, core's box_aabb: the box test is the node test's comparisons, so no
+// margin is needed) and the bottom-up fit, one invocation per leaf. At each internal node the first invocation to arrive
 // stops and the second merges both child boxes and climbs. The node buffer is `coherent` and the
 // box write is made visible (memoryBarrierBuffer) before the arrival atomicAdd, so the second
 // arrival reads the first one's box. No invocation waits for another: no forward-progress
@@ -15,18 +16,27 @@ layout(std430, binding = VISCD_BIND_NODES) coherent buffer Nodes { LbvhNode node
 layout(std430, binding = VISCD_BIND_PARENT) readonly buffer Parent { uint parent[]; };
 layout(std430, binding = VISCD_BIND_ARRIVALS) coherent buffer Arrivals { uint arrivals[]; };
 layout(std430, binding = VISCD_BIND_INFO) buffer Info { FrameInfo info; };
+layout(std430, binding = VISCD_BIND_BOXES) readonly buffer Boxes { LeafBox boxes[]; };
+uniform uint u_boxes;  // the objects are boxes (`spheres` holds their proxies)
 
 void main() {
   const uint n = info.active_count;  // from the GPU: the dispatch is sized from it (indirect)
   const uint p = gl_GlobalInvocationID.x;
   if (p >= n) return;
-  const vec4 s = spheres[sorted_ids[p]];
+  const uint id = sorted_ids[p];
+  const vec4 s = spheres[id];
   sorted_spheres[p] = s;
-  // conservative_box: r + (max|c| + r) * 2^-19 + 1e-21, evaluated in the same order.
-  precise float m = max(max(abs(s.x), abs(s.y)), abs(s.z));
-  precise float r = s.w + (m + s.w) * 1.9073486328125e-06 + 1e-21;
-  precise vec3 lo = vec3(s.x - r, s.y - r, s.z - r);
-  precise vec3 hi = vec3(s.x + r, s.y + r, s.z + r);
+  precise vec3 lo, hi;
+  if (u_boxes != 0u) {
+    lo = vec3(boxes[id].v[0], boxes[id].v[1], boxes[id].v[2]);
+    hi = vec3(boxes[id].v[3], boxes[id].v[4], boxes[id].v[5]);
+  } else {
+    // conservative_box: r + (max|c| + r) * 2^-19 + 1e-21, evaluated in the same order.
+    precise float m = max(max(abs(s.x), abs(s.y)), abs(s.z));
+    precise float r = s.w + (m + s.w) * 1.9073486328125e-06 + 1e-21;
+    lo = vec3(s.x - r, s.y - r, s.z - r);
+    hi = vec3(s.x + r, s.y + r, s.z + r);
+  }
   leaf_boxes[p].v[0] = lo.x; leaf_boxes[p].v[1] = lo.y; leaf_boxes[p].v[2] = lo.z;
   leaf_boxes[p].v[3] = hi.x; leaf_boxes[p].v[4] = hi.y; leaf_boxes[p].v[5] = hi.z;
   if (n == 1u) {

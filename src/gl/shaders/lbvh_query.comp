@@ -1,7 +1,8 @@
 #version 450 core
 // Stage 8: one invocation per leaf p (sorted position) walks the tree for leaves q > p whose box
-// overlaps its own (core/lbvh.hpp for_each_overlap_after), then applies the exact sphere test
-// (docs/architecture.md, "Contracts") with `precise` (no FMA). Every pair is counted in info.pair_count; pairs are stored only
+// overlaps its own (core/lbvh.hpp for_each_overlap_after), then applies the exact test
+// (docs/architecture.md, "Contracts"): spheres' with `precise` (no FMA), boxes' on the leaf boxes
+// (which are the boxes). A pair of two static objects (ids from u_static_from on) is skipped. Every pair is counted in info.pair_count; pairs are stored only
 // while the count is below u_capacity, and the host grows the buffer and re-runs on overflow:
 // no pair is ever dropped. The stack holds VISCD_STACK_DEPTH >= 64 + 32 entries, the deepest
 // possible tree (core/lbvh.hpp), so it cannot overflow.
@@ -16,6 +17,8 @@ layout(std430, binding = VISCD_BIND_INFO) buffer Info { FrameInfo info; };
 layout(std430, binding = VISCD_BIND_FILTERS) readonly buffer Filters { uvec2 filters[]; };
 uniform uint u_capacity;
 uniform uint u_has_filters;  // pairs also need (group_i & mask_j) != 0 && (group_j & mask_i) != 0
+uniform uint u_boxes;        // the objects are boxes
+uniform uint u_static_from;  // objects from here on are static: never paired with each other
 
 bool overlap_exact(vec4 a, vec4 b) {
   precise float dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
@@ -23,6 +26,13 @@ bool overlap_exact(vec4 a, vec4 b) {
   precise float d2 = dx * dx + dy * dy + dz * dz;
   precise float s2 = s * s;
   return d2 <= s2;
+}
+
+// core/geometry.hpp box_overlap_exact of two leaves' boxes (closed: touching counts).
+bool leaf_boxes_overlap(uint p, uint q) {
+  for (uint a = 0u; a < 3u; ++a)
+    if (!(leaf_boxes[p].v[a] <= leaf_boxes[q].v[a + 3u] && leaf_boxes[q].v[a] <= leaf_boxes[p].v[a + 3u])) return false;
+  return true;
 }
 
 bool box_overlap(uint node, uint side, vec3 lo, vec3 hi) {
@@ -50,8 +60,9 @@ void main() {
       const uint ch = nodes[node].child[c];
       if ((ch & VISCD_LEAF_BIT) != 0u) {
         const uint q = ch & ~VISCD_LEAF_BIT;
-        if (overlap_exact(a, sorted_spheres[q])) {
+        if (u_boxes != 0u ? leaf_boxes_overlap(p, q) : overlap_exact(a, sorted_spheres[q])) {
           const uint ib = sorted_ids[q];
+          if (ia >= u_static_from && ib >= u_static_from) continue;
           if (u_has_filters != 0u) {
             const uvec2 fa = filters[ia], fb = filters[ib];
             if ((fa.x & fb.y) == 0u || (fb.x & fa.y) == 0u) continue;

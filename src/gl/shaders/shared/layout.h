@@ -45,7 +45,8 @@ struct dvec2 {
 #define VISCD_SCAN_BLOCK (VISCD_WG_SIZE * VISCD_SCAN_PER_THREAD)
 
 // ---- SSBO binding points ----
-#define VISCD_BIND_SPHERES 0   // vec4 spheres[N]: x, y, z, r (viscd::Sphere)
+// N counts every object of the frame: its moving objects, then the static set's (FrameData).
+#define VISCD_BIND_SPHERES 0   // vec4 spheres[N]: x, y, z, r (viscd::Sphere; a box frame's box_proxy())
 #define VISCD_BIND_COUNTS 1    // uint counts[N]: map pixels per object (also the atomic_uint buffer)
 #define VISCD_BIND_PIXELS 2    // float pixels[N]: screen-scaled counts
 #define VISCD_BIND_FLAGS 3     // uint flags[N]: 1 = active, scan input
@@ -70,6 +71,7 @@ struct dvec2 {
 #define VISCD_BIND_DISPATCH 22    // DispatchArgs: indirect dispatch sizes from the active count
 #define VISCD_BIND_FILTERS 23     // uvec2 filters[N]: x = group, y = mask (viscd::Filter)
 #define VISCD_BIND_ALWAYS 24      // uint always[(N + 3) / 4]: FrameInput::always_active, 4 bytes a word
+#define VISCD_BIND_BOXES 25       // LeafBox boxes[N]: a box frame's boxes (viscd::Box: min xyz, max xyz)
 // Atomic counter buffer binding of the paper's atomic_uint counting mode.
 #define VISCD_BIND_ATOMIC_COUNTERS 0
 // Texture units.
