@@ -79,7 +79,8 @@ using ProgramHandle = Handle<ProgramDeleter>;
 class Buffer {
  public:
   Buffer() = default;
-  /// Makes sure the buffer holds at least `bytes` (at least 16); reallocates when smaller.
+  /// Makes sure the buffer holds at least `bytes` (at least 16, a multiple of 16); reallocates
+  /// when smaller.
   void reserve(GLsizeiptr bytes) {
     if (bytes < 16) bytes = 16;
     if (handle_ && bytes <= size_) return;
@@ -88,8 +89,10 @@ class Buffer {
       glCreateBuffers(1, &n);
       handle_ = Handle<BufferDeleter>(n);
     }
-    // Grow geometrically so that slowly growing scenes reallocate rarely.
-    const GLsizeiptr grown = size_ ? std::max(bytes, size_ + size_ / 2) : bytes;
+    // Grow geometrically so that slowly growing scenes reallocate rarely, in whole 16 bytes, so
+    // that clears and views of any element size (glClearNamedBufferSubData, vec4) fit the size.
+    const GLsizeiptr wanted = size_ ? std::max(bytes, size_ + size_ / 2) : bytes;
+    const GLsizeiptr grown = (wanted + 15) / 16 * 16;
     glNamedBufferData(handle_.get(), grown, nullptr, GL_DYNAMIC_COPY);
     size_ = grown;
   }
