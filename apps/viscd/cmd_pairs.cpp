@@ -10,13 +10,14 @@
 #include "input_files.hpp"
 #include "options.hpp"
 #include "outputs.hpp"
+#include "static_objects.hpp"
 #include "viscd/io.hpp"
 
 namespace viscd::app {
 namespace {
 
 struct PairsArgs {
-  std::string spheres, camera, id_map, out = "pairs.csv", stats, validate_hash;
+  std::string spheres, boxes, static_objects, camera, id_map, out = "pairs.csv", stats, validate_hash;
   PipelineOptions pipeline;
 };
 
@@ -31,15 +32,27 @@ int run_pairs(const PairsArgs& a) {
   }
   if (!a.id_map.empty() && a.pipeline.map_size.empty())
     return usage_fail("--id-map needs --map-size WxH, the size of the map in pixels");
+  if (a.spheres.empty() == a.boxes.empty()) return usage_fail("give one of --spheres and --boxes");
+  const bool boxes = !a.boxes.empty();
+  const char* moving_option = boxes ? "--boxes" : "--spheres";
   // Refuse before anything is read or written.
-  std::vector<NamedPath> inputs = {{"--spheres", a.spheres}}, outputs = {{"--out", a.out}};
+  std::vector<NamedPath> inputs = {{moving_option, boxes ? a.boxes : a.spheres}}, outputs = {{"--out", a.out}};
+  if (!a.static_objects.empty()) inputs.push_back({"--static", a.static_objects});
   if (!a.camera.empty()) inputs.push_back({"--camera", a.camera});
   if (!a.id_map.empty()) inputs.push_back({"--id-map", a.id_map});
   if (!a.stats.empty()) outputs.push_back({"--stats", a.stats});
   if (Status s = check_outputs(inputs, outputs); !s) return usage_fail(s.error());
 
-  auto table = read_sphere_table(a.spheres);
+  auto table = read_moving_objects(a.spheres, a.boxes);
   if (!table) return fail(table.error());
+  const ShapeKind kind = table.value().kind;
+  const auto n = static_cast<std::uint32_t>(table.value().size());
+  ObjectTable fixed;  // the static set; empty without --static
+  if (!a.static_objects.empty()) {
+    auto s = read_static_objects(a.static_objects, kind, moving_option, n);
+    if (!s) return fail(s.error());
+    fixed = std::move(s.value());
+  }
   auto read = read_optional_camera(a.camera);
   if (!read) return fail(read.error());
   const std::optional<Camera>& camera = read.value();
@@ -53,11 +66,8 @@ int run_pairs(const PairsArgs& a) {
   if (!request) return usage_fail(request.error());
   auto chosen = make_tool_detector(request.value(), config.value());
   if (!chosen) return fail(chosen.error());
-  Detector& det = *chosen.value().detector;
   FrameInput input;
-  input.spheres = table.value().spheres;
-  input.filters = table.value().filters;
-  input.always_active = table.value().always_active;
+  set_frame_objects(input, table.value());
   input.camera = camera ? &*camera : nullptr;
   if (!a.id_map.empty()) {
     input.id_map = ids;
@@ -65,8 +75,16 @@ int run_pairs(const PairsArgs& a) {
     input.id_map_height = config.value().map_height;
   }
   FrameResult frame;
-  if (Status s = det.detect(input, frame); !s) return fail(s.error());
+  for (;;) {  // once, or twice when auto's gl refuses the input and cpu takes over
+    Detector& det = *chosen.value().detector;
+    if (Status s = set_static_objects(det, fixed); !s) return fail("--static: " + s.error());
+    const Status s = det.detect(input, frame);
+    if (s) break;
+    if (!fall_back_from_auto_gl(chosen.value(), request.value(), config.value(), s)) return fail(s.error());
+  }
+  Detector& det = *chosen.value().detector;
   det.wait_for_stage_times(frame.stats);  // one frame: its GPU times are wanted now
+  number_pairs(frame.pairs, n);           // static object k is N + k
 
   // Both outputs are written in full to temporary files first and renamed into place only when
   // both succeeded: a failure leaves the previous files as they were and no partial output.
@@ -85,8 +103,11 @@ int run_pairs(const PairsArgs& a) {
     if (Status s = stats_file->commit(); !s) return fail(s.error());
 
   const std::uint64_t hash = pairs_hash(frame.pairs);
-  std::printf("%u objects, %u active, %" PRIu64 " pairs, m = %d (%s), hash %016" PRIx64 "\n", frame.stats.objects,
-              frame.stats.active, frame.stats.pairs, frame.stats.bits, format_layout(frame.stats.layout).c_str(), hash);
+  const std::string fixed_count =
+      fixed.size() == 0 ? std::string() : " + " + std::to_string(frame.stats.static_objects) + " static";
+  std::printf("%u objects%s, %u active, %" PRIu64 " pairs, m = %d (%s), hash %016" PRIx64 "\n", frame.stats.objects,
+              fixed_count.c_str(), frame.stats.active, frame.stats.pairs, frame.stats.bits,
+              format_layout(frame.stats.layout).c_str(), hash);
   std::printf("wrote %s%s%s\n", printable(a.out, 200).c_str(), a.stats.empty() ? "" : " and ",
               printable(a.stats, 200).c_str());
   if (!a.validate_hash.empty()) {
@@ -109,28 +130,43 @@ void add_pairs_command(CLI::App& app, int& rc) {
   auto args = std::make_shared<PairsArgs>();
   CLI::App* cmd = app.add_subcommand(
       "pairs",
-      "One frame from files: read spheres (and optionally a camera for culling), write the colliding\n"
-      "pairs as CSV (header i,j; 0-based; sorted; i < j) and the frame's stats as JSON.\n"
-      "Without --camera (and without --id-map) every object is active and adaptive bits use 32.\n"
-      "A CSV with group and mask columns filters pairs: i and j pair only when\n"
+      "One frame from files: read spheres or boxes (and optionally a camera for culling, and a static\n"
+      "set), write the colliding pairs as CSV (header i,j; 0-based; sorted; i < j) and the frame's\n"
+      "stats as JSON. Without --camera (and without --id-map) every object is active and adaptive\n"
+      "bits use 32. A CSV with group and mask columns filters pairs: i and j pair only when\n"
       "(group_i & mask_j) != 0 and (group_j & mask_i) != 0. A CSV with an always_active column\n"
-      "(0 or 1) keeps the objects marked 1 active whatever their pixels. Outputs are written whole\n"
-      "or not at all, and never over an input.");
+      "(0 or 1) keeps the objects marked 1 active whatever their pixels. With --static, the N\n"
+      "moving objects are numbered 0..N-1 and static object k is N + k. Outputs are written whole\n"
+      "or not at all, and never over an input.\n"
+      "Examples:\n"
+      "  viscd pairs --spheres scene.csv --out pairs.csv\n"
+      "  viscd pairs --boxes crates.csv --static walls.csv --camera cam.json");
   cmd->add_option("--spheres", args->spheres,
                   "sphere file: XYZR text (x y z r per line, # comments) or .csv with header x,y,z,r,\n"
                   "optionally followed by group,mask and then always_active (group, mask: unsigned 32-bit,\n"
                   "decimal or 0x hex; default 1 and 0xFFFFFFFF when the columns are absent; always_active:\n"
-                  "0 or 1, never culled when 1)")
-      ->required();
+                  "0 or 1, never culled when 1). Give --spheres or --boxes");
+  cmd->add_option("--boxes", args->boxes,
+                  "box file instead of --spheres: CSV (whatever its extension) with the header\n"
+                  "minx,miny,minz,maxx,maxy,maxz, optionally followed by group,mask and then always_active\n"
+                  "as for spheres; one axis-aligned box per line, min <= max on every axis (touching boxes\n"
+                  "pair). Example line: 0,0,0,1,2,1 (a 1 x 2 x 1 box with a corner at the origin)");
+  cmd->add_option("--static", args->static_objects,
+                  "the detector's static set: objects that do not move (walls, terrain), in a file of the\n"
+                  "same kind and format as the moving ones (spheres with --spheres, boxes with --boxes;\n"
+                  "group,mask columns filter them too). Static objects are never culled, hide what is\n"
+                  "behind them in the visibility map and never pair with each other. With N moving\n"
+                  "objects, static object k (the file's k-th object, from 0) is numbered N + k in the pairs");
   cmd->add_option("--camera", args->camera,
                   "camera JSON {eye, target, up, fov_y_deg, near, far, width, height}: enables culling");
   cmd->add_option("--id-map", args->id_map,
                   "your own visibility map instead of viscd's: raw little-endian uint32 ids, row-major from\n"
-                  "the top-left pixel, 0 = background, object index + 1 elsewhere; its size is --map-size\n"
-                  "WxH (the file must be W*H*4 bytes). Culls by its pixel counts (scaled to --camera's\n"
-                  "screen when given, else map pixels) against --lambda");
+                  "the top-left pixel, 0 = background, object index + 1 elsewhere (static objects: 0); its\n"
+                  "size is --map-size WxH (the file must be W*H*4 bytes). Culls by its pixel counts (scaled\n"
+                  "to --camera's screen when given, else map pixels) against --lambda");
   cmd->add_option("--out", args->out, "pairs CSV to write")->capture_default_str();
-  cmd->add_option("--stats", args->stats, "stats JSON to write (N, active, mu, m, layout, pairs, per-stage ms)");
+  cmd->add_option("--stats", args->stats,
+                  "stats JSON to write (N, static objects, active, mu, m, layout, pairs, per-stage ms)");
   cmd->add_option("--validate-hash", args->validate_hash,
                   "expected FNV-1a hash of the pairs (16 hex digits); exit 3 if different");
   add_pipeline_options(*cmd, args->pipeline, false);

@@ -12,6 +12,7 @@
 #include "options.hpp"
 #include "outputs.hpp"
 #include "progress.hpp"
+#include "static_objects.hpp"
 #include "statistics.hpp"
 #include "viscd/io.hpp"
 #include "viscd/scene.hpp"
@@ -22,6 +23,7 @@ namespace {
 struct RunArgs {
   PipelineOptions pipeline;
   SceneOptions world;
+  ObjectOptions objects;
   int frames = 300;
   std::string camera = "zoom-out";
   std::string size = "1280x720";
@@ -56,6 +58,8 @@ int run_run(RunArgs a) {
   if (!config) return usage_fail(config.error());
   auto params = make_scene_params(a.world);
   if (!params) return usage_fail(params.error());
+  auto shape = parse_shape_kind(a.objects.shape);
+  if (!shape) return usage_fail("--shape: " + shape.error());
   auto size = parse_size(a.size, "--size");
   if (!size) return usage_fail(size.error());
   if (config.value().map_width == 0)  // the map is the screen
@@ -86,9 +90,13 @@ int run_run(RunArgs a) {
   request.value().quiet = a.quiet;
   auto chosen = make_tool_detector(request.value(), config.value());
   if (!chosen) return fail(chosen.error());
-  Detector& det = *chosen.value().detector;
+  Detector* det = chosen.value().detector.get();  // cpu instead when auto's gl refuses the input
 
   Scene scene = Scene::make(params.value());
+  // The static set is handed over once, before the frames (again to a cpu that takes over).
+  const std::vector<Sphere> field = static_field(scene, a.objects.static_count);
+  if (Status s = set_static_field(*det, field, shape.value()); !s) return fail("--static: " + s.error());
+  std::vector<Box> cubes;  // --shape box: the scene's spheres as cubes, each frame
   Camera camera;
   if (file_camera) {
     auto c = read_camera(a.camera);
@@ -102,8 +110,10 @@ int run_run(RunArgs a) {
   if (auto c = camera_now(); !c) return usage_fail(c.error());
 
   if (!a.quiet)
-    std::printf("viscd run: %s backend, %u objects (%s scene, seed %" PRIu64 "), %dx%d, camera %s, %d frames\n",
-                std::string(det.name()).c_str(), a.world.objects, a.world.kind.c_str(), a.world.seed,
+    std::printf("viscd run: %s backend, %u %s (%s scene, seed %" PRIu64 ")%s, %dx%d, camera %s, %d frames\n",
+                std::string(det->name()).c_str(), a.world.objects,
+                shape.value() == ShapeKind::box ? "boxes" : "objects", a.world.kind.c_str(), a.world.seed,
+                field.empty() ? "" : (" + " + std::to_string(field.size()) + " static").c_str(),
                 camera_now().value().width, camera_now().value().height, printable(a.camera, 200).c_str(), a.frames);
 
   // The per-frame CSV streams into its temporary file as the run goes (renamed at the end).
@@ -127,7 +137,7 @@ int run_run(RunArgs a) {
     for (int f = a.frames - 1; f >= 1000000; f /= 10) ++pairs_digits;
   }
   std::ostringstream rows;
-  rows << "frame,time_s,objects,active,mean_pixels,bits,layout,pairs,simulate_ms";
+  rows << "frame,time_s,objects,static_objects,active,mean_pixels,bits,layout,pairs,simulate_ms";
   for (std::size_t s = 0; s < kStageCount; ++s) rows << ',' << stage_name(static_cast<Stage>(s)) << "_ms";
   rows << ",frame_ms\n";
 
@@ -138,17 +148,42 @@ int run_run(RunArgs a) {
   for (int f = 0; f < a.frames; ++f) {
     const bool last = f == a.frames - 1;
     if (last) {  // shade only the screenshot frame
-      Config c = det.config();
+      Config c = det->config();
       c.shade = true;
-      det.set_config(c);
+      det->set_config(c);
     }
     const auto t0 = Clock::now();
     scene.step(a.world.dt);
+    FrameInput input;
+    if (shape.value() == ShapeKind::box) {
+      cubes_of(scene.spheres(), cubes);
+      input.boxes = cubes;
+    } else {
+      input.spheres = scene.spheres();
+    }
     const double sim = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
     const Camera cam = camera_now().value();
-    if (Status s = det.detect(scene.spheres(), &cam, frame); !s) {
+    input.camera = &cam;
+    Status detected = det->detect(input, frame);
+    if (!detected && f == 0 && fall_back_from_auto_gl(chosen.value(), request.value(), config.value(), detected)) {
+      det = chosen.value().detector.get();
+      if (last) {
+        Config c = det->config();
+        c.shade = true;
+        det->set_config(c);
+      }
+      if (Status s = set_static_field(*det, field, shape.value()); !s) {
+        progress.finish();
+        return fail("--static: " + s.error());
+      }
+      detected = det->detect(input, frame);
+    }
+    if (!detected) {
       progress.finish();
-      return fail("frame " + std::to_string(f) + ": " + s.error());
+      return fail("frame " + std::to_string(f) + ": " + detected.error());
+    }
+    if (!field.empty()) {  // the outputs number static object k as N + k
+      for (std::vector<Pair>* list : {&frame.pairs, &frame.began, &frame.ended}) number_pairs(*list, a.world.objects);
     }
     if (events_file) {
       // Sorted by frame, then begin before end, then (i, j): began and ended are sorted.
@@ -181,8 +216,8 @@ int run_run(RunArgs a) {
     }
     sim_ms.add(sim);
     frame_ms.add(total);
-    rows << f << ',' << scene.time() << ',' << st.objects << ',' << st.active << ',' << st.mean_pixels << ',' << st.bits
-         << ',' << format_layout(st.layout) << ',' << st.pairs << ',' << sim;
+    rows << f << ',' << scene.time() << ',' << st.objects << ',' << st.static_objects << ',' << st.active << ','
+         << st.mean_pixels << ',' << st.bits << ',' << format_layout(st.layout) << ',' << st.pairs << ',' << sim;
     for (std::size_t s = 0; s < kStageCount; ++s) rows << ',' << st.stage_ms[s];
     rows << ',' << total << '\n';
     if (rows.tellp() > (1 << 16) || last) {
@@ -204,8 +239,10 @@ int run_run(RunArgs a) {
   for (std::size_t s = 0; s < kStageCount; ++s)
     if (static_cast<Stage>(s) != Stage::shade) med_stage[s] = stage_ms[s].median();
   nlohmann::ordered_json summary;
-  summary["backend"] = det.name();
+  summary["backend"] = det->name();
   summary["objects"] = a.world.objects;
+  summary["shape"] = shape_kind_name(shape.value());
+  summary["static_objects"] = field.size();
   summary["frames"] = a.frames;
   summary["camera"] = a.camera;
   summary["culling"] = !a.pipeline.no_culling;
@@ -216,7 +253,7 @@ int run_run(RunArgs a) {
       summary["median_ms"][std::string(stage_name(static_cast<Stage>(s)))] = med_stage[s];
   summary["median_frame_ms"] = med_frame;
   summary["fps"] = med_frame > 0 ? 1000.0 / med_frame : 0.0;
-  summary["last_frame"] = nlohmann::ordered_json::parse(stats_json(st, det.name()));
+  summary["last_frame"] = nlohmann::ordered_json::parse(stats_json(st, det->name()));
 
   if (!a.quiet) {
     std::printf("\n  %-12s %10s\n", "stage", "median ms");
@@ -228,9 +265,10 @@ int run_run(RunArgs a) {
     std::printf("  %-12s %10.3f   (%.0f frames per second)\n", "frame", med_frame,
                 med_frame > 0 ? 1000.0 / med_frame : 0.0);
     std::printf("  (shading ran on the screenshot frame only: %.3f ms)\n\n", st.ms(Stage::shade));
-    std::printf("last frame: %u of %u objects active (%.1f %%), mu = %.1f px, m = %d bits %s, %" PRIu64 " pairs\n",
-                st.active, st.objects, st.objects ? 100.0 * st.active / st.objects : 0.0, st.mean_pixels, st.bits,
-                format_layout(st.layout).c_str(), st.pairs);
+    std::printf("last frame: %u of %u objects active (%.1f %%)%s, mu = %.1f px, m = %d bits %s, %" PRIu64 " pairs\n",
+                st.active, st.objects, st.objects ? 100.0 * st.active / st.objects : 0.0,
+                field.empty() ? "" : (", " + std::to_string(st.static_objects) + " static").c_str(), st.mean_pixels,
+                st.bits, format_layout(st.layout).c_str(), st.pairs);
   }
   // All three are written to temporary files first and renamed into place only when all succeeded.
   auto shot_file = AtomicFile::create(shot);
@@ -263,8 +301,11 @@ void add_run_command(CLI::App& app, int& rc) {
       "own speed), and each frame build the visibility map, count pixels per object, cull objects\n"
       "below lambda, choose the Morton width from the mean pixel count and find every colliding pair\n"
       "among the rest. Prints per-stage median times and frames per second; writes a screenshot\n"
-      "(red colliding, blue visible and free, yellow culled), a CSV of frames and a JSON summary.");
+      "(red colliding, blue visible and free, yellow culled, grey static), a CSV of frames and a\n"
+      "JSON summary. The objects are spheres, or their cubes with --shape box; --static K adds a\n"
+      "field of static rocks and pillars under them.");
   add_scene_options(*cmd, args->world);
+  add_object_options(*cmd, args->objects, ": in --events and --pairs-dir static object k is N + k");
   cmd->add_option("--frames", args->frames, "frames to simulate")
       ->check(CLI::Range(1, 1'000'000'000))
       ->capture_default_str();

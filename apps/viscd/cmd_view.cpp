@@ -34,6 +34,7 @@
 #include "detector_choice.hpp"
 #include "exit_codes.hpp"
 #include "options.hpp"
+#include "static_objects.hpp"
 #include "view_orbit.hpp"
 #include "viscd/io.hpp"
 #include "viscd/scene.hpp"
@@ -46,6 +47,7 @@ using Clock = std::chrono::steady_clock;
 struct ViewArgs {
   PipelineOptions pipeline;
   SceneOptions world;
+  ObjectOptions objects;
   std::string camera = "zoom-out";
   std::string size = "1280x720";
   int frames = 0;
@@ -58,6 +60,7 @@ struct ViewStart {
   Config config;  // the pipeline options; the panel edits a copy
   int objects = 0;
   SceneKind kind = SceneKind::ring;
+  ShapeKind shape = ShapeKind::sphere;
   std::optional<Camera> file_camera;
   DetectorRequest detector;  // cpu or gl; gl falls back to cpu
 };
@@ -70,6 +73,7 @@ ImVec4 rgb(viscd::Rgb8 c) {
 const ImVec4 kColliding = rgb(viscd::state_colour(viscd::ObjectState::colliding));
 const ImVec4 kFree = rgb(viscd::state_colour(viscd::ObjectState::free));
 const ImVec4 kCulled = rgb(viscd::state_colour(viscd::ObjectState::culled));
+const ImVec4 kStatic = rgb(viscd::kStaticColour);
 
 // Timing series: simulate (stage 0, timed here) followed by the detector's stages 1-9.
 constexpr std::size_t kSeries = kStageCount + 1;
@@ -110,6 +114,9 @@ Result<ViewStart> check_view_args(const ViewArgs& args, const Config& config) {
   auto params = make_scene_params(args.world);
   if (!params) return R::failure(params.status());
   start.kind = params.value().kind;
+  auto shape = parse_shape_kind(args.objects.shape);
+  if (!shape) return R::failure(ErrorKind::invalid_input, "--shape: " + shape.error());
+  start.shape = shape.value();
   if (args.frames < 0)
     return R::failure(ErrorKind::invalid_input, "--frames: expected 0 (until the window closes) or more");
   auto request = detector_request(args.pipeline);
@@ -151,6 +158,7 @@ class Viewer {
  private:
   Config frame_config() const;
   void rebuild_scene();
+  Status hand_static_field();
   void reset_camera();
   void destroy_detector();
   void switch_backend(bool gl, bool mesh);
@@ -169,7 +177,10 @@ class Viewer {
 
   // Scene and camera.
   SceneKind kind_;
+  ShapeKind shape_;
   Scene scene_;
+  std::vector<Sphere> field_;  // --static: the static set, made with the scene
+  std::vector<Box> cubes_;     // --shape box: the scene's spheres as cubes, each frame
   OrbitCamera orbit_;
   std::optional<Camera> file_camera_;
   bool paused_ = false;
@@ -204,6 +215,7 @@ Viewer::Viewer(const ViewArgs& args, ViewStart start, GLFWwindow* window)
     : args_(args),
       window_(window),
       kind_(start.kind),
+      shape_(start.shape),
       file_camera_(start.file_camera),
       config_(start.config),
       objects_(start.objects),
@@ -229,7 +241,17 @@ Config Viewer::frame_config() const {
 
 void Viewer::rebuild_scene() {
   scene_ = Scene::make({.kind = kind_, .objects = static_cast<std::uint32_t>(objects_), .seed = args_.world.seed});
+  // The world grows with N: so does the field on its ground (none before the first detector).
+  field_ = static_field(scene_, args_.objects.static_count);
+  if (detector_)
+    if (Status s = hand_static_field(); !s) std::fprintf(stderr, "viscd view: --static: %s\n", s.error().c_str());
   reset_camera();
+}
+
+// The static field to the detector: once per detector and per scene.
+Status Viewer::hand_static_field() {
+  DetectorGuard guard(window_, gl_);
+  return set_static_field(*detector_, field_, shape_);
 }
 
 void Viewer::reset_camera() {
@@ -270,6 +292,7 @@ void Viewer::switch_backend(bool gl, bool mesh) {
   gl_ = gl;
   mesh_ = mesh;
   backend_message_.clear();
+  if (Status s = hand_static_field(); !s) backend_message_ = "--static: " + s.error();
 }
 
 std::filesystem::path Viewer::next_screenshot_path() const {
@@ -469,7 +492,9 @@ void Viewer::panel() {
     const double fps = frame_ms_smooth_ > 0 ? 1000.0 / frame_ms_smooth_ : 0.0;
     ImGui::Text("%.1f FPS (%.1f ms per frame), %s backend", fps, frame_ms_smooth_,
                 detector_ ? std::string(detector_->name()).c_str() : "-");
-    ImGui::Text("active %u / %u (%.1f %%)", st.active, st.objects, st.objects ? 100.0 * st.active / st.objects : 0.0);
+    ImGui::Text("active %u / %u %s (%.1f %%)", st.active, st.objects, shape_ == ShapeKind::box ? "boxes" : "spheres",
+                st.objects ? 100.0 * st.active / st.objects : 0.0);
+    if (!field_.empty()) ImGui::Text("static %u (never culled)", st.static_objects);
     ImGui::Text("mu = %.1f px, m = %d bits %s", st.mean_pixels, st.bits, format_layout(st.layout, true).c_str());
     ImGui::Text("pairs %" PRIu64 ", scene time %.1f s", st.pairs, scene_.time());
   }
@@ -485,6 +510,7 @@ void Viewer::panel() {
     swatch("##red", kColliding, "red: colliding");
     swatch("##blue", kFree, "blue: visible and free");
     swatch("##yellow", kCulled, "yellow: culled (fewer than lambda pixels)");
+    if (!field_.empty()) swatch("##grey", kStatic, "grey: static (never culled)");
   }
 
   if (ImGui::Button("save screenshot (S)")) screenshot_requested_ = true;
@@ -500,13 +526,21 @@ void Viewer::panel() {
 Status Viewer::frame() {
   const auto t0 = Clock::now();
   if (!paused_) scene_.step(args_.world.dt);
+  FrameInput input;
+  if (shape_ == ShapeKind::box) {
+    cubes_of(scene_.spheres(), cubes_);
+    input.boxes = cubes_;
+  } else {
+    input.spheres = scene_.spheres();
+  }
   const double sim_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   const Camera cam = orbit_.camera(fb_w_, fb_h_);
+  input.camera = &cam;
   Status s;
   {
     DetectorGuard guard(window_, gl_);
     detector_->set_config(frame_config());
-    s = detector_->detect(scene_.spheres(), &cam, result_);
+    s = detector_->detect(input, result_);
   }
   if (!s) {
     have_result_ = false;
@@ -546,9 +580,11 @@ int Viewer::run() {
     detector_ = std::move(chosen.value().detector);
     gl_ = chosen.value().backend == "gl";
     if (chosen.value().fell_back) backend_message_ = chosen.value().why;
+    if (Status s = hand_static_field(); !s) return fail("--static: " + s.error());
   }
-  std::printf("viscd view: %s backend, %d objects (%s scene), window %dx%d%s\n", gl_ ? "gl" : "cpu", objects_,
-              args_.world.kind.c_str(), fb_w_, fb_h_,
+  std::printf("viscd view: %s backend, %d %s (%s scene)%s, window %dx%d%s\n", gl_ ? "gl" : "cpu", objects_,
+              shape_ == ShapeKind::box ? "boxes" : "objects", args_.world.kind.c_str(),
+              field_.empty() ? "" : (" + " + std::to_string(field_.size()) + " static").c_str(), fb_w_, fb_h_,
               args_.frames > 0 ? (", " + std::to_string(args_.frames) + " frames").c_str() : "");
   std::fflush(stdout);
 
@@ -578,6 +614,10 @@ int Viewer::run() {
         destroy_detector();
         gl_ = false;
         detector_ = make_cpu_detector(frame_config());
+        if (Status hs = hand_static_field(); !hs) {
+          rc = fail("--static: " + hs.error());
+          break;
+        }
       } else {
         rc = fail("frame " + std::to_string(frames_done) + ": " + s.error());
         break;
@@ -616,9 +656,11 @@ int Viewer::run() {
     if (have_result_) ++frames_done;
     if (args_.frames > 0 && frames_done >= args_.frames) {
       const FrameStats& st = result_.stats;
-      std::printf(
-          "viscd view: %d frames, last: %u of %u objects active, mu = %.1f px, m = %d bits %s, %" PRIu64 " pairs\n",
-          frames_done, st.active, st.objects, st.mean_pixels, st.bits, format_layout(st.layout).c_str(), st.pairs);
+      std::printf("viscd view: %d frames, last: %u of %u objects active%s, mu = %.1f px, m = %d bits %s, %" PRIu64
+                  " pairs\n",
+                  frames_done, st.active, st.objects,
+                  field_.empty() ? "" : (", " + std::to_string(st.static_objects) + " static").c_str(), st.mean_pixels,
+                  st.bits, format_layout(st.layout).c_str(), st.pairs);
       if (!args_.screenshot.empty()) {
         if (std::string err = save_screenshot(args_.screenshot); !err.empty()) rc = fail(err);
       }
@@ -653,14 +695,16 @@ int run_view(const ViewArgs& args) {
 
 void add_view_command(CLI::App& app, int& rc) {
   auto args = std::make_shared<ViewArgs>();
-  CLI::App* cmd =
-      app.add_subcommand("view",
-                         "The demo in a window (GLFW + Dear ImGui): the paper's scene moving, shaded red (colliding),\n"
-                         "blue (visible and free) and yellow (culled), with sliders for N, lambda, a, b and the\n"
-                         "visibility-map size, toggles for culling and adaptive bits, the cpu or gl backend, and live\n"
-                         "per-stage timings. Mouse: left drag orbits, right or middle drag pans, wheel zooms.\n"
-                         "Keys: S screenshot, Space pause, R reset camera, Esc quit. Needs a display (or xvfb-run).");
+  CLI::App* cmd = app.add_subcommand(
+      "view",
+      "The demo in a window (GLFW + Dear ImGui): the paper's scene moving (as spheres, or boxes\n"
+      "with --shape box; on a static field with --static K), shaded red (colliding), blue\n"
+      "(visible and free), yellow (culled) and grey (static), with sliders for N, lambda, a, b\n"
+      "and the visibility-map size, toggles for culling and adaptive bits, the cpu or gl backend,\n"
+      "and live per-stage timings. Mouse: left drag orbits, right or middle drag pans, wheel zooms.\n"
+      "Keys: S screenshot, Space pause, R reset camera, Esc quit. Needs a display (or xvfb-run).");
   add_scene_options(*cmd, args->world);
+  add_object_options(*cmd, args->objects, "; the field follows the world as the N slider rebuilds it");
   cmd->add_option("--camera", args->camera, "start view: zoom-out | zoom-in | FILE.json")->capture_default_str();
   cmd->add_option("--size", args->size, "window WxH")->capture_default_str();
   cmd->add_option("--frames", args->frames,

@@ -60,4 +60,15 @@ Result<DetectorChoice> make_tool_detector(const DetectorRequest& request, const 
   return choice;
 }
 
+bool fall_back_from_auto_gl(DetectorChoice& choice, const DetectorRequest& request, const Config& config,
+                            const Status& status) {
+  if (request.backend != "auto" || choice.backend != "gl" || status.kind() != ErrorKind::unsupported_input)
+    return false;
+  choice.backend = "cpu";
+  choice.why = "the gl backend refused the input (" + status.error() + ")";
+  choice.detector = make_cpu_detector(config);
+  if (!request.quiet) std::fprintf(stderr, "%s: backend auto -> cpu: %s\n", request.tool.c_str(), choice.why.c_str());
+  return true;
+}
+
 }  // namespace viscd::app

@@ -54,4 +54,13 @@ struct DetectorChoice {
 /// backend unavailable: <error>; staying on cpu"); nothing when the named backend starts.
 [[nodiscard]] Result<DetectorChoice> make_tool_detector(const DetectorRequest& request, const Config& config);
 
+/// After a frame failed with `status`: when `choice` runs gl because `auto` picked it and the gl
+/// backend refused the frame's input as ErrorKind::unsupported_input (input it does not take yet,
+/// such as boxes or a static set), replaces the detector with cpu (made with `config`), prints
+/// "<tool>: backend auto -> cpu: <why>" unless quiet, and returns true: hand the new detector
+/// the static set and run the frame again. Otherwise returns false (report the error). A gl
+/// asked for by name never falls back here: the error says what to use instead.
+[[nodiscard]] bool fall_back_from_auto_gl(DetectorChoice& choice, const DetectorRequest& request, const Config& config,
+                                          const Status& status);
+
 }  // namespace viscd::app

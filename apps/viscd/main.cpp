@@ -12,7 +12,7 @@
 
 int main(int argc, char** argv) {
   CLI::App app{
-      "viscd finds every colliding pair among very many moving spheres each frame, and skips the\n"
+      "viscd finds every colliding pair among very many moving spheres (or boxes) each frame, and skips the\n"
       "objects the viewer cannot meaningfully see (Sung, IEEE Access 2023): objects covering fewer\n"
       "than lambda pixels of the visibility map are culled, the rest go through an exact LBVH\n"
       "broadphase whose Morton code width (16/32/64 bits) follows the mean pixel count.",
@@ -25,7 +25,9 @@ int main(int argc, char** argv) {
       "  viscd pairs --spheres scene.xyzr --out pairs.csv --stats stats.json\n"
       "  viscd pairs --spheres scene.csv --camera cam.json --lambda 50\n"
       "  viscd pairs --spheres scene.csv --id-map ids.u32 --map-size 1280x720   # your own visibility map\n"
+      "  viscd pairs --boxes crates.csv --static walls.csv    # boxes, and a static set (numbered N + k)\n"
       "  viscd query --spheres scene.csv --ray 0,0,-50,0,0,1 --all      # the spheres a ray hits\n"
+      "  viscd run --shape box --static 300         # the demo as boxes, on a field of rocks and pillars\n"
       "  viscd run --events events.csv --pairs-dir pairs/              # contact events, every frame's pairs\n"
       "  viscd bench paper --sizes 1000,10000,100000   # the paper's tables and figures\n"
       "  viscd view                                 # the same in a window (xvfb-run without a display)\n"

@@ -85,6 +85,23 @@ void add_scene_options(CLI::App& cmd, SceneOptions& o) {
   cmd.add_option("--dt", o.dt, "simulated seconds per frame")->capture_default_str();
 }
 
+void add_object_options(CLI::App& cmd, ObjectOptions& o, std::string_view static_note) {
+  cmd.add_option("--shape", o.shape,
+                 "sphere | box: the moving objects as spheres, or as boxes, each sphere's cube (its centre\n"
+                 "minus and plus r on every axis): the same scene and motion, found by the box test.\n"
+                 "Example: --shape box --static 300")
+      ->capture_default_str();
+  cmd.add_option("--static", o.static_count,
+                 "K static objects in the detector's static set, handed over once before the frames: rocks\n"
+                 "(single spheres) and pillars (stacks of spheres, 12 mean radii tall) on the ground under\n"
+                 "the scene, deterministic in --seed; cubes of them with --shape box. They are never\n"
+                 "culled, hide what is behind them (grey in the image) and pair with the moving objects\n"
+                 "that touch them" +
+                     std::string(static_note))
+      ->check(CLI::Range(std::uint32_t{0}, kMaxObjects))
+      ->capture_default_str();
+}
+
 Result<SceneParams> make_scene_params(const SceneOptions& o) {
   auto kind = parse_scene_kind(o.kind);
   if (!kind) return Result<SceneParams>::failure(kind.status());

@@ -1,7 +1,7 @@
 #pragma once
 // The command-line options the commands share, and their parsing into viscd::Config, GlOptions
 // and SceneParams: the pipeline options (--backend, --bits, --lambda, ...), the cpu kernel options
-// of run and pairs (--simd, --keep-order), the scene options of run and view, and the parsers of
+// of run and pairs (--simd, --keep-order), the scene and object options of run and view, and the parsers of
 // option values (sizes, lists of numbers). Every error names the option; the commands turn it
 // into exit code 2.
 
@@ -55,6 +55,16 @@ struct SceneOptions {
 void add_scene_options(CLI::App& cmd, SceneOptions& o);
 /// SceneParams from the options; the error names the bad option (--scene, --dt).
 [[nodiscard]] Result<SceneParams> make_scene_params(const SceneOptions& o);
+
+/// What the simulated scene's objects are handed to the detector as, shared by `run` and `view`:
+/// the shape of the moving objects, and the static field under them.
+struct ObjectOptions {
+  std::string shape = "sphere";    ///< sphere | box (each sphere's cube, cube_of())
+  std::uint32_t static_count = 0;  ///< K objects of static_field() in the detector's static set
+};
+/// Registers --shape and --static on `cmd`; `static_note` ends the help of --static (what the
+/// command does with the static objects).
+void add_object_options(CLI::App& cmd, ObjectOptions& o, std::string_view static_note = {});
 
 /// The gl backend's options (--geometry, --counter); the error names the bad option.
 [[nodiscard]] Result<GlOptions> make_gl_options(const PipelineOptions& o);

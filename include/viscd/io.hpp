@@ -1,6 +1,6 @@
 #pragma once
 /// \file io.hpp
-/// Reading spheres and cameras, writing pairs, stats and images.
+/// Reading spheres, boxes and cameras, writing pairs, stats and images.
 /// Every reader's error names the file (or `source` name), the 1-based line and what was expected.
 
 #include <cstdint>
@@ -51,6 +51,43 @@ struct SphereTable {
 /// Reads a sphere file with its filters: `.csv` as parse_sphere_table, anything else XYZR (no filters).
 [[nodiscard]] Result<SphereTable> read_sphere_table(const std::filesystem::path& path);
 
+/// Boxes and, where the file gives them, their collision filters and always_active flags (as
+/// SphereTable).
+struct BoxTable {
+  std::vector<Box> boxes;
+  /// One per box when the file has group and mask columns; else empty (no filtering).
+  std::vector<Filter> filters;
+  /// One per box (0 or 1) when the file has an always_active column; else empty.
+  std::vector<std::uint8_t> always_active;
+};
+/// CSV with the header `minx,miny,minz,maxx,maxy,maxz` (spaces allowed), optionally followed by
+/// `group,mask` and then by `always_active`, exactly as parse_sphere_table() reads spheres; then
+/// one box per line. Each value is a number as in a sphere file (finite, magnitude at most 1e18),
+/// and min <= max on every axis (min = max is a flat box; on every axis, a point). Anything else,
+/// a missing column or a header of a sphere file is an error naming the line and what was
+/// expected. An empty text is zero boxes.
+[[nodiscard]] Result<BoxTable> parse_box_table(std::string_view text, std::string_view source);
+/// Reads a box file as parse_box_table, whatever its extension (boxes have no XYZR form).
+[[nodiscard]] Result<BoxTable> read_box_table(const std::filesystem::path& path);
+
+/// An object file of either kind.
+struct ObjectTable {
+  ShapeKind kind = ShapeKind::sphere;
+  SphereTable spheres;  ///< the objects when kind is ShapeKind::sphere
+  BoxTable boxes;       ///< the objects when kind is ShapeKind::box
+  /// The 1-based line that told the kind (the CSV header, or an XYZR file's first sphere); 0 when
+  /// the file has no such line (no objects: either kind).
+  std::size_t kind_line = 0;
+  /// The number of objects.
+  [[nodiscard]] std::size_t size() const {
+    return kind == ShapeKind::box ? boxes.boxes.size() : spheres.spheres.size();
+  }
+};
+/// Reads spheres or boxes, the kind told by the file: a first line (not blank, not a `#` comment)
+/// that starts with `minx` is a box header (read_box_table), anything else a sphere file
+/// (read_sphere_table).
+[[nodiscard]] Result<ObjectTable> read_object_table(const std::filesystem::path& path);
+
 /// The tools' environment knobs, applied to `config` (the library itself reads no environment):
 /// VISCD_SIMD=best|sse2|scalar sets Config::simd, VISCD_KEEP_ORDER=1|0 sets Config::keep_order.
 /// Unset variables change nothing; any other value is an error naming the variable and value.
@@ -91,12 +128,15 @@ class AtomicFile {
 
 /// Writes spheres as CSV with header `x,y,z,r` (round-trips exactly: 9 significant digits).
 [[nodiscard]] Status write_spheres_csv(const std::filesystem::path& path, std::span<const Sphere> spheres);
+/// Writes boxes as CSV with header `minx,miny,minz,maxx,maxy,maxz` (round-trips exactly: 9
+/// significant digits).
+[[nodiscard]] Status write_boxes_csv(const std::filesystem::path& path, std::span<const Box> boxes);
 /// Writes pairs as CSV with header `i,j`, one pair per line, in the given (sorted) order. The
 /// text is streamed in blocks: memory use does not grow with the number of pairs.
 [[nodiscard]] Status write_pairs_csv(const std::filesystem::path& path, std::span<const Pair> pairs);
 [[nodiscard]] Status write_pairs_csv(AtomicFile& out, std::span<const Pair> pairs);
-/// Frame stats as a JSON object (N, active, mu (null unless has_pixels or has_camera), m, layout, pairs,
-/// per-stage ms).
+/// Frame stats as a JSON object (N, the static set's size, active, mu (null unless has_pixels or
+/// has_camera), m, layout, pairs, per-stage ms).
 [[nodiscard]] std::string stats_json(const FrameStats& stats, std::string_view backend);
 /// Writes text to a file, creating parent folders; whole or not at all (AtomicFile).
 [[nodiscard]] Status write_text(const std::filesystem::path& path, std::string_view text);

@@ -5,6 +5,8 @@
 /// Every scene moves its spheres in circles about the vertical (y) axis through the origin, each
 /// object at its own angular speed (the paper's experiment, §IV): a scene is its objects' polar
 /// coordinates (rho, theta, y), angular speeds and radii. Generation is deterministic in `seed`.
+/// The same scene runs as boxes (cubes_of(): each sphere's cube) and may stand on a field of
+/// static objects (static_field()).
 
 #include <cstdint>
 #include <span>
@@ -63,6 +65,29 @@ class Scene {
 /// Parses "ring", "box" or "clusters".
 [[nodiscard]] Result<SceneKind> parse_scene_kind(std::string_view name);
 [[nodiscard]] std::string_view scene_kind_name(SceneKind kind);
+
+/// Parses "sphere" or "box": the shape a scene's objects are handed to the detector as.
+[[nodiscard]] Result<ShapeKind> parse_shape_kind(std::string_view name);
+[[nodiscard]] std::string_view shape_kind_name(ShapeKind kind);
+
+/// The cube a sphere stands for when a scene runs as boxes: the centre minus and plus r on every
+/// axis (the sphere's bounding box; a sphere of r = 0 is a point box).
+[[nodiscard]] Box cube_of(const Sphere& sphere);
+/// cube_of() of every sphere, into `cubes` (resized to match; its capacity is kept).
+void cubes_of(std::span<const Sphere> spheres, std::vector<Box>& cubes);
+
+/// A field of `count` static objects on the scene's ground, for the detector's static set
+/// (`viscd run --static K`, `viscd view --static K`). The ground is the floor of the slab that
+/// holds the moving objects' centres (y = -world_half_height()), under where they circle: the
+/// ring's annulus, the square under a box or clusters scene. About three features in four are
+/// rocks, single spheres of radius 1 to 3 mean radii half sunk into the ground; the rest are
+/// pillars, stacks of spheres of radius 1 to 1.5 mean radii, each 1.5 radii above the one below,
+/// standing 12 mean radii tall (through the whole ring slab), so that the moving objects run into
+/// them. Every sphere of a stack is one object; the last pillar is cut short to make `count`.
+/// Deterministic in the scene's seed (its own stream: the moving objects stay as they were), the
+/// world's size and `count`; the first k objects of a field are the field of k. For a box scene take cubes_of() the
+/// field: rocks become blocks and pillars stacks of blocks.
+[[nodiscard]] std::vector<Sphere> static_field(const Scene& scene, std::uint32_t count);
 
 /// Camera presets framing a scene (paper Fig. 5):
 /// "zoom-out" sees the whole world from afar (most objects small, many culled),

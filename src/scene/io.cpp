@@ -59,35 +59,58 @@ std::vector<std::string_view> split(std::string_view s, std::string_view seps, b
   return out;
 }
 
+// Parses one number field named `name` (x, minx, ...): finite, within kMaxCoordinate. On error
+// returns the message (without location).
+std::string parse_number(std::string_view field, std::string_view name, float& v) {
+  std::string_view t = field;
+  if (!t.empty() && t[0] == '+') t.remove_prefix(1);
+  auto [ptr, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
+  if (ec == std::errc::result_out_of_range) {
+    // Underflow (e.g. 1e-46) rounds to zero like any other decimal; overflow is an error.
+    double d = 0;
+    const auto [dptr, dec] = std::from_chars(t.data(), t.data() + t.size(), d);
+    if (dec != std::errc() || dptr != t.data() + t.size() || std::fabs(d) >= 1.0)
+      return std::string(name) + " = '" + printable(field) + "' is out of float range";
+    v = static_cast<float>(d);
+    ptr = dptr;
+    ec = std::errc();
+  }
+  if (ec != std::errc() || ptr != t.data() + t.size() || t.empty())
+    return std::string(name) + ": expected a number, found '" + printable(field) + "'";
+  if (!std::isfinite(v))
+    return std::string(name) + " = " + printable(field) + " is not finite (NaN and infinity are not allowed)";
+  if (std::fabs(v) > kMaxCoordinate)
+    return std::string(name) + " = " + printable(field) + " exceeds the supported magnitude 1e18";
+  return {};
+}
+
 // Parses the four fields of a sphere; on error returns the message (without location).
-std::string parse_sphere(const std::vector<std::string_view>& f, Sphere& s) {
+std::string parse_sphere(std::span<const std::string_view> f, Sphere& s) {
   if (f.size() != 4)
     return "expected 4 numbers `x y z r`, found " + std::to_string(f.size()) + " field" + (f.size() == 1 ? "" : "s");
   float v[4];
-  static constexpr const char* kName[4] = {"x", "y", "z", "r"};
-  for (int c = 0; c < 4; ++c) {
-    std::string_view t = f[c];
-    if (!t.empty() && t[0] == '+') t.remove_prefix(1);
-    auto [ptr, ec] = std::from_chars(t.data(), t.data() + t.size(), v[c]);
-    if (ec == std::errc::result_out_of_range) {
-      // Underflow (e.g. 1e-46) rounds to zero like any other decimal; overflow is an error.
-      double d = 0;
-      const auto [dptr, dec] = std::from_chars(t.data(), t.data() + t.size(), d);
-      if (dec != std::errc() || dptr != t.data() + t.size() || std::fabs(d) >= 1.0)
-        return std::string(kName[c]) + " = '" + printable(f[c]) + "' is out of float range";
-      v[c] = static_cast<float>(d);
-      ptr = dptr;
-      ec = std::errc();
-    }
-    if (ec != std::errc() || ptr != t.data() + t.size() || t.empty())
-      return std::string(kName[c]) + ": expected a number, found '" + printable(f[c]) + "'";
-    if (!std::isfinite(v[c]))
-      return std::string(kName[c]) + " = " + printable(f[c]) + " is not finite (NaN and infinity are not allowed)";
-    if (std::fabs(v[c]) > kMaxCoordinate)
-      return std::string(kName[c]) + " = " + printable(f[c]) + " exceeds the supported magnitude 1e18";
-  }
+  static constexpr std::string_view kName[4] = {"x", "y", "z", "r"};
+  for (std::size_t c = 0; c < 4; ++c)
+    if (std::string e = parse_number(f[c], kName[c], v[c]); !e.empty()) return e;
   if (v[3] < 0) return "r = " + printable(f[3]) + " is negative (a radius must be >= 0)";
   s = Sphere{v[0], v[1], v[2], v[3]};
+  return {};
+}
+
+// Parses the six fields of a box; on error returns the message (without location).
+std::string parse_box(std::span<const std::string_view> f, Box& b) {
+  if (f.size() != 6)
+    return "expected 6 numbers `minx,miny,minz,maxx,maxy,maxz`, found " + std::to_string(f.size()) + " field" +
+           (f.size() == 1 ? "" : "s");
+  float v[6];
+  static constexpr std::string_view kName[6] = {"minx", "miny", "minz", "maxx", "maxy", "maxz"};
+  for (std::size_t c = 0; c < 6; ++c)
+    if (std::string e = parse_number(f[c], kName[c], v[c]); !e.empty()) return e;
+  for (std::size_t k = 0; k < 3; ++k)
+    if (v[k] > v[k + 3])
+      return std::string(kName[k]) + " = " + printable(f[k]) + " exceeds " + std::string(kName[k + 3]) + " = " +
+             printable(f[k + 3]) + " (a box needs min <= max on every axis)";
+  b = Box{{v[0], v[1], v[2]}, {v[3], v[4], v[5]}};
   return {};
 }
 
@@ -226,54 +249,70 @@ std::string parse_filter_field(std::string_view field, const char* name, std::ui
   return {};
 }
 
-}  // namespace
+// An object CSV's columns: the shape's own (x,y,z,r or minx,...,maxz), then optionally group,mask,
+// then optionally always_active. `other` names the other kind's first column and the kind, so
+// that a file of the other kind is called that in the header's error.
+struct ObjectColumns {
+  std::span<const std::string_view> shape;
+  std::string_view other_first;  // "minx" for a sphere file, "x" for a box file
+  std::string_view other_file;   // "a box file, where spheres were expected"
+};
 
-Result<SphereTable> parse_sphere_table(std::string_view text, std::string_view source) {
-  using R = Result<SphereTable>;
+constexpr std::string_view kSphereColumns[] = {"x", "y", "z", "r"};
+constexpr std::string_view kBoxColumns[] = {"minx", "miny", "minz", "maxx", "maxy", "maxz"};
+const ObjectColumns kSphereFile{kSphereColumns, "minx", "a box file, where spheres were expected"};
+const ObjectColumns kBoxFile{kBoxColumns, "x", "a sphere file, where boxes were expected"};
+
+// Reads an object CSV into shapes, filters and always_active flags; `parse` reads a shape's own
+// fields (and gives the count message when there are no other columns). Returns the error with
+// its location, or nothing.
+template <class Shape, class Parse>
+std::string parse_object_csv(std::string_view text, std::string_view source, const ObjectColumns& cols, Parse parse,
+                             std::vector<Shape>& shapes, std::vector<Filter>& filters,
+                             std::vector<std::uint8_t>& always_active) {
   text = skip_bom(text);
-  SphereTable out;
   std::string error;
   bool header = false, with_filters = false, with_always = false;
-  std::size_t columns = 4;
-  std::string header_text = "x,y,z,r";
+  const std::size_t own = cols.shape.size();
+  std::size_t columns = own;
+  std::string shape_header;
+  for (const std::string_view name : cols.shape) shape_header += (shape_header.empty() ? "" : ",") + std::string(name);
+  std::string header_text = shape_header;
   for_each_line(text, [&](std::string_view line, std::size_t no) {
     if (trim(line).empty()) return true;
     const auto fields = split(line, ",", false);
     if (!header) {
-      // x,y,z,r, then optionally group,mask, then optionally always_active.
-      const bool xyzr =
-          fields.size() >= 4 && fields[0] == "x" && fields[1] == "y" && fields[2] == "z" && fields[3] == "r";
-      std::size_t at = 4;
-      with_filters = xyzr && fields.size() >= 6 && fields[4] == "group" && fields[5] == "mask";
-      if (with_filters) at = 6;
-      with_always = xyzr && fields.size() == at + 1 && fields[at] == "always_active";
+      // The shape's columns, then optionally group,mask, then optionally always_active.
+      const bool shape = fields.size() >= own && std::equal(cols.shape.begin(), cols.shape.end(), fields.begin());
+      std::size_t at = own;
+      with_filters = shape && fields.size() >= own + 2 && fields[own] == "group" && fields[own + 1] == "mask";
+      if (with_filters) at = own + 2;
+      with_always = shape && fields.size() == at + 1 && fields[at] == "always_active";
       if (with_always) ++at;
-      if (!xyzr || fields.size() != at) {
-        error = where(source, no) +
-                "expected the header `x,y,z,r` or `x,y,z,r,group,mask`, either optionally followed by "
-                "`,always_active`, found '" +
-                printable(trim(line)) + "'";
+      if (!shape || fields.size() != at) {
+        error = where(source, no) + "expected the header `" + shape_header + "` or `" + shape_header +
+                ",group,mask`, either optionally followed by `,always_active`, found '" + printable(trim(line)) + "'";
+        if (!fields.empty() && fields[0] == cols.other_first) error += ": " + std::string(cols.other_file);
         return false;
       }
       columns = at;
-      header_text =
-          std::string("x,y,z,r") + (with_filters ? ",group,mask" : "") + (with_always ? ",always_active" : "");
+      header_text = shape_header + (with_filters ? ",group,mask" : "") + (with_always ? ",always_active" : "");
       header = true;
       return true;
     }
-    Sphere s;
+    Shape s;
     Filter f;
     std::uint8_t always = 0;
     std::string e;
-    if (columns == 4)
-      e = parse_sphere(fields, s);  // its own message for a wrong count: "expected 4 numbers"
+    if (columns == own)
+      e = parse(fields, s);  // its own message for a wrong count: "expected 4 numbers"
     else if (fields.size() != columns)
       e = "expected " + std::to_string(columns) + " fields `" + header_text + "`, found " +
           std::to_string(fields.size());
     else
-      e = parse_sphere({fields.begin(), fields.begin() + 4}, s);
-    if (e.empty() && with_filters) e = parse_filter_field(fields[4], "group", f.group);
-    if (e.empty() && with_filters) e = parse_filter_field(fields[5], "mask", f.mask);
+      e = parse(std::span<const std::string_view>(fields).first(own), s);
+    if (e.empty() && with_filters) e = parse_filter_field(fields[own], "group", f.group);
+    if (e.empty() && with_filters) e = parse_filter_field(fields[own + 1], "mask", f.mask);
     if (e.empty() && with_always) {
       const std::string_view v = trim(fields[columns - 1]);
       if (v == "0" || v == "1")
@@ -285,12 +324,42 @@ Result<SphereTable> parse_sphere_table(std::string_view text, std::string_view s
       error = where(source, no) + e;
       return false;
     }
-    out.spheres.push_back(s);
-    if (with_filters) out.filters.push_back(f);
-    if (with_always) out.always_active.push_back(always);
+    shapes.push_back(s);
+    if (with_filters) filters.push_back(f);
+    if (with_always) always_active.push_back(always);
     return true;
   });
-  if (!error.empty()) return R::failure(ErrorKind::invalid_input, error);
+  return error;
+}
+
+// The first field of the first line that is neither blank nor a comment (an XYZR `#`): a CSV's
+// header or an XYZR file's first sphere, with its 1-based line; line 0 when there is none.
+std::pair<std::string_view, std::size_t> first_field(std::string_view text) {
+  std::pair<std::string_view, std::size_t> found{{}, 0};
+  for_each_line(skip_bom(text), [&](std::string_view line, std::size_t no) {
+    if (trim(line).empty() || trim(line).starts_with('#')) return true;
+    found = {split(line, ",", false).front(), no};
+    return false;
+  });
+  return found;
+}
+
+}  // namespace
+
+Result<SphereTable> parse_sphere_table(std::string_view text, std::string_view source) {
+  SphereTable out;
+  if (std::string e =
+          parse_object_csv(text, source, kSphereFile, parse_sphere, out.spheres, out.filters, out.always_active);
+      !e.empty())
+    return Result<SphereTable>::failure(ErrorKind::invalid_input, e);
+  return out;
+}
+
+Result<BoxTable> parse_box_table(std::string_view text, std::string_view source) {
+  BoxTable out;
+  if (std::string e = parse_object_csv(text, source, kBoxFile, parse_box, out.boxes, out.filters, out.always_active);
+      !e.empty())
+    return Result<BoxTable>::failure(ErrorKind::invalid_input, e);
   return out;
 }
 
@@ -307,14 +376,46 @@ SpheresResult read_spheres(const std::filesystem::path& path) {
   return parse_xyzr(text.value(), path.string());
 }
 
+namespace {
+// A sphere file's text by its name: `.csv` as parse_sphere_table, anything else XYZR (no filters).
+Result<SphereTable> read_sphere_table_text(std::string_view text, const std::filesystem::path& path) {
+  if (path.extension() == ".csv") return parse_sphere_table(text, path.string());
+  auto spheres = parse_xyzr(text, path.string());
+  if (!spheres) return Result<SphereTable>::failure(spheres.status());
+  return SphereTable{std::move(spheres.value()), {}, {}};
+}
+}  // namespace
+
 Result<SphereTable> read_sphere_table(const std::filesystem::path& path) {
-  using R = Result<SphereTable>;
+  auto text = slurp(path);
+  if (!text) return Result<SphereTable>::failure(text.status());
+  return read_sphere_table_text(text.value(), path);
+}
+
+Result<BoxTable> read_box_table(const std::filesystem::path& path) {
+  auto text = slurp(path);
+  if (!text) return Result<BoxTable>::failure(text.status());
+  return parse_box_table(text.value(), path.string());
+}
+
+Result<ObjectTable> read_object_table(const std::filesystem::path& path) {
+  using R = Result<ObjectTable>;
   auto text = slurp(path);
   if (!text) return R::failure(text.status());
-  if (path.extension() == ".csv") return parse_sphere_table(text.value(), path.string());
-  auto spheres = parse_xyzr(text.value(), path.string());
+  ObjectTable out;
+  const auto [first, line] = first_field(text.value());
+  out.kind_line = line;
+  if (first == kBoxColumns[0]) {  // a box header, whatever the extension: boxes have no XYZR form
+    auto boxes = parse_box_table(text.value(), path.string());
+    if (!boxes) return R::failure(boxes.status());
+    out.kind = ShapeKind::box;
+    out.boxes = std::move(boxes.value());
+    return out;
+  }
+  auto spheres = read_sphere_table_text(text.value(), path);
   if (!spheres) return R::failure(spheres.status());
-  return SphereTable{std::move(spheres.value()), {}, {}};
+  out.spheres = std::move(spheres.value());
+  return out;
 }
 
 Result<Camera> parse_camera(std::string_view text, std::string_view source) {
@@ -548,6 +649,18 @@ Status write_spheres_csv(const std::filesystem::path& path, std::span<const Sphe
   return write_text(path, s);
 }
 
+Status write_boxes_csv(const std::filesystem::path& path, std::span<const Box> boxes) {
+  std::string s = "minx,miny,minz,maxx,maxy,maxz\n";
+  char buf[192];
+  for (const Box& b : boxes) {
+    std::snprintf(buf, sizeof buf, "%.9g,%.9g,%.9g,%.9g,%.9g,%.9g\n", static_cast<double>(b.min[0]),
+                  static_cast<double>(b.min[1]), static_cast<double>(b.min[2]), static_cast<double>(b.max[0]),
+                  static_cast<double>(b.max[1]), static_cast<double>(b.max[2]));
+    s += buf;
+  }
+  return write_text(path, s);
+}
+
 Status write_pairs_csv(AtomicFile& out, std::span<const Pair> pairs) {
   // Streamed in blocks of about 1 MiB: a billion pairs need no gigabytes of text in memory.
   constexpr std::size_t kBlock = 1 << 20;
@@ -576,6 +689,7 @@ std::string stats_json(const FrameStats& st, std::string_view backend) {
   nlohmann::ordered_json j;
   j["backend"] = backend;
   j["objects"] = st.objects;
+  j["static_objects"] = st.static_objects;
   j["active"] = st.active;
   j["mean_pixels"] =
       st.has_pixels || st.has_camera ? nlohmann::ordered_json(st.mean_pixels) : nlohmann::ordered_json(nullptr);

@@ -5,6 +5,8 @@
 #include <numbers>
 #include <random>
 
+#include "viscd/io.hpp"
+
 namespace viscd {
 namespace {
 
@@ -130,6 +132,61 @@ std::string_view scene_kind_name(SceneKind kind) {
       return "clusters";
   }
   return "?";
+}
+
+Result<ShapeKind> parse_shape_kind(std::string_view name) {
+  if (name == "sphere") return ShapeKind::sphere;
+  if (name == "box") return ShapeKind::box;
+  return Result<ShapeKind>::failure(ErrorKind::invalid_input,
+                                    "unknown shape '" + printable(name) + "': expected sphere or box");
+}
+
+std::string_view shape_kind_name(ShapeKind kind) { return kind == ShapeKind::box ? "box" : "sphere"; }
+
+Box cube_of(const Sphere& s) { return Box{{s.x - s.r, s.y - s.r, s.z - s.r}, {s.x + s.r, s.y + s.r, s.z + s.r}}; }
+
+void cubes_of(std::span<const Sphere> spheres, std::vector<Box>& cubes) {
+  cubes.resize(spheres.size());
+  for (std::size_t k = 0; k < spheres.size(); ++k) cubes[k] = cube_of(spheres[k]);
+}
+
+std::vector<Sphere> static_field(const Scene& scene, std::uint32_t count) {
+  std::vector<Sphere> out;
+  out.reserve(count);
+  // A stream of its own: the field does not change the scene's objects, nor they the field.
+  Rng rng(scene.params().seed ^ 0xA5F1E1D5A7A71Cull);
+  const float rm = scene.params().mean_radius;
+  const float ground = -scene.world_half_height();
+  const bool ring = scene.params().kind == SceneKind::ring;
+  // Where the objects circle: the ring's annulus (inner radius half the outer, as Scene::make()),
+  // else the square under the cube.
+  const float outer = std::max(scene.world_radius(), rm);
+  const float half = std::max(scene.world_half_height(), rm);
+  constexpr float kPillarHeight = 12;  // mean radii: the ring slab's height
+  while (out.size() < count) {
+    // Every feature draws the same numbers, so that a smaller count gives a prefix of the field.
+    float x, z;
+    if (ring) {
+      const float rho = std::sqrt(rng.uniform(0.25f * outer * outer, outer * outer));
+      const float theta = rng.uniform(0, 2 * kPi);
+      x = rho * std::cos(theta), z = rho * std::sin(theta);
+    } else {
+      x = rng.uniform(-half, half), z = rng.uniform(-half, half);
+    }
+    const bool pillar = rng.uniform(0, 1) < 0.25f;
+    const float size = rng.uniform(0, 1);
+    if (!pillar) {
+      const float r = (1 + 2 * size) * rm;
+      out.push_back({x, ground + 0.5f * r, z, r});  // half sunk into the ground
+      continue;
+    }
+    const float r = (1 + 0.5f * size) * rm;
+    const float step = 1.5f * r;
+    const auto stack = static_cast<std::size_t>(std::ceil(kPillarHeight * rm / step)) + 1;
+    for (std::size_t k = 0; k < stack && out.size() < count; ++k)
+      out.push_back({x, ground + static_cast<float>(k) * step, z, r});
+  }
+  return out;
 }
 
 Result<Camera> camera_preset(std::string_view name, const Scene& scene, int width, int height) {

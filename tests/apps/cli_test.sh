@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Command-line tests of the `viscd` tool: exit codes, outputs and messages of `pairs`, `query` and
-# `run`, the backend choice (--backend auto, gl without OpenGL) and the cpu kernel options.
+# `run` (spheres, boxes and the static set), the backend choice (--backend auto, gl without
+# OpenGL) and the cpu kernel options.
 # Usage: VISCD=/path/to/viscd bash tests/apps/cli_test.sh WORKDIR
 set -euo pipefail
 
@@ -336,11 +337,12 @@ import csv, sys
 rows = list(csv.DictReader(open(sys.argv[1])))
 def pairs(f):
     return {(int(r["i"]), int(r["j"])) for r in csv.DictReader(open(f"{sys.argv[2]}/frame_{f:06d}.csv"))}
+frames = int(sys.argv[3]) if len(sys.argv) > 3 else 5
 key = [(int(r["frame"]), 0 if r["event"] == "begin" else 1, int(r["i"]), int(r["j"])) for r in rows]
 assert key == sorted(key), "events not sorted by frame, begin before end, i, j"
 assert all(r["event"] in ("begin", "end") for r in rows)
 before, changes = set(), 0
-for f in range(5):
+for f in range(frames):
     now = pairs(f)
     got_b = {(int(r["i"]), int(r["j"])) for r in rows if int(r["frame"]) == f and r["event"] == "begin"}
     got_e = {(int(r["i"]), int(r["j"])) for r in rows if int(r["frame"]) == f and r["event"] == "end"}
@@ -385,6 +387,227 @@ expect_in "$W/out" "--pairs-dir" "run --help"
 expect_rc 0 pairs --help
 expect_in "$W/out" "--id-map" "pairs --help"
 expect_in "$W/out" "group" "pairs --help"
+pass
+
+# ----------------------------------------------------------------------------------------------
+# Boxes and the static set: pairs and queries from box files, --static (numbered N + k), and
+# run --shape box --static K. The oracles are brute force written here in awk, on coordinates in
+# quarters, which float and awk's doubles hold exactly, so that touching counts the same in both.
+
+# 300 boxes on a grid of quarters, sides 0 to 3: many touch exactly.
+awk 'BEGIN { srand(11); print "minx,miny,minz,maxx,maxy,maxz"
+  for (k = 0; k < 300; ++k) {
+    for (a = 0; a < 3; ++a) { lo[a] = int(rand() * 80) / 4; hi[a] = lo[a] + int(rand() * 13) / 4 }
+    printf "%g,%g,%g,%g,%g,%g\n", lo[0], lo[1], lo[2], hi[0], hi[1], hi[2] } }' >"$W/boxes.csv"
+# 40 static boxes (walls and blocks) with the same grid.
+awk 'BEGIN { srand(12); print "minx,miny,minz,maxx,maxy,maxz"
+  for (k = 0; k < 40; ++k) {
+    for (a = 0; a < 3; ++a) { lo[a] = int(rand() * 80) / 4; hi[a] = lo[a] + int(rand() * 25) / 4 }
+    printf "%g,%g,%g,%g,%g,%g\n", lo[0], lo[1], lo[2], hi[0], hi[1], hi[2] } }' >"$W/walls.csv"
+# box_pairs MOVING [STATIC]: the pairs CSV by brute force: closed boxes overlap when
+# min_i <= max_j and min_j <= max_i on every axis; static object k is N + k; no static-static pairs.
+box_pairs() {
+  awk -F, 'BEGIN { n = m = 0 } FNR == 1 { ++file; next }
+    { for (a = 1; a <= 6; ++a) v[file, file == 1 ? n : m, a] = $a + 0; if (file == 1) ++n; else ++m }
+    function meet(f, i, g, j,   a) {
+      for (a = 1; a <= 3; ++a) if (v[f, i, a] > v[g, j, a + 3] || v[g, j, a] > v[f, i, a + 3]) return 0
+      return 1 }
+    END { print "i,j"
+      for (i = 0; i < n; ++i) {
+        for (j = i + 1; j < n; ++j) if (meet(1, i, 1, j)) print i "," j
+        for (k = 0; k < m; ++k) if (meet(1, i, 2, k)) print i "," n + k } }' "$@"
+}
+# sphere_pairs MOVING [STATIC]: the same for x,y,z,r CSVs: |c_i - c_j| <= r_i + r_j, squared.
+sphere_pairs() {
+  awk -F, 'BEGIN { n = m = 0 } FNR == 1 { ++file; next }
+    { for (a = 1; a <= 4; ++a) v[file, file == 1 ? n : m, a] = $a + 0; if (file == 1) ++n; else ++m }
+    function meet(f, i, g, j,   dx, dy, dz, s) {
+      dx = v[f, i, 1] - v[g, j, 1]; dy = v[f, i, 2] - v[g, j, 2]; dz = v[f, i, 3] - v[g, j, 3]
+      s = v[f, i, 4] + v[g, j, 4]; return dx * dx + dy * dy + dz * dz <= s * s }
+    END { print "i,j"
+      for (i = 0; i < n; ++i) {
+        for (j = i + 1; j < n; ++j) if (meet(1, i, 1, j)) print i "," j
+        for (k = 0; k < m; ++k) if (meet(1, i, 2, k)) print i "," n + k } }' "$@"
+}
+expect_sorted_pairs() {  # expect_sorted_pairs FILE WHAT: header i,j, then i < j, sorted by (i, j), unique
+  head -n1 "$1" | grep -qx 'i,j' || fail "$2: no header i,j"
+  awk -F, 'NR > 1 { if (!($1 < $2)) exit 1; if (NR > 2 && ($1 < pi || ($1 == pi && $2 <= pj))) exit 1; pi = $1; pj = $2 }' \
+    "$1" || fail "$2: pairs not sorted by (i, j) with i < j"
+}
+
+step "pairs --boxes equals the brute force, on cpu and reference, for every Morton width"
+box_pairs "$W/boxes.csv" >"$W/boxes_expected.csv"
+[[ "$(wc -l <"$W/boxes_expected.csv")" -gt 100 ]] || fail "the box fixture has too few pairs to mean much"
+for be in cpu reference; do
+  for bits in adaptive 16 64; do
+    expect_rc 0 pairs --boxes "$W/boxes.csv" --out "$W/boxes_$be.csv" --backend $be --bits $bits
+    cmp -s "$W/boxes_expected.csv" "$W/boxes_$be.csv" ||
+      { diff "$W/boxes_expected.csv" "$W/boxes_$be.csv" | head >&2; fail "box pairs ($be, --bits $bits) differ from the brute force"; }
+  done
+done
+expect_in "$W/out" "300 objects, 300 active" "pairs --boxes summary"
+pass
+
+step "pairs --boxes --static: static object k is N + k, sorted, equal to the brute force"
+box_pairs "$W/boxes.csv" "$W/walls.csv" >"$W/walls_expected.csv"
+grep -qE '^[0-9]+,(3[0-9][0-9])$' "$W/walls_expected.csv" || fail "the fixture has no pair with a static box"
+for be in cpu reference; do
+  expect_rc 0 pairs --boxes "$W/boxes.csv" --static "$W/walls.csv" --out "$W/walls_$be.csv" --stats "$W/walls_$be.json" \
+    --backend $be
+  expect_sorted_pairs "$W/walls_$be.csv" "pairs with a static set ($be)"
+  cmp -s "$W/walls_expected.csv" "$W/walls_$be.csv" ||
+    { diff "$W/walls_expected.csv" "$W/walls_$be.csv" | head >&2; fail "static-set pairs ($be) differ from the brute force"; }
+  expect_in "$W/out" "300 objects + 40 static" "pairs summary with --static ($be)"
+  expect_in "$W/walls_$be.json" '"static_objects": 40' "stats JSON with --static ($be)"
+done
+# The hash printed is the written CSV's: --validate-hash takes it.
+HASH_STATIC="$(grep -oE 'hash [0-9a-f]{16}' "$W/out" | cut -d' ' -f2)"
+expect_rc 0 pairs --boxes "$W/boxes.csv" --static "$W/walls.csv" --out "$W/walls_v.csv" --validate-hash "$HASH_STATIC"
+pass
+
+step "pairs --spheres --static: the same numbering for spheres (cloud on quarters)"
+awk 'BEGIN { srand(21); print "x,y,z,r"; for (k = 0; k < 250; ++k)
+  printf "%g,%g,%g,%g\n", int(rand() * 80) / 4, int(rand() * 80) / 4, int(rand() * 8) / 4, int(rand() * 4 + 1) / 4 }' \
+  >"$W/balls.csv"
+awk 'BEGIN { srand(22); print "x,y,z,r"; for (k = 0; k < 30; ++k)
+  printf "%g,%g,%g,%g\n", int(rand() * 80) / 4, int(rand() * 80) / 4, 0, int(rand() * 8 + 4) / 4 }' >"$W/rocks.csv"
+sphere_pairs "$W/balls.csv" "$W/rocks.csv" >"$W/rocks_expected.csv"
+grep -qE ',(2[5-7][0-9])$' "$W/rocks_expected.csv" || fail "the fixture has no pair with a static sphere"
+for be in cpu reference; do
+  expect_rc 0 pairs --spheres "$W/balls.csv" --static "$W/rocks.csv" --out "$W/rocks_$be.csv" --backend $be
+  cmp -s "$W/rocks_expected.csv" "$W/rocks_$be.csv" ||
+    { diff "$W/rocks_expected.csv" "$W/rocks_$be.csv" | head >&2; fail "sphere static-set pairs ($be) differ"; }
+done
+# An XYZR static file with XYZR spheres.
+tail -n +2 "$W/rocks.csv" | tr ',' ' ' >"$W/rocks.xyzr"
+expect_rc 0 pairs --spheres "$W/balls.csv" --static "$W/rocks.xyzr" --out "$W/rocks_xyzr.csv"
+cmp -s "$W/rocks_expected.csv" "$W/rocks_xyzr.csv" || fail "an XYZR static file gives other pairs"
+pass
+
+# Four boxes: 0 and 1 share a face, 2 and 3 overlap; two static boxes: a floor under 0 and 1
+# (touching them from below) and a block touching 3's corner. With filters: the block (group 4)
+# accepts group 2 only, and box 3 is group 2; box 1 (mask 0) collides with nothing.
+cat >"$W/four_boxes.csv" <<'CSV'
+minx,miny,minz,maxx,maxy,maxz,group,mask
+0,0,0,1,1,1,1,0xFFFFFFFF
+1,0,0,2,1,1,2,0
+5,5,5,6,6,6,1,0xFFFFFFFF
+5.5,5.5,5.5,7,7,7,2,0xFFFFFFFF
+CSV
+cat >"$W/two_static.csv" <<'CSV'
+minx,miny,minz,maxx,maxy,maxz,group,mask
+-10,-1,-10,10,0,10,1,0xFFFFFFFF
+7,7,7,8,8,8,4,2
+CSV
+step "boxes with filters and a static set: hand-worked pairs, numbers 4 and 5 for the static boxes"
+expect_rc 0 pairs --boxes "$W/four_boxes.csv" --out "$W/fb.csv"
+expect_file_equals "$W/fb.csv" 'i,j\n2,3\n' "filtered box pairs"
+for be in cpu reference; do
+  expect_rc 0 pairs --boxes "$W/four_boxes.csv" --static "$W/two_static.csv" --out "$W/fbs.csv" --backend $be
+  expect_file_equals "$W/fbs.csv" 'i,j\n0,4\n2,3\n3,5\n' "filtered box pairs with a static set ($be)"
+done
+pass
+
+step "query --boxes --static: rays and overlaps see static objects as N + k"
+expect_rc 0 query --boxes "$W/four_boxes.csv" --static "$W/two_static.csv" --ray 0.5,10,0.5,0,-1,0 --all
+expect_file_equals "$W/out" 'i,t\n0,9\n4,10\n' "a ray down through box 0 onto the floor"
+expect_rc 0 query --boxes "$W/four_boxes.csv" --static "$W/two_static.csv" --ray 0.5,10,0.5,0,-1,0 --backend reference
+expect_file_equals "$W/out" 'i,t\n0,9\n' "the first hit"
+expect_rc 0 query --boxes "$W/four_boxes.csv" --static "$W/two_static.csv" --overlap-box 7,7,7,7,7,7
+expect_file_equals "$W/out" 'i\n3\n5\n' "a point on 3's corner and the block's"
+expect_rc 0 query --boxes "$W/four_boxes.csv" --static "$W/two_static.csv" --overlap 1,1,0.5,0
+expect_file_equals "$W/out" 'i\n0\n1\n' "a point on the shared edge of 0 and 1"
+expect_rc 0 query --spheres "$W/four.xyzr" --static "$W/rocks.xyzr" --overlap 100.75,0,0,0.1
+expect_file_equals "$W/out" 'i\n2\n3\n' "spheres with a static set far away"
+expect_rc 2 query --boxes "$W/four_boxes.csv" --overlap-box 1,0,0,0,1,1
+expect_in "$W/err" "--overlap-box: minx" "--overlap-box with min > max"
+expect_rc 2 query --boxes "$W/four_boxes.csv" --overlap-box 1,0,0
+expect_in "$W/err" "--overlap-box" "short --overlap-box"
+pass
+
+step "--spheres and --boxes: exactly one; a --static file of the other kind exits 1 naming file:line"
+expect_rc 2 pairs --spheres "$W/four.xyzr" --boxes "$W/four_boxes.csv" --out "$W/both.csv"
+expect_in "$W/err" "one of --spheres and --boxes" "both kinds"
+expect_rc 2 query --ray 0,0,0,1,0,0
+expect_in "$W/err" "one of --spheres and --boxes" "query without objects"
+expect_rc 1 pairs --boxes "$W/four_boxes.csv" --static "$W/rocks.csv" --out "$W/mixed.csv"
+expect_in "$W/err" "$W/rocks.csv:1: a sphere file" "sphere static file with boxes"
+expect_in "$W/err" "--static must hold boxes too" "sphere static file with boxes"
+expect_rc 1 pairs --boxes "$W/four_boxes.csv" --static "$W/rocks.xyzr" --out "$W/mixed.csv"
+expect_in "$W/err" "$W/rocks.xyzr:1: a sphere file (XYZR" "XYZR static file with boxes"
+expect_rc 1 query --spheres "$W/four.xyzr" --static "$W/two_static.csv" --overlap 0,0,0,1
+expect_in "$W/err" "$W/two_static.csv:1: a box file" "box static file with spheres"
+expect_in "$W/err" "--static must hold spheres too" "box static file with spheres"
+expect_rc 1 pairs --spheres "$W/four_boxes.csv" --out "$W/mixed.csv"
+expect_in "$W/err" "$W/four_boxes.csv:1: expected the header \`x,y,z,r\`" "a box file as --spheres"
+expect_in "$W/err" "a box file, where spheres were expected" "a box file as --spheres"
+[[ ! -e "$W/mixed.csv" && ! -e "$W/both.csv" ]] || fail "a refused pairs run wrote its output"
+expect_rc 2 pairs --boxes "$W/four_boxes.csv" --static "$W/two_static.csv" --out "$W/two_static.csv"
+expect_in "$W/err" "refusing to overwrite an input" "--out naming --static"
+pass
+
+step "--backend gl with boxes or a static set: a clear error (exit 1), or gl takes them"
+set +e
+"$VISCD" pairs --boxes "$W/boxes.csv" --static "$W/walls.csv" --out "$W/walls_gl.csv" --backend gl >"$W/out" 2>"$W/err"
+rc=$?
+set -e
+if [[ "$rc" -eq 0 ]]; then
+  cmp -s "$W/walls_expected.csv" "$W/walls_gl.csv" || fail "gl box pairs differ from the brute force"
+elif grep -q "does not take" "$W/err"; then
+  [[ "$rc" -eq 1 ]] || fail "gl refusing boxes exited $rc, expected 1"
+  expect_in "$W/err" "use cpu or reference" "gl refusing boxes"
+  [[ ! -e "$W/walls_gl.csv" ]] || fail "a refused gl frame wrote its output"
+else
+  echo "    skipped: no gl backend here ($(head -n 1 "$W/err"))"
+fi
+pass
+
+step "run --shape box --static 200: summary, frames.csv and every frame's pairs number static k as N + k"
+# Fixed bits and no culling: no visibility map but the last frame's screenshot, kept small for the
+# reference backend, which ray-casts every pixel against every object.
+expect_rc 0 run --objects 2000 --frames 3 --shape box --static 200 --no-culling --bits 32 --size 64x36 --dt 0.5 \
+  --out "$W/runbox" --pairs-dir "$W/runbox_pairs" --events "$W/runbox/events.csv" --backend cpu
+expect_in "$W/out" "2000 boxes (ring scene, seed 1) + 200 static" "run header"
+expect_in "$W/out" ", 200 static," "run's last frame"
+head -n1 "$W/runbox/frames.csv" | grep -q '^frame,time_s,objects,static_objects,' || fail "frames.csv has no static_objects"
+awk -F, 'NR > 1 && ($3 != 2000 || $4 != 200) { exit 1 }' "$W/runbox/frames.csv" || fail "frames.csv counts"
+if command -v python3 >/dev/null 2>&1; then
+  python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); assert d["shape"]=="box" and d["static_objects"]==200 and d["last_frame"]["static_objects"]==200, d' \
+    "$W/runbox/summary.json" || fail "summary.json lacks the shape or the static count"
+fi
+for f in 0 1 2; do
+  expect_sorted_pairs "$W/runbox_pairs/frame_00000$f.csv" "run frame $f"
+  awk -F, 'NR > 1 && ($2 >= 2200 || $1 >= 2000) { exit 1 } NR > 1 && $2 >= 2000 { s = 1 } END { exit !s }' \
+    "$W/runbox_pairs/frame_00000$f.csv" || fail "frame $f: no pair with a static object, or one numbered beyond N + K"
+done
+if command -v python3 >/dev/null 2>&1; then
+  python3 "$W/check_events.py" "$W/runbox/events.csv" "$W/runbox_pairs" 3 || fail "events differ from the pairs files"
+fi
+# The same frames by the reference backend (brute force): the same pairs.
+expect_rc 0 run --objects 2000 --frames 3 --shape box --static 200 --no-culling --bits 32 --size 64x36 --dt 0.5 \
+  --out "$W/runbox_ref" --pairs-dir "$W/runbox_ref_pairs" --backend reference --quiet
+for f in 0 1 2; do
+  cmp -s "$W/runbox_pairs/frame_00000$f.csv" "$W/runbox_ref_pairs/frame_00000$f.csv" ||
+    fail "run --shape box --static: cpu and reference differ in frame $f"
+done
+pass
+
+step "run --static with spheres, with culling: a screenshot; bad --shape and --static are usage errors"
+expect_rc 0 run --objects 2000 --frames 2 --static 100 --out "$W/runrocks" --quiet
+[[ -s "$W/runrocks/screenshot.png" ]] || fail "run --static wrote no screenshot"
+expect_rc 2 run --objects 100 --frames 1 --shape cube --out "$W/runbad"
+expect_in "$W/err" "--shape: unknown shape 'cube': expected sphere or box" "--shape cube"
+expect_rc 2 run --objects 100 --frames 1 --static -1 --out "$W/runbad"
+expect_in "$W/err" "--static" "--static -1"
+pass
+
+step "--help teaches --boxes, --static, --overlap-box and --shape"
+expect_rc 0 pairs --help
+for word in --boxes --static "minx,miny,minz,maxx,maxy,maxz" "N + k"; do expect_in "$W/out" "$word" "pairs --help"; done
+expect_rc 0 query --help
+for word in --boxes --static --overlap-box; do expect_in "$W/out" "$word" "query --help"; done
+expect_rc 0 run --help
+for word in --shape --static "N + k"; do expect_in "$W/out" "$word" "run --help"; done
 pass
 
 # ----------------------------------------------------------------------------------------------

@@ -180,6 +180,91 @@ expect_rc 1 pairs --spheres "$W/huge_field.xyzr" --out "$W/p_huge.csv"
 expect_in "$W/err" "…" "long field"
 pass
 
+# ----------------------------------------------------------------------------------------------
+# Hostile box files: each bad file exits 1 with a message naming file:line and what was expected,
+# and writes nothing; as --boxes and as --static.
+printf 'minx,miny,minz,maxx,maxy,maxz\n0,0,0,1,1,1\n1,0,0,2,1,1\n' >"$W/ok_boxes.csv"
+box_case() {  # box_case NAME ROW EXPECTED: a file whose line 3 is ROW must fail with EXPECTED at NAME.csv:3
+  printf 'minx,miny,minz,maxx,maxy,maxz\n0,0,0,1,1,1\n%s\n' "$2" >"$W/$1.csv"
+  expect_rc 1 pairs --boxes "$W/$1.csv" --out "$W/p_$1.csv"
+  expect_in "$W/err" "$W/$1.csv:3: $3" "box file $1"
+  expect_no_control_bytes "$W/err" "box file $1"
+  [[ ! -e "$W/p_$1.csv" ]] || fail "a failed pairs run wrote its output ($1)"
+  expect_rc 1 pairs --boxes "$W/ok_boxes.csv" --static "$W/$1.csv" --out "$W/p_$1.csv"
+  expect_in "$W/err" "$W/$1.csv:3: $3" "static box file $1"
+}
+step "box values: NaN, infinity, |v| > 1e18, beyond float, not a number, min > max"
+box_case nan "0,nan,0,1,1,1" "miny = nan is not finite (NaN and infinity are not allowed)"
+box_case inf "0,0,0,inf,1,1" "maxx = inf is not finite"
+box_case minf "-inf,0,0,1,1,1" "minx = -inf is not finite"
+box_case big "0,0,0,1,1,1.5e18" "maxz = 1.5e18 exceeds the supported magnitude 1e18"
+box_case negbig "0,0,-2e18,1,1,1" "minz = -2e18 exceeds the supported magnitude 1e18"
+box_case float "0,0,0,1,1e39,1" "maxy = '1e39' is out of float range"
+box_case word "0,0,0,one,1,1" "maxx: expected a number, found 'one'"
+box_case empty "0,0,0,1,,1" "maxy: expected a number, found ''"
+box_case minmax "0,0,2,1,1,1" "minz = 2 exceeds maxz = 1 (a box needs min <= max on every axis)"
+pass
+
+step "box rows and headers: missing and extra columns, wrong headers, filters, always_active"
+box_case short "0,0,0,1,1" "expected 6 numbers \`minx,miny,minz,maxx,maxy,maxz\`, found 5 fields"
+box_case long "0,0,0,1,1,1,1" "expected 6 numbers"
+box_case blanks "0 0 0 1 1 1" "expected 6 numbers"
+printf 'minx,miny,minz,maxx,maxy,maxz,group,mask\n0,0,0,1,1,1,1,1\n0,0,0,1,1,1,1\n' >"$W/nomask.csv"
+expect_rc 1 pairs --boxes "$W/nomask.csv" --out "$W/p_nomask.csv"
+expect_in "$W/err" "$W/nomask.csv:3: expected 8 fields \`minx,miny,minz,maxx,maxy,maxz,group,mask\`, found 7" "missing mask"
+printf 'minx,miny,minz,maxx,maxy,maxz,group,mask\n0,0,0,1,1,1,1,0x1FFFFFFFF\n' >"$W/widemask.csv"
+expect_rc 1 pairs --boxes "$W/widemask.csv" --out "$W/p_widemask.csv"
+expect_in "$W/err" "$W/widemask.csv:2: mask = 0x1FFFFFFFF does not fit in 32 bits" "mask beyond 32 bits"
+printf 'minx,miny,minz,maxx,maxy,maxz,always_active\n0,0,0,1,1,1,yes\n' >"$W/always.csv"
+expect_rc 1 pairs --boxes "$W/always.csv" --out "$W/p_always.csv"
+expect_in "$W/err" "$W/always.csv:2: always_active: expected 0 or 1, found 'yes'" "bad always_active"
+for header in "minx,miny,minz,maxx,maxy" "min_x,min_y,min_z,max_x,max_y,max_z" "minx,miny,minz,maxx,maxy,maxz,mask,group" \
+  "0,0,0,1,1,1"; do
+  printf '%s\n0,0,0,1,1,1\n' "$header" >"$W/header.csv"
+  expect_rc 1 pairs --boxes "$W/header.csv" --out "$W/p_header.csv"
+  expect_in "$W/err" "$W/header.csv:1: expected the header \`minx,miny,minz,maxx,maxy,maxz\` or" "header '$header'"
+done
+printf '\n\nx,y,z,r\n0,0,0,1\n' >"$W/spheres_as_boxes.csv"
+expect_rc 1 pairs --boxes "$W/spheres_as_boxes.csv" --out "$W/p_sab.csv"
+expect_in "$W/err" "$W/spheres_as_boxes.csv:3: expected the header" "a sphere file as --boxes"
+expect_in "$W/err" "a sphere file, where boxes were expected" "a sphere file as --boxes"
+[[ -z "$(find "$W" -maxdepth 1 -name 'p_*.csv' -newer "$W/ok_boxes.csv")" ]] || fail "a failed box run wrote its output"
+pass
+
+step "a --static file of the other kind: exit 1 naming file:line and the kind expected"
+printf 'x,y,z,r\n0,0,0,1\n' >"$W/static_spheres.csv"
+expect_rc 1 pairs --boxes "$W/ok_boxes.csv" --static "$W/static_spheres.csv" --out "$W/p_kind.csv"
+expect_in "$W/err" "$W/static_spheres.csv:1: a sphere file (header \`x,y,z,r\`), but the moving objects (--boxes) are boxes" \
+  "sphere --static with boxes"
+printf '# rocks\n0 0 0 1\n' >"$W/static_spheres.xyzr"
+expect_rc 1 query --boxes "$W/ok_boxes.csv" --static "$W/static_spheres.xyzr" --overlap 0,0,0,1
+expect_in "$W/err" "$W/static_spheres.xyzr:2: a sphere file (XYZR" "XYZR --static with boxes"
+expect_rc 1 pairs --spheres "$W/four.xyzr" --static "$W/ok_boxes.csv" --out "$W/p_kind.csv"
+expect_in "$W/err" "$W/ok_boxes.csv:1: a box file" "box --static with spheres"
+expect_in "$W/err" "--static must hold spheres too" "box --static with spheres"
+# An empty static file has no kind: it is an empty static set.
+: >"$W/static_empty.csv"
+expect_rc 0 pairs --boxes "$W/ok_boxes.csv" --static "$W/static_empty.csv" --out "$W/p_empty_static.csv"
+expect_file_equals "$W/p_empty_static.csv" 'i,j\n0,1\n' "an empty static file"
+[[ ! -e "$W/p_kind.csv" ]] || fail "a refused static file let pairs write its output"
+pass
+
+step "box files: binary bytes escaped, a 1 MB field cut, a byte-order mark accepted"
+printf 'minx,miny,minz,maxx,maxy,maxz\n0,\x01\x00\x1b[31m,0,1,1,1\n' >"$W/binary_boxes.csv"
+expect_rc 1 pairs --boxes "$W/binary_boxes.csv" --out "$W/p_binb.csv"
+expect_in "$W/err" "binary_boxes.csv:2: miny" "binary box field"
+expect_in "$W/err" '\x01\x00\x1B[31m' "binary box field"
+expect_no_control_bytes "$W/err" "binary box field"
+{ printf 'minx,miny,minz,maxx,maxy,maxz\n0,0,0,1,1,'; head -c 1000000 /dev/zero | tr '\0' '9'; printf '\n'; } \
+  >"$W/huge_boxes.csv"
+expect_rc 1 pairs --boxes "$W/huge_boxes.csv" --out "$W/p_hugeb.csv"
+[[ "$(wc -c <"$W/err")" -lt 600 ]] || fail "the message echoes the whole field ($(wc -c <"$W/err") bytes)"
+expect_in "$W/err" "huge_boxes.csv:2: maxz" "long box field"
+printf '\xef\xbb\xbfminx,miny,minz,maxx,maxy,maxz\n0,0,0,1,1,1\n1,1,1,2,2,2\n' >"$W/bom_boxes.csv"
+expect_rc 0 pairs --boxes "$W/bom_boxes.csv" --out "$W/p_bomb.csv"
+expect_file_equals "$W/p_bomb.csv" 'i,j\n0,1\n' "pairs of a box CSV with BOM"
+pass
+
 step "an option value with control characters is escaped"
 expect_rc 2 pairs --spheres "$W/four.xyzr" --bits "$(printf '1\x1b[2J6')"
 expect_in "$W/err" '\x1B' "escaped option value"

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Window tests of `viscd view` under Xvfb: it opens a window, runs frames, writes a screenshot
-# that shows all three colour classes, fails clearly without a display, and falls back from a gl
-# backend that cannot start to cpu.
+# that shows all three colour classes (and static objects, grey, as spheres or boxes), fails
+# clearly without a display, and falls back from a gl backend that cannot start to cpu.
 # Usage: VISCD=/path/to/viscd bash tests/apps/view_test.sh WORKDIR
 # Exits 77 (ctest: skipped) when xvfb-run or python3 is missing.
 set -euo pipefail
@@ -38,14 +38,16 @@ show() {
   sed 's/^/      /' "$WORK/err" >&2 || true
 }
 
-# Checks a PNG: size (WxH or "any") and, with "colours", pixels of all three classes.
+# Checks a PNG: size (WxH or "any") and, with "colours", pixels of all three classes; with
+# "colours+static" grey static objects' too.
 # A small decoder for 8-bit RGB/RGBA non-interlaced PNGs, standard library only.
-check_png() {  # check_png FILE SIZE [colours]
+check_png() {  # check_png FILE SIZE [colours|colours+static]
   python3 - "$@" <<'PY'
 import struct, sys, zlib
 
 path, want_size = sys.argv[1], sys.argv[2]
-want_colours = len(sys.argv) > 3 and sys.argv[3] == "colours"
+want_colours = len(sys.argv) > 3 and sys.argv[3] in ("colours", "colours+static")
+want_static = len(sys.argv) > 3 and sys.argv[3] == "colours+static"
 data = open(path, "rb").read()
 if data[:8] != b"\x89PNG\r\n\x1a\n":
     sys.exit(f"{path}: not a PNG (bad signature)")
@@ -76,6 +78,8 @@ if len(raw) != h * (stride + 1):
     sys.exit(f"{path}: {len(raw)} bytes of image data, expected {h * (stride + 1)}")
 prev = bytearray(stride)
 counts = {"red": 0, "blue": 0, "yellow": 0}
+if want_static:
+    counts["grey"] = 0
 for y in range(h):
     f = raw[y * (stride + 1)]
     line = bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
@@ -103,7 +107,9 @@ for y in range(h):
     if want_colours:
         for i in range(0, stride, bpp):
             r, g, b = line[i], line[i + 1], line[i + 2]
-            if r > 2 * g and r > 2 * b:
+            if want_static and r > 40 and abs(r - g) <= 12 and 0 <= b - r <= 30:
+                counts["grey"] += 1  # static (140, 140, 150) shaded: blue only a little above red and green
+            elif r > 2 * g and r > 2 * b:
                 counts["red"] += 1
             elif b > r and b > g and b > 80:
                 counts["blue"] += 1
@@ -113,7 +119,8 @@ for y in range(h):
 print(f"    {path}: {w}x{h}" + (f", pixels {counts}" if want_colours else ""))
 missing = [k for k, v in counts.items() if v == 0]
 if want_colours and missing:
-    sys.exit(f"{path}: no {', '.join(missing)} pixels (colliding red, free blue, culled yellow expected)")
+    sys.exit(f"{path}: no {', '.join(missing)} pixels (colliding red, free blue, culled yellow"
+             + (", static grey" if want_static else "") + " expected)")
 PY
 }
 
@@ -157,6 +164,33 @@ grep -q "wrote $WORK/view.png" "$WORK/out" || { show; fail "the screenshot path 
 grep -q "20 frames" "$WORK/out" || { show; fail "no summary of the 20 frames"; }
 check_png "$WORK/view.png" 640x360 colours || fail "screenshot check"
 check_png "$WORK/window.png" 640x360 || fail "window screenshot check"
+echo "    ok"
+
+step "boxes on a static field (--shape box --static): the screenshot shows every class and grey static objects"
+run "${XVFB[@]}" -- view --objects 3000 --frames 10 --size 640x360 --lambda 100 --shape box --static 300 \
+  --screenshot "$WORK/boxes.png"
+[[ "$rc" -eq 0 ]] || { show; fail "viscd view --shape box --static 300 exited $rc"; }
+grep -q "^viscd view: cpu backend, 3000 boxes (ring scene) + 300 static" "$WORK/out" || { show; fail "no start line"; }
+grep -q "10 frames, last: .* objects active, 300 static," "$WORK/out" || { show; fail "no summary with the static count"; }
+check_png "$WORK/boxes.png" 640x360 colours+static || fail "box screenshot check"
+# The same in spheres: the spheres' image differs from the boxes'.
+run "${XVFB[@]}" -- view --objects 3000 --frames 10 --size 640x360 --lambda 100 --static 300 --screenshot "$WORK/rocks.png"
+[[ "$rc" -eq 0 ]] || { show; fail "viscd view --static 300 exited $rc"; }
+check_png "$WORK/rocks.png" 640x360 colours+static || fail "sphere screenshot with a static field"
+cmp -s "$WORK/boxes.png" "$WORK/rocks.png" && fail "boxes and spheres gave the same image"
+run env -u DISPLAY -- view --shape cube
+[[ "$rc" -eq 2 ]] && grep -q -- "--shape" "$WORK/err" || { show; fail "view --shape cube exited $rc, expected 2"; }
+echo "    ok"
+
+step "--backend gl with boxes and a static set: gl takes them, or the viewer goes on with cpu and says why"
+run "${XVFB[@]}" -- view --backend gl --objects 1000 --frames 3 --size 320x180 --lambda 60 --shape box --static 50 \
+  --screenshot "$WORK/gl_boxes.png"
+[[ "$rc" -eq 0 ]] || { show; fail "viscd view --backend gl --shape box exited $rc"; }
+if grep -q "does not take" "$WORK/err"; then
+  grep -q "^viscd view: gl backend failed: .*; switched to cpu$" "$WORK/err" || { show; fail "no switch to cpu"; }
+fi
+grep -q "3 frames, last:" "$WORK/out" || { show; fail "no summary of the 3 frames"; }
+check_png "$WORK/gl_boxes.png" 320x180 || fail "gl box screenshot check"
 echo "    ok"
 
 step "gl backend (impostor) in the window, or a clear fallback to cpu"

@@ -446,5 +446,119 @@ TEST(RingScene, ARealShareCollides) {
   EXPECT_GE(std::count(in_pair.begin(), in_pair.end(), true), 500);
 }
 
+// ---------------------------------------------------------------------------------------------
+// Shapes: the scene as cubes, and the static field.
+
+TEST(ShapeKindNames, ParseAndName) {
+  ASSERT_TRUE(parse_shape_kind("sphere").ok());
+  EXPECT_EQ(parse_shape_kind("sphere").value(), ShapeKind::sphere);
+  EXPECT_EQ(parse_shape_kind("box").value(), ShapeKind::box);
+  EXPECT_EQ(shape_kind_name(ShapeKind::sphere), "sphere");
+  EXPECT_EQ(shape_kind_name(ShapeKind::box), "box");
+  for (const char* bad : {"", "cube", "Box", "spheres", "box "}) {
+    auto k = parse_shape_kind(bad);
+    ASSERT_FALSE(k.ok()) << bad;
+    EXPECT_NE(k.error().find("expected sphere or box"), std::string::npos) << k.error();
+  }
+}
+
+TEST(CubesOf, EachSphereBecomesItsCentrePlusMinusR) {
+  const Box b = cube_of({1, -2, 3.5f, 0.5f});
+  EXPECT_EQ(b.min[0], 0.5f);
+  EXPECT_EQ(b.min[1], -2.5f);
+  EXPECT_EQ(b.min[2], 3.0f);
+  EXPECT_EQ(b.max[0], 1.5f);
+  EXPECT_EQ(b.max[1], -1.5f);
+  EXPECT_EQ(b.max[2], 4.0f);
+  const Box point = cube_of({7, 8, 9, 0});
+  EXPECT_EQ(point.min[0], 7.0f);
+  EXPECT_EQ(point.max[2], 9.0f);
+
+  const Scene s = Scene::make(params(SceneKind::clusters, 3000, 4));
+  std::vector<Box> cubes(5);  // resized to the scene
+  cubes_of(s.spheres(), cubes);
+  ASSERT_EQ(cubes.size(), s.spheres().size());
+  EXPECT_TRUE(validate_boxes(cubes).ok());
+  for (std::size_t k = 0; k < cubes.size(); ++k) {
+    const Sphere& sp = s.spheres()[k];
+    EXPECT_EQ(cubes[k].min[1], sp.y - sp.r) << k;
+    EXPECT_EQ(cubes[k].max[2], sp.z + sp.r) << k;
+    // The cube holds its sphere: the sphere overlaps only boxes its cube overlaps.
+    EXPECT_TRUE(sphere_overlaps_box(sp, cubes[k])) << k;
+  }
+  cubes_of({}, cubes);
+  EXPECT_TRUE(cubes.empty());
+}
+
+TEST(StaticField, CountValidDeterministicAndAPrefix) {
+  const Scene s = Scene::make(params(SceneKind::ring, 5000, 3));
+  const std::vector<Sphere> field = static_field(s, 400);
+  ASSERT_EQ(field.size(), 400u);
+  EXPECT_TRUE(validate_spheres(field).ok());
+  EXPECT_TRUE(bitwise_equal(field, static_field(s, 400)));
+  for (std::uint32_t k : {0u, 1u, 7u, 123u, 399u}) {
+    const std::vector<Sphere> fewer = static_field(s, k);
+    ASSERT_EQ(fewer.size(), k);
+    EXPECT_TRUE(bitwise_equal(fewer, std::span<const Sphere>(field).first(k))) << k;
+  }
+  // Another seed, another field; the moving objects are those of a scene without one.
+  const Scene other = Scene::make(params(SceneKind::ring, 5000, 4));
+  EXPECT_FALSE(bitwise_equal(field, static_field(other, 400)));
+  EXPECT_TRUE(bitwise_equal(s.spheres(), Scene::make(params(SceneKind::ring, 5000, 3)).spheres()));
+}
+
+TEST(StaticField, RocksAndPillarsOnTheRingsGround) {
+  const Scene s = Scene::make(params(SceneKind::ring, 10000, 1));
+  const std::vector<Sphere> field = static_field(s, 2000);
+  const float rm = s.params().mean_radius, ground = -s.world_half_height(), outer = s.world_radius();
+  std::set<std::pair<float, float>> columns;  // (x, z) of each feature
+  std::size_t stacked = 0;
+  for (std::size_t k = 0; k < field.size(); ++k) {
+    const Sphere& f = field[k];
+    EXPECT_GE(f.r, rm) << k;
+    EXPECT_LE(f.r, 3 * rm * 1.0001f) << k;
+    EXPECT_GE(f.y, ground) << k;               // standing on the ground, not under it
+    EXPECT_LE(f.y, ground + 14.3f * rm) << k;  // a pillar: 12 mean radii, and at most a step more
+    const double rho = rho_of(f);
+    EXPECT_GE(rho, 0.5 * outer * 0.999) << k;  // in the annulus the objects circle over
+    EXPECT_LE(rho, outer * 1.001) << k;
+    if (!columns.insert({f.x, f.z}).second) ++stacked;
+  }
+  // About a quarter of the features are pillars of several spheres each: many objects share a column.
+  EXPECT_GT(stacked, field.size() / 4);
+  EXPECT_GT(columns.size(), field.size() / 10);
+  // Pillars rise through the slab the moving objects fill: some sphere reaches its top.
+  EXPECT_TRUE(std::any_of(field.begin(), field.end(), [&](const Sphere& f) { return f.y >= -ground; }));
+  // And the moving objects run into the field.
+  auto det = make_cpu_detector();
+  ASSERT_TRUE(det->set_static_spheres(field).ok());
+  FrameResult frame;
+  ASSERT_TRUE(det->detect(s.spheres(), nullptr, frame).ok());
+  EXPECT_GT(std::count_if(frame.pairs.begin(), frame.pairs.end(), [](const Pair& p) { return is_static_index(p.j); }),
+            50);
+}
+
+TEST(StaticField, BoxAndClusterScenesUseTheSquareUnderTheirCube) {
+  for (SceneKind kind : {SceneKind::box, SceneKind::clusters}) {
+    const Scene s = Scene::make(params(kind, 2000, 2));
+    const std::vector<Sphere> field = static_field(s, 300);
+    ASSERT_EQ(field.size(), 300u);
+    const float half = s.world_half_height();
+    for (const Sphere& f : field) {
+      EXPECT_LE(std::fabs(f.x), half * 1.0001f);
+      EXPECT_LE(std::fabs(f.z), half * 1.0001f);
+      EXPECT_GE(f.y, -half);
+    }
+    std::vector<Box> cubes;
+    cubes_of(field, cubes);
+    EXPECT_TRUE(validate_boxes(cubes).ok());
+  }
+  // No objects: a field still stands on a world of at least a mean radius.
+  const Scene empty = Scene::make(params(SceneKind::ring, 0));
+  const std::vector<Sphere> field = static_field(empty, 10);
+  ASSERT_EQ(field.size(), 10u);
+  EXPECT_TRUE(validate_spheres(field).ok());
+}
+
 }  // namespace
 }  // namespace viscd
