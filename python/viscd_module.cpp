@@ -479,6 +479,9 @@ PYBIND11_MODULE(_viscd, m) {
   using namespace viscd;
   using namespace viscd::python;
   m.doc() = "viscd's C++ core; import viscd (the package) rather than this module.";
+  // Each docstring starts with its Python signature (pybind11's would name py::handle types).
+  py::options options;
+  options.disable_function_signatures();
 
   auto pair_cap_error = py::exception<PairCapTag>(m, "PairCapError", PyExc_RuntimeError);
   g_pair_cap_error = pair_cap_error.ptr();
@@ -604,7 +607,7 @@ PYBIND11_MODULE(_viscd, m) {
       .def(py::init([](const std::string& backend, const py::kwargs& kw) {
              return std::make_unique<PyDetector>(backend, kw);
            }),
-           py::arg("backend") = "cpu")
+           py::arg("backend") = "cpu", detector_doc.c_str())
       .def("detect", &PyDetector::detect, py::arg("spheres") = py::none(), py::arg("boxes") = py::none(),
            py::arg("camera") = py::none(), py::arg("filters") = py::none(), py::arg("id_map") = py::none(),
            py::arg("always_active") = py::none(), kDetectDoc)
@@ -624,7 +627,7 @@ PYBIND11_MODULE(_viscd, m) {
            "or a box (6 numbers), of the set's kind. Its filter stays.")
       .def("remove_static", &PyDetector::remove_static, py::arg("k"),
            "remove_static(k)\n\nRemoves the static object in slot k; the slot is free for a later add.")
-      .def("clear_static", &PyDetector::clear_static, "Empties the static set.")
+      .def("clear_static", &PyDetector::clear_static, "clear_static()\n\nEmpties the static set.")
       .def_property_readonly(
           "static_count", [](const PyDetector& d) { return d.detector().static_count(); }, "Objects in the static set.")
       .def_property_readonly(
@@ -647,9 +650,11 @@ PYBIND11_MODULE(_viscd, m) {
            "The last frame's active objects (and static objects) overlapping a query sphere (x, y, z, r) or box\n"
            "(min x, y, z, max x, y, z): a sorted (K,) uint32 array. An invalid query shape overlaps nothing.")
       .def("reset_events", &PyDetector::reset_events,
-           "Forgets the previous frame of the contact events: the next frame's began holds all its pairs.")
+           "reset_events()\n\nForgets the previous frame of the contact events: the next frame's began holds all its "
+           "pairs.")
       .def("wait_for_stage_times", &PyDetector::wait_for_stage_times, py::arg("frame"),
-           "gl: waits until the frame's stage times are known and writes them into frame.stats (the gl backend\n"
+           "wait_for_stage_times(frame)\n\ngl: waits until the frame's stage times are known and writes them into "
+           "frame.stats (the gl backend\n"
            "reports them one frame late). cpu and reference: does nothing.")
       .def_property_readonly(
           "config", [](const PyDetector& d) { return config_dict(d.detector().config()); },
