@@ -12,6 +12,7 @@ packages=(
   glslang-tools xvfb xauth
   libbullet-dev libfcl-dev
   python3-matplotlib
+  pybind11-dev python3-dev python3-numpy python3-pytest python3-scipy
   clang libclang-rt-14-dev
 )
 
