@@ -228,7 +228,6 @@ class PyDetector {
     }
     frame.input_copied = sphere_in.copied || box_in.copied || filter_in.copied || map_in.copied || flag_in.copied;
     frame.result = take_result();
-    queries_refused_ = false;  // a failed frame leaves queries seeing nothing: safe
     Status status;
     {
       // The arrays above stay referenced (and so alive) while the GIL is released; another
@@ -239,9 +238,6 @@ class PyDetector {
       frame.detect_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     }
     if (!status) raise_status(status);
-    const bool box_frame =
-        !in.boxes.empty() || (in.spheres.empty() && (!boxes.is_none() || detector_->static_kind() == ShapeKind::box));
-    queries_refused_ = box_frame && detector_->name() == "cpu";
     return frame;
   }
 
@@ -308,7 +304,6 @@ class PyDetector {
 
   py::object ray_cast(py::handle origin, py::handle direction, double max_t, py::handle filter) {
     BusyGuard busy(busy_);
-    refuse_box_queries();
     const Ray ray = ray_of(origin, direction, max_t);
     Filter storage;
     const Filter* f = optional_filter(filter, storage, "filter");
@@ -319,7 +314,6 @@ class PyDetector {
 
   py::tuple ray_cast_all(py::handle origin, py::handle direction, double max_t, py::handle filter) {
     BusyGuard busy(busy_);
-    refuse_box_queries();
     const Ray ray = ray_of(origin, direction, max_t);
     Filter storage;
     const Filter* f = optional_filter(filter, storage, "filter");
@@ -336,7 +330,6 @@ class PyDetector {
 
   py::array overlap(py::handle sphere, py::handle box, py::handle filter) {
     BusyGuard busy(busy_);
-    refuse_box_queries();
     if (sphere.is_none() == box.is_none()) throw py::value_error("overlap: give sphere or box (one of them)");
     Filter storage;
     const Filter* f = optional_filter(filter, storage, "filter");
@@ -373,18 +366,6 @@ class PyDetector {
   [[nodiscard]] const Detector& detector() const { return *detector_; }
 
  private:
-  // The cpu backend of this revision crashes (a null read in its tree walk) when asked a query
-  // after a frame of boxes, its own or its static set's; until it answers them, the module
-  // refuses such a query rather than take the interpreter down. Remove once the backend falls
-  // back to the brute-force queries for box frames.
-  void refuse_box_queries() const {
-    if (!queries_refused_) return;
-    PyErr_SetString(PyExc_NotImplementedError,
-                    "the cpu backend cannot answer queries on a frame of boxes yet; use backend='reference' for "
-                    "queries on boxes");
-    throw py::error_already_set();
-  }
-
   // A FrameResult that Python holds nothing of (use_count 1: only this pool), to be written by
   // the next frame with its buffers' capacity kept; else a new one. Two slots suffice for the
   // usual loop `frame = detector.detect(...)`, which still holds the previous frame during the
@@ -399,7 +380,6 @@ class PyDetector {
 
   std::unique_ptr<Detector> detector_;
   bool busy_ = false;
-  bool queries_refused_ = false;
   std::array<std::shared_ptr<FrameResult>, 2> pool_;
   std::size_t next_ = 0;
   std::vector<RayHit> hits_;

@@ -92,14 +92,6 @@ def test_overlap_on_boxes(backend, rng):
     boxes = random_boxes(rng, 800, extent=30.0)
     det = viscd.Detector(backend)
     det.detect(boxes=boxes)
-    if backend == "cpu":
-        # This revision's cpu backend cannot answer queries on box frames (it would crash); the
-        # module refuses them. Once it can, this branch falls through to the checks below.
-        try:
-            det.overlap(box=(0, 0, 0, 1, 1, 1))
-        except NotImplementedError as e:
-            assert "backend='reference'" in str(e)
-            pytest.xfail("cpu backend: no queries on box frames yet")
     for q in random_boxes(rng, 20, extent=30.0, size_max=10.0):
         np.testing.assert_array_equal(det.overlap(box=q), np.nonzero(box_matrix(q[None], boxes)[0])[0])
     for q in random_spheres(rng, 20, extent=30.0, r_max=6.0):
