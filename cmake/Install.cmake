@@ -19,6 +19,25 @@ install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/viscd DESTINATION ${CMAKE_INSTAL
 install(EXPORT viscdTargets NAMESPACE viscd:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/viscd)
 install(EXPORT viscdToolsTargets NAMESPACE viscd:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/viscd)
 
+# The adapters (docs/adapters.md), each in an export set of its own, installed when built:
+# find_package(viscd COMPONENTS bullet) for viscd::bullet, COMPONENTS fcl for viscd::fcl.
+# viscd::bullet names the Bullet libraries and include folder found at build time (Bullet's
+# package gives no imported targets); viscd::fcl names FCL's target, which viscdConfig finds.
+if(TARGET viscd_bullet)
+  install(TARGETS viscd_bullet EXPORT viscdBulletTargets
+          ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+          LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
+          INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+  install(EXPORT viscdBulletTargets NAMESPACE viscd:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/viscd)
+endif()
+if(TARGET viscd_fcl)
+  install(TARGETS viscd_fcl EXPORT viscdFclTargets
+          ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+          LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
+          INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+  install(EXPORT viscdFclTargets NAMESPACE viscd:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/viscd)
+endif()
+
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/viscdConfig.cmake.in
                               ${PROJECT_BINARY_DIR}/viscdConfig.cmake
                               INSTALL_DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/viscd)
