@@ -78,12 +78,15 @@ void cubes_of(std::span<const Sphere> spheres, std::vector<Box>& cubes);
 
 /// A field of `count` static objects on the scene's ground, for the detector's static set
 /// (`viscd run --static K`, `viscd view --static K`). The ground is the floor of the slab that
-/// holds the moving objects' centres (y = -world_half_height()), under where they circle: the
-/// ring's annulus, the square under a box or clusters scene. About three features in four are
+/// holds the moving objects' centres (y = -world_half_height()), first under where they circle
+/// (the ring's annulus, the square under a box or clusters scene), then around it. About three features in four are
 /// rocks, single spheres of radius 1 to 3 mean radii half sunk into the ground; the rest are
 /// pillars, stacks of spheres of radius 1 to 1.5 mean radii, each 1.5 radii above the one below,
 /// standing 12 mean radii tall (through the whole ring slab), so that the moving objects run into
 /// them. Every sphere of a stack is one object; the last pillar is cut short to make `count`.
+/// Features stand one per 64 mean radii squared of ground: once the ground under the objects is
+/// full, later features spread outward over ground that grows with them, so a field of a million
+/// is as dense near the objects as one of a thousand (and the frame's cost follows what is near).
 /// Deterministic in the scene's seed (its own stream: the moving objects stay as they were), the
 /// world's size and `count`; the first k objects of a field are the field of k. For a box scene take cubes_of() the
 /// field: rocks become blocks and pillars stacks of blocks.

@@ -6,6 +6,56 @@
 namespace viscd {
 namespace detail {
 
+namespace {
+bool same_camera(const Camera& a, const Camera& b) {
+  for (int k = 0; k < 3; ++k)
+    if (a.eye[k] != b.eye[k] || a.target[k] != b.target[k] || a.up[k] != b.up[k]) return false;
+  return a.fov_y_deg == b.fov_y_deg && a.near_plane == b.near_plane && a.far_plane == b.far_plane &&
+         a.width == b.width && a.height == b.height;
+}
+}  // namespace
+
+void CpuDetector::draw_frame(const CameraRig& cam, const Camera& camera, const FrameInput& in, int threads) {
+  const Shapes moving = Shapes::of(in);
+  if (static_set_.empty()) {
+    rasterize(cam, moving, threads);
+    return;
+  }
+  // The static layer, redrawn only when the camera, the map or the set changed.
+  const bool normals = !map_.normal.empty();
+  if (!same_camera(layer_key_.camera, camera) || layer_key_.width != map_.width || layer_key_.height != map_.height ||
+      layer_key_.normals != normals || layer_key_.version != static_set_.version()) {
+    static_layer_.resize(map_.width, map_.height, normals);
+    const Shapes st = static_set_.compact().shapes;
+    if (st.is_box()) {
+      static_box_raster_.run(cam, st.boxes, threads, static_layer_);
+    } else {
+      static_raster_.set_simd(simd_level_for(config_.simd));
+      static_raster_.run(cam, st.spheres, threads, static_layer_);
+    }
+    layer_key_ = {camera, map_.width, map_.height, normals, static_set_.version()};
+  }
+  rasterize(cam, moving, threads);
+  // Merge: per pixel the nearer of the two, a tie to the moving object (the smaller id); the
+  // static ids move up by N. The counts are taken afterwards, from the merged ids.
+  const auto n = static_cast<std::uint32_t>(moving.size());
+  const std::size_t w = static_cast<std::size_t>(map_.width);
+  map_.has_counts = false;
+  map_.stamp = 0;
+  parallel_for(static_cast<std::size_t>(map_.height), threads, [&](std::size_t y) {
+    for (std::size_t i = y * w; i < (y + 1) * w; ++i) {
+      const std::uint32_t s = static_layer_.ids[i];
+      if (s == 0) continue;
+      const std::uint32_t m = map_.ids[i];
+      if (m != 0 && !(static_layer_.depth[i] < map_.depth[i])) continue;
+      map_.ids[i] = s + n;
+      map_.depth[i] = static_layer_.depth[i];
+      if (normals)
+        for (int c = 0; c < 3; ++c) map_.normal[3 * i + c] = static_layer_.normal[3 * i + c];
+    }
+  });
+}
+
 Status CpuDetector::broadphase(const Shapes& objects, std::span<const std::uint32_t> pairable,
                                std::span<const std::uint32_t> unpaired, std::span<const Filter> filters,
                                std::uint32_t static_from, int bits, int threads, std::vector<Pair>& pairs,

@@ -24,7 +24,8 @@ class CpuDetector final : public PipelineDetector {
     return raster_.memory_bytes() + box_raster_.memory_bytes() + broadphase_.memory_bytes() +
            unpaired_tree_.memory_bytes() + bytes_of(unpaired_spheres_) + bytes_of(unpaired_ids_) +
            bytes_of(unpaired_filters_) + bytes_of(iota_) + bytes_of(proxies_) + bytes_of(reported_) +
-           static_tree_.memory_bytes() + bytes_of(cross_) + bytes_of(merged_);
+           static_tree_.memory_bytes() + bytes_of(cross_) + bytes_of(merged_) + static_layer_.memory_bytes() +
+           static_raster_.memory_bytes() + static_box_raster_.memory_bytes();
   }
   /// The broadphase of the last frame (its 16-wide tree over buckets, the sorted objects and codes),
   /// for tests.
@@ -53,6 +54,11 @@ class CpuDetector final : public PipelineDetector {
     raster_.set_simd(simd_level_for(config_.simd));
     raster_.run(cam, objects.spheres, threads, map_);
   }
+  /// The static set's layer is drawn once per camera, map size and set version (static_layer_),
+  /// and each frame's moving objects are drawn on their own and merged with it pixel by pixel:
+  /// the nearer wins, a tie goes to the moving object (its id is the smaller), so the map is the
+  /// one a single pass over both would draw, bit for bit.
+  void draw_frame(const CameraRig& cam, const Camera& camera, const FrameInput& in, int threads) override;
   Status broadphase(const Shapes& objects, std::span<const std::uint32_t> pairable,
                     std::span<const std::uint32_t> unpaired, std::span<const Filter> filters, std::uint32_t static_from,
                     int bits, int threads, std::vector<Pair>& pairs, FrameStats& stats) override;
@@ -70,6 +76,16 @@ class CpuDetector final : public PipelineDetector {
   std::vector<Sphere> proxies_;          // box frames: box_proxy() of each object, for stages 4-6
   std::vector<std::uint32_t> reported_;  // frames with static objects: the index reported per object
   StaticTree static_tree_;
+  // The static set's map layer (ids: compact index + 1) and what it was drawn for.
+  VisibilityMap static_layer_;
+  TiledRasterizer static_raster_;
+  BoxRasterizer static_box_raster_;
+  struct LayerKey {
+    Camera camera;
+    int width = 0, height = 0;
+    bool normals = false;
+    std::uint64_t version = ~std::uint64_t{0};
+  } layer_key_;
   std::vector<std::uint64_t> cross_;  // the frame's pairs with static objects (keys i << 32 | j)
   std::vector<Pair> merged_;
   BucketBroadphase broadphase_;

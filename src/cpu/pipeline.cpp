@@ -38,6 +38,11 @@ FilterSplit split_by_filters(std::span<const std::uint32_t> active, std::span<co
   return {std::span<const std::uint32_t>(pairable.data(), p), std::span<const std::uint32_t>(unpaired.data(), u)};
 }
 
+void PipelineDetector::draw_frame(const CameraRig& cam, const Camera&, const FrameInput& in, int threads) {
+  draw_.build(in, &static_set_);
+  rasterize(cam, draw_.objects, threads);
+}
+
 Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
   const Camera* camera = in.camera;
   const bool callers_map = !in.id_map.empty();
@@ -77,10 +82,9 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     const MapSize map = map_size(config_, *camera);
     rig.emplace(*camera, map.width, map.height);
     map_.resize(map.width, map.height, config_.shade);
-    draw_.build(in, &static_set_);
-    rasterize(*rig, draw_.objects, threads);  // static objects occlude
+    draw_frame(*rig, *camera, in, threads);  // static objects occlude
     stats.ms(Stage::visibility) = sw.lap();
-    count_pixels(map_, draw_.total(), threads, counts_, hist_, count_scratch_);
+    count_pixels(map_, n + static_set_.size(), threads, counts_, hist_, count_scratch_);
     stats.ms(Stage::count) = sw.lap();
     bits = cull_and_choose_bits(std::span<const std::uint32_t>(counts_).first(n), rig->pixel_scale, config_,
                                 in.always_active, out.pixels, active_, stats);

@@ -26,6 +26,10 @@ class PipelineDetector : public Backend {
   [[nodiscard]] Status run_frame(const FrameInput& input, FrameResult& out) final;
   /// Stage 1 into map_ (already sized): every object, the static ones after the moving ones.
   virtual void rasterize(const CameraRig& cam, const Shapes& objects, int threads) = 0;
+  /// Stage 1 of a frame: the frame's objects and the static set's into map_ (ids: moving k as
+  /// k + 1, the static set's live objects after them in slot order). By default rasterize() over
+  /// both at once; a backend may keep the static objects' layer between frames.
+  virtual void draw_frame(const CameraRig& cam, const Camera& camera, const FrameInput& in, int threads);
   /// Bytes held by the backend's own stages (raster, broadphase).
   [[nodiscard]] virtual std::uint64_t backend_memory_bytes() const = 0;
   /// Stages 4-8 over `pairable` (ascending: the active objects that can pair with another under

@@ -163,15 +163,25 @@ std::vector<Sphere> static_field(const Scene& scene, std::uint32_t count) {
   const float outer = std::max(scene.world_radius(), rm);
   const float half = std::max(scene.world_half_height(), rm);
   constexpr float kPillarHeight = 12;  // mean radii: the ring slab's height
-  while (out.size() < count) {
+  // A feature per kFeatureArea mean radii squared of ground: the first ones fill the ground under
+  // the objects, and later ones spread outward over ground that grows with them (feature f is
+  // placed on the area that f features need), so a large field stays as dense near the objects as
+  // a small one and its size grows the world, not the crowd under the ring.
+  constexpr float kFeatureArea = 64;
+  const float feature_area = kFeatureArea * rm * rm;
+  for (std::uint32_t feature = 0; out.size() < count; ++feature) {
     // Every feature draws the same numbers, so that a smaller count gives a prefix of the field.
+    const float needed = static_cast<float>(feature + 1) * feature_area;  // ground for features 0..f
     float x, z;
     if (ring) {
-      const float rho = std::sqrt(rng.uniform(0.25f * outer * outer, outer * outer));
+      const float inner2 = 0.25f * outer * outer;
+      const float outer2 = std::max(outer * outer, inner2 + needed / kPi);
+      const float rho = std::sqrt(rng.uniform(inner2, outer2));
       const float theta = rng.uniform(0, 2 * kPi);
       x = rho * std::cos(theta), z = rho * std::sin(theta);
     } else {
-      x = rng.uniform(-half, half), z = rng.uniform(-half, half);
+      const float side = std::max(half, 0.5f * std::sqrt(needed));
+      x = rng.uniform(-side, side), z = rng.uniform(-side, side);
     }
     const bool pillar = rng.uniform(0, 1) < 0.25f;
     const float size = rng.uniform(0, 1);

@@ -117,3 +117,65 @@ TEST(StaticTree, EverythingRemovedThenRefilled) { run<Box>(4, 300, 400, 6); }
 
 }  // namespace
 }  // namespace viscd
+
+namespace viscd {
+namespace {
+
+// The cpu map with a static set (the static layer kept between frames and merged with the moving
+// objects' map) equals the reference's single pass over both, bit for bit, as the camera, the
+// set and the moving objects change; pixels, states and pairs follow.
+template <class Shape>
+void same_maps(std::uint64_t seed) {
+  Config c;
+  c.lambda = 4;
+  c.shade = true;
+  c.map_width = 96;
+  c.map_height = 64;
+  auto cpu = make_cpu_detector(c);
+  auto ref = make_reference_detector(c);
+  Ops<Shape> ops(seed);
+  ops.pos = std::uniform_real_distribution<float>(-12.0f, 12.0f);
+  std::vector<Shape> statics(300), moving(200);
+  for (Shape& s : statics) s = ops.make();
+  if constexpr (std::is_same_v<Shape, Sphere>) {
+    ASSERT_TRUE(cpu->set_static_spheres(statics).ok() && ref->set_static_spheres(statics).ok());
+  } else {
+    ASSERT_TRUE(cpu->set_static_boxes(statics).ok() && ref->set_static_boxes(statics).ok());
+  }
+  Camera cam;
+  cam.eye[2] = 40;
+  FrameResult a, b;
+  for (int f = 0; f < 6; ++f) {
+    SCOPED_TRACE("frame " + std::to_string(f));
+    for (Shape& s : moving) s = ops.make();
+    if (f == 2) cam.eye[0] = 7;  // the camera moves: the layer is drawn again
+    if (f == 4) {                // the set changes: again
+      ASSERT_TRUE(cpu->remove_static(3).ok() && ref->remove_static(3).ok());
+      ASSERT_TRUE(move(*cpu, 5, moving[0]).ok() && move(*ref, 5, moving[0]).ok());
+    }
+    FrameInput in = frame_of(std::span<const Shape>(moving), {});
+    in.camera = &cam;
+    ASSERT_TRUE(cpu->detect(in, a).ok());
+    ASSERT_TRUE(ref->detect(in, b).ok());
+    const auto& ma = detail::backend_as<detail::PipelineDetector>(*cpu).visibility_map();
+    const auto& mb = detail::backend_as<detail::PipelineDetector>(*ref).visibility_map();
+    ASSERT_EQ(ma.ids.size(), mb.ids.size());
+    std::size_t static_pixels = 0;
+    for (std::size_t i = 0; i < ma.ids.size(); ++i) {
+      ASSERT_EQ(ma.ids[i], mb.ids[i]) << "pixel " << i;
+      ASSERT_EQ(ma.depth[i], mb.depth[i]) << "pixel " << i;
+      static_pixels += ma.ids[i] > moving.size();
+    }
+    EXPECT_GT(static_pixels, 100u);
+    EXPECT_EQ(a.pixels, b.pixels);
+    EXPECT_EQ(a.state, b.state);
+    EXPECT_EQ(a.image, b.image);
+    EXPECT_TRUE(test::same_pairs(a.pairs, b.pairs));
+  }
+}
+
+TEST(StaticLayer, SpheresMapEqualsTheReference) { same_maps<Sphere>(5); }
+TEST(StaticLayer, BoxesMapEqualsTheReference) { same_maps<Box>(6); }
+
+}  // namespace
+}  // namespace viscd

@@ -538,16 +538,35 @@ TEST(StaticField, RocksAndPillarsOnTheRingsGround) {
             50);
 }
 
+TEST(StaticField, ALargeFieldSpreadsOutInsteadOfCrowdingTheRing) {
+  // Ten times the field: about as many static objects meet the moving ones (the field grows the
+  // ground, not the crowd under the ring).
+  const Scene s = Scene::make(params(SceneKind::ring, 5000, 1));
+  auto static_pairs = [&](std::uint32_t count) {
+    auto det = make_cpu_detector();
+    const std::vector<Sphere> field = static_field(s, count);
+    EXPECT_TRUE(det->set_static_spheres(field).ok());
+    FrameResult frame;
+    EXPECT_TRUE(det->detect(s.spheres(), nullptr, frame).ok());
+    return std::count_if(frame.pairs.begin(), frame.pairs.end(), [](const Pair& p) { return is_static_index(p.j); });
+  };
+  const auto small = static_pairs(20000), large = static_pairs(200000);
+  EXPECT_GT(small, 50);
+  EXPECT_LT(large, 2 * small) << small << " static pairs with 20 000, " << large << " with 200 000";
+}
+
 TEST(StaticField, BoxAndClusterScenesUseTheSquareUnderTheirCube) {
   for (SceneKind kind : {SceneKind::box, SceneKind::clusters}) {
     const Scene s = Scene::make(params(kind, 2000, 2));
     const std::vector<Sphere> field = static_field(s, 300);
     ASSERT_EQ(field.size(), 300u);
-    const float half = s.world_half_height();
+    // The square under the cube, or the larger square 300 features of 64 rm^2 need.
+    const float rm = s.params().mean_radius;
+    const float half = std::max(s.world_half_height(), 0.5f * std::sqrt(300.0f * 64.0f) * rm);
     for (const Sphere& f : field) {
       EXPECT_LE(std::fabs(f.x), half * 1.0001f);
       EXPECT_LE(std::fabs(f.z), half * 1.0001f);
-      EXPECT_GE(f.y, -half);
+      EXPECT_GE(f.y, -s.world_half_height());
     }
     std::vector<Box> cubes;
     cubes_of(field, cubes);
