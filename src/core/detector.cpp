@@ -383,9 +383,10 @@ Status validate_boxes(std::span<const Box> boxes) {
                            "too many boxes: " + std::to_string(boxes.size()) + " (at most 2^31 - 1)");
   bool all_valid = true;  // branch-free first pass, as validate_spheres()
   for (const Box& b : boxes)
-    for (int k = 0; k < 3; ++k)
-      all_valid &=
-          (std::fabs(b.min[k]) <= kMaxCoordinate) & (std::fabs(b.max[k]) <= kMaxCoordinate) & (b.min[k] <= b.max[k]);
+    for (int k = 0; k < 3; ++k) {
+      const float lo = std::fabs(b.min[k]), hi = std::fabs(b.max[k]);
+      all_valid &= (lo <= kMaxCoordinate) & (hi <= kMaxCoordinate) & (b.min[k] <= b.max[k]);
+    }
   if (all_valid) return {};
   static constexpr const char* kNames[2][3] = {{"minx", "miny", "minz"}, {"maxx", "maxy", "maxz"}};
   for (std::size_t i = 0; i < boxes.size(); ++i) {

@@ -4,6 +4,7 @@
 #include <functional>
 #include <limits>
 #include <string>
+#include <type_traits>
 
 #include "core/frame_rules.hpp"
 #include "viscd/detector.hpp"
@@ -87,96 +88,88 @@ std::uint32_t StaticSet::take_slot() {
   return k;
 }
 
+namespace {
+// What differs between the two kinds: the checks and the words of the messages.
+Status validate(std::span<const Sphere> s) { return validate_spheres(s); }
+Status validate(std::span<const Box> b) { return validate_boxes(b); }
+template <class Shape>
+constexpr ShapeKind kind_of() {
+  return std::is_same_v<Shape, Box> ? ShapeKind::box : ShapeKind::sphere;
+}
+template <class Shape>
+constexpr const char* noun() {
+  return std::is_same_v<Shape, Box> ? "box" : "sphere";
+}
+}  // namespace
+
+template <class Shape>
+std::vector<Shape>& StaticSet::store() {
+  if constexpr (std::is_same_v<Shape, Box>)
+    return boxes_;
+  else
+    return spheres_;
+}
+
+template <class Shape>
+Status StaticSet::set_all(std::span<const Shape> objects, std::span<const Filter> filters) {
+  if (Status s = validate(objects); !s) return Status::failure(s.kind(), "static set: " + s.error());
+  if (!filters.empty() && filters.size() != objects.size()) return filter_count_error(filters.size(), objects.size());
+  clear();
+  kind_ = kind_of<Shape>();
+  store<Shape>().assign(objects.begin(), objects.end());
+  if (filters.empty())
+    filters_.assign(objects.size(), Filter{});
+  else
+    filters_.assign(filters.begin(), filters.end());
+  live_.assign(objects.size(), 1);
+  live_count_ = objects.size();
+  for (const Filter& f : filters_) groups_ |= f.group, masks_ |= f.mask;
+  replaced();
+  return {};
+}
+
+template <class Shape>
+Result<std::uint32_t> StaticSet::add_one(const Shape& object, const Filter& filter) {
+  constexpr ShapeKind kind = kind_of<Shape>();
+  if (Status s = validate(std::span<const Shape>(&object, 1)); !s)
+    return Result<std::uint32_t>::failure(one_object_error(s, noun<Shape>()));
+  if (Status s = check_kind(kind, kind == ShapeKind::box ? "add_static_box" : "add_static_sphere"); !s)
+    return Result<std::uint32_t>::failure(s);
+  if (live_count_ >= kMaxStatic)
+    return Result<std::uint32_t>::failure(ErrorKind::invalid_input, "static set: at most 2^31 - 1 objects");
+  if (live_count_ == 0 && kind_ != kind) {
+    clear();
+    kind_ = kind;
+  }
+  const std::uint32_t k = take_slot();
+  store<Shape>()[k] = object;
+  filters_[k] = filter;
+  groups_ |= filter.group, masks_ |= filter.mask;
+  live_[k] = 1;
+  ++live_count_;
+  touched(k);
+  return k;
+}
+
+template <class Shape>
+Status StaticSet::move_one(std::uint32_t k, const Shape& object) {
+  constexpr ShapeKind kind = kind_of<Shape>();
+  if (Status s = check_slot(k); !s) return s;
+  if (kind_ != kind) return check_kind(kind, kind == ShapeKind::box ? "move_static_box" : "move_static_sphere");
+  if (Status s = validate(std::span<const Shape>(&object, 1)); !s) return one_object_error(s, noun<Shape>());
+  store<Shape>()[k] = object;
+  touched(k);
+  return {};
+}
+
 Status StaticSet::set(std::span<const Sphere> spheres, std::span<const Filter> filters) {
-  if (Status s = validate_spheres(spheres); !s) return Status::failure(s.kind(), "static set: " + s.error());
-  if (!filters.empty() && filters.size() != spheres.size()) return filter_count_error(filters.size(), spheres.size());
-  clear();
-  kind_ = ShapeKind::sphere;
-  spheres_.assign(spheres.begin(), spheres.end());
-  if (filters.empty())
-    filters_.assign(spheres.size(), Filter{});
-  else
-    filters_.assign(filters.begin(), filters.end());
-  live_.assign(spheres.size(), 1);
-  live_count_ = spheres.size();
-  for (const Filter& f : filters_) groups_ |= f.group, masks_ |= f.mask;
-  replaced();
-  return {};
+  return set_all(spheres, filters);
 }
-
-Status StaticSet::set(std::span<const Box> boxes, std::span<const Filter> filters) {
-  if (Status s = validate_boxes(boxes); !s) return Status::failure(s.kind(), "static set: " + s.error());
-  if (!filters.empty() && filters.size() != boxes.size()) return filter_count_error(filters.size(), boxes.size());
-  clear();
-  kind_ = ShapeKind::box;
-  boxes_.assign(boxes.begin(), boxes.end());
-  if (filters.empty())
-    filters_.assign(boxes.size(), Filter{});
-  else
-    filters_.assign(filters.begin(), filters.end());
-  live_.assign(boxes.size(), 1);
-  live_count_ = boxes.size();
-  for (const Filter& f : filters_) groups_ |= f.group, masks_ |= f.mask;
-  replaced();
-  return {};
-}
-
-Result<std::uint32_t> StaticSet::add(const Sphere& sphere, const Filter& filter) {
-  if (Status s = validate_spheres({&sphere, 1}); !s)
-    return Result<std::uint32_t>::failure(one_object_error(s, "sphere"));
-  if (Status s = check_kind(ShapeKind::sphere, "add_static_sphere"); !s) return Result<std::uint32_t>::failure(s);
-  if (live_count_ >= kMaxStatic)
-    return Result<std::uint32_t>::failure(ErrorKind::invalid_input, "static set: at most 2^31 - 1 objects");
-  if (live_count_ == 0 && kind_ != ShapeKind::sphere) {
-    clear();
-    kind_ = ShapeKind::sphere;
-  }
-  const std::uint32_t k = take_slot();
-  spheres_[k] = sphere;
-  filters_[k] = filter;
-  groups_ |= filter.group, masks_ |= filter.mask;
-  live_[k] = 1;
-  ++live_count_;
-  touched(k);
-  return k;
-}
-
-Result<std::uint32_t> StaticSet::add(const Box& box, const Filter& filter) {
-  if (Status s = validate_boxes({&box, 1}); !s) return Result<std::uint32_t>::failure(one_object_error(s, "box"));
-  if (Status s = check_kind(ShapeKind::box, "add_static_box"); !s) return Result<std::uint32_t>::failure(s);
-  if (live_count_ >= kMaxStatic)
-    return Result<std::uint32_t>::failure(ErrorKind::invalid_input, "static set: at most 2^31 - 1 objects");
-  if (live_count_ == 0 && kind_ != ShapeKind::box) {
-    clear();
-    kind_ = ShapeKind::box;
-  }
-  const std::uint32_t k = take_slot();
-  boxes_[k] = box;
-  filters_[k] = filter;
-  groups_ |= filter.group, masks_ |= filter.mask;
-  live_[k] = 1;
-  ++live_count_;
-  touched(k);
-  return k;
-}
-
-Status StaticSet::move(std::uint32_t k, const Sphere& sphere) {
-  if (Status s = check_slot(k); !s) return s;
-  if (kind_ != ShapeKind::sphere) return check_kind(ShapeKind::sphere, "move_static_sphere");
-  if (Status s = validate_spheres({&sphere, 1}); !s) return one_object_error(s, "sphere");
-  spheres_[k] = sphere;
-  touched(k);
-  return {};
-}
-
-Status StaticSet::move(std::uint32_t k, const Box& box) {
-  if (Status s = check_slot(k); !s) return s;
-  if (kind_ != ShapeKind::box) return check_kind(ShapeKind::box, "move_static_box");
-  if (Status s = validate_boxes({&box, 1}); !s) return one_object_error(s, "box");
-  boxes_[k] = box;
-  touched(k);
-  return {};
-}
+Status StaticSet::set(std::span<const Box> boxes, std::span<const Filter> filters) { return set_all(boxes, filters); }
+Result<std::uint32_t> StaticSet::add(const Sphere& sphere, const Filter& filter) { return add_one(sphere, filter); }
+Result<std::uint32_t> StaticSet::add(const Box& box, const Filter& filter) { return add_one(box, filter); }
+Status StaticSet::move(std::uint32_t k, const Sphere& sphere) { return move_one(k, sphere); }
+Status StaticSet::move(std::uint32_t k, const Box& box) { return move_one(k, box); }
 
 Status StaticSet::remove(std::uint32_t k) {
   if (Status s = check_slot(k); !s) return s;

@@ -64,6 +64,14 @@ class StaticSet {
   [[nodiscard]] std::uint64_t memory_bytes() const;
 
  private:
+  template <class Shape>
+  std::vector<Shape>& store();
+  template <class Shape>
+  Status set_all(std::span<const Shape> objects, std::span<const Filter> filters);
+  template <class Shape>
+  Result<std::uint32_t> add_one(const Shape& object, const Filter& filter);
+  template <class Shape>
+  Status move_one(std::uint32_t k, const Shape& object);
   [[nodiscard]] Status check_kind(ShapeKind kind, const char* what) const;
   [[nodiscard]] Status check_slot(std::uint32_t k) const;
   std::uint32_t take_slot();
