@@ -61,6 +61,7 @@ Status CpuDetector::broadphase(const Shapes& objects, std::span<const std::uint3
                                std::uint32_t static_from, int bits, int threads, std::vector<Pair>& pairs,
                                FrameStats& stats) {
   const std::size_t total = objects.size();
+  box_queries_ = objects.is_box() || (!static_set_.empty() && static_set_.kind() == ShapeKind::box);
   // Static objects are reported as static_index(slot).
   const bool has_static = static_from < total;
   if (has_static) {
@@ -149,11 +150,11 @@ const BucketBroadphase& CpuDetector::unpaired_tree() {
 }
 
 // Each query searches the main tree, then the unpaired objects' tree (built on the first query
-// that needs it); after a box frame, the base class's brute force over detect()'s copy. Detector
-// sorts the lists.
+// that needs it); after a frame of boxes (its own or its static set's), the base class's brute force over detect()'s
+// copy. Detector sorts the lists.
 
 bool CpuDetector::query_ray_first(const Ray& ray, const Filter* filter, RayHit& hit) {
-  if (broadphase_.holds_boxes()) return PipelineDetector::query_ray_first(ray, filter, hit);
+  if (box_queries_) return PipelineDetector::query_ray_first(ray, filter, hit);
   bool found = broadphase_.ray_first(ray, main_objects(), filter, hit, false);
   if (!unpaired_ids_.empty()) found = unpaired_tree().ray_first(ray, unpaired_objects(), filter, hit, found);
   StaticTree::Part parts[2];
@@ -163,7 +164,7 @@ bool CpuDetector::query_ray_first(const Ray& ray, const Filter* filter, RayHit& 
 }
 
 void CpuDetector::query_ray_all(const Ray& ray, const Filter* filter, std::vector<RayHit>& hits) {
-  if (broadphase_.holds_boxes()) return PipelineDetector::query_ray_all(ray, filter, hits);
+  if (box_queries_) return PipelineDetector::query_ray_all(ray, filter, hits);
   broadphase_.ray_all(ray, main_objects(), filter, hits);
   if (!unpaired_ids_.empty()) unpaired_tree().ray_all(ray, unpaired_objects(), filter, hits);
   StaticTree::Part parts[2];
@@ -172,7 +173,7 @@ void CpuDetector::query_ray_all(const Ray& ray, const Filter* filter, std::vecto
 }
 
 void CpuDetector::query_ray_visit(const Ray& ray, const Filter* filter, RayVisitor& visitor) {
-  if (broadphase_.holds_boxes()) return PipelineDetector::query_ray_visit(ray, filter, visitor);
+  if (box_queries_) return PipelineDetector::query_ray_visit(ray, filter, visitor);
   float max_t = ray.max_t;  // lowered by the visitor in the first tree, it prunes the second
   if (!broadphase_.ray_visit(ray, main_objects(), filter, max_t, visitor)) return;
   if (!unpaired_ids_.empty() && !unpaired_tree().ray_visit(ray, unpaired_objects(), filter, max_t, visitor)) return;
@@ -182,7 +183,7 @@ void CpuDetector::query_ray_visit(const Ray& ray, const Filter* filter, RayVisit
 }
 
 void CpuDetector::query_sphere(const Sphere& sphere, const Filter* filter, std::vector<std::uint32_t>& indices) {
-  if (broadphase_.holds_boxes()) return PipelineDetector::query_sphere(sphere, filter, indices);
+  if (box_queries_) return PipelineDetector::query_sphere(sphere, filter, indices);
   broadphase_.overlap(sphere, main_objects(), filter, indices);
   if (!unpaired_ids_.empty()) unpaired_tree().overlap(sphere, unpaired_objects(), filter, indices);
   StaticTree::Part parts[2];
@@ -191,7 +192,7 @@ void CpuDetector::query_sphere(const Sphere& sphere, const Filter* filter, std::
 }
 
 void CpuDetector::query_box(const Box& box, const Filter* filter, std::vector<std::uint32_t>& indices) {
-  if (broadphase_.holds_boxes()) return PipelineDetector::query_box(box, filter, indices);
+  if (box_queries_) return PipelineDetector::query_box(box, filter, indices);
   broadphase_.overlap_box(box, main_objects(), filter, indices);
   if (!unpaired_ids_.empty()) unpaired_tree().overlap_box(box, unpaired_objects(), filter, indices);
   StaticTree::Part parts[2];
@@ -200,7 +201,7 @@ void CpuDetector::query_box(const Box& box, const Filter* filter, std::vector<st
 }
 
 void CpuDetector::query_sphere_visit(const Sphere& sphere, const Filter* filter, OverlapVisitor& visitor) {
-  if (broadphase_.holds_boxes()) return PipelineDetector::query_sphere_visit(sphere, filter, visitor);
+  if (box_queries_) return PipelineDetector::query_sphere_visit(sphere, filter, visitor);
   if (!broadphase_.overlap_visit(sphere, main_objects(), filter, visitor)) return;
   if (!unpaired_ids_.empty() && !unpaired_tree().overlap_visit(sphere, unpaired_objects(), filter, visitor)) return;
   StaticTree::Part parts[2];
@@ -209,7 +210,7 @@ void CpuDetector::query_sphere_visit(const Sphere& sphere, const Filter* filter,
 }
 
 void CpuDetector::query_box_visit(const Box& box, const Filter* filter, OverlapVisitor& visitor) {
-  if (broadphase_.holds_boxes()) return PipelineDetector::query_box_visit(box, filter, visitor);
+  if (box_queries_) return PipelineDetector::query_box_visit(box, filter, visitor);
   if (!broadphase_.overlap_box_visit(box, main_objects(), filter, visitor)) return;
   if (!unpaired_ids_.empty() && !unpaired_tree().overlap_box_visit(box, unpaired_objects(), filter, visitor)) return;
   StaticTree::Part parts[2];

@@ -32,9 +32,9 @@ class CpuDetector final : public PipelineDetector {
   [[nodiscard]] const BucketBroadphase& bucket_broadphase() const { return broadphase_; }
 
  protected:
-  /// Sphere frames: from the trees. Box frames: by brute force over the copy detect() keeps (the
-  /// trees' ray and overlap walks test sphere lanes).
-  [[nodiscard]] bool answers_queries() const override { return !broadphase_.holds_boxes(); }
+  /// Sphere frames: from the trees. Frames whose objects or static set are boxes: by brute force
+  /// over the copy detect() keeps (the trees' ray and overlap walks test sphere lanes).
+  [[nodiscard]] bool answers_queries() const override { return !box_queries_; }
   /// The static set lives in static_tree_ (cpu/static_tree.hpp).
   [[nodiscard]] bool handles_static() const override { return true; }
   [[nodiscard]] bool query_ray_first(const Ray& ray, const Filter* filter, RayHit& hit) override;
@@ -76,6 +76,7 @@ class CpuDetector final : public PipelineDetector {
   std::vector<Sphere> proxies_;          // box frames: box_proxy() of each object, for stages 4-6
   std::vector<std::uint32_t> reported_;  // frames with static objects: the index reported per object
   StaticTree static_tree_;
+  bool box_queries_ = false;  // the last frame's objects or static set are boxes: brute-force queries
   // The static set's map layer (ids: compact index + 1) and what it was drawn for.
   VisibilityMap static_layer_;
   TiledRasterizer static_raster_;

@@ -179,3 +179,34 @@ TEST(StaticLayer, BoxesMapEqualsTheReference) { same_maps<Box>(6); }
 
 }  // namespace
 }  // namespace viscd
+
+namespace viscd {
+namespace {
+
+// The pair cap counts the pairs with static objects too: a frame whose moving pairs fit but whose
+// static pairs do not fails with pair_cap, on cpu (its own search) and reference alike.
+TEST(StaticTree, PairCapCountsStaticPairs) {
+  std::vector<Sphere> moving(40, Sphere{0, 0, 0, 1});                                           // 780 moving pairs
+  for (std::size_t k = 0; k < moving.size(); ++k) moving[k].x = static_cast<float>(k) * 10.0f;  // now none
+  std::vector<Sphere> statics;
+  for (std::size_t k = 0; k < moving.size(); ++k)
+    for (int s = 0; s < 25; ++s) statics.push_back({moving[k].x, 0.5f, 0, 1});  // 25 per moving object
+  for (const char* name : {"cpu", "reference"}) {
+    SCOPED_TRACE(name);
+    Config c;
+    c.pair_memory_cap = 8 * 999;  // 999 pairs; the frame has 1000
+    auto d = make_detector(name, c);
+    ASSERT_TRUE(d.ok());
+    ASSERT_TRUE(d.value()->set_static_spheres(statics).ok());
+    FrameResult out;
+    const Status s = d.value()->detect(moving, nullptr, out);
+    EXPECT_EQ(s.kind(), ErrorKind::pair_cap) << s.error();
+    c.pair_memory_cap = 8 * 1000;
+    d.value()->set_config(c);
+    ASSERT_TRUE(d.value()->detect(moving, nullptr, out).ok());
+    EXPECT_EQ(out.pairs.size(), 1000u);
+  }
+}
+
+}  // namespace
+}  // namespace viscd
