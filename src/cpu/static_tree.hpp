@@ -37,7 +37,7 @@ class StaticTree {
   [[nodiscard]] bool pairs(const BucketBroadphase& moving, std::span<const Filter> moving_filters, int threads,
                            std::size_t max_pairs, std::vector<std::uint64_t>& out);
   /// The trees, for queries: each tree's objects are reported as static_index(slot), with the
-  /// slot's filter.
+  /// slot's filter. None for an empty set or a set of boxes (queries on boxes are brute force).
   struct Part {
     const BucketBroadphase* tree;
     BucketBroadphase::Objects objects;
