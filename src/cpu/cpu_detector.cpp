@@ -1,7 +1,5 @@
 #include "cpu/cpu_detector.hpp"
 
-#include <atomic>
-
 #include "core/stopwatch.hpp"
 #include "cpu/parallel.hpp"
 
@@ -39,11 +37,11 @@ void CpuDetector::draw_frame(const CameraRig& cam, const Camera& camera, const F
   }
   rasterize(cam, moving, threads);
   // Merge: per pixel the nearer of the two, a tie to the moving object (the smaller id); the
-  // static ids move up by N. The counts the rasterizer took of the moving objects (when it took
-  // them) lose the pixels a static object hides; static objects are not counted.
+  // static ids move up by N. The counts are taken afterwards, from the merged ids (keeping the
+  // rasterizer's and subtracting the hidden pixels with atomics was slower: 4.6 against 2.9 ms).
   const auto n = static_cast<std::uint32_t>(moving.size());
   const std::size_t w = static_cast<std::size_t>(map_.width);
-  const bool counted = map_.has_counts && map_.counts.size() == n;
+  map_.has_counts = false;
   map_.stamp = 0;
   parallel_for(static_cast<std::size_t>(map_.height), threads, [&](std::size_t y) {
     for (std::size_t i = y * w; i < (y + 1) * w; ++i) {
@@ -51,7 +49,6 @@ void CpuDetector::draw_frame(const CameraRig& cam, const Camera& camera, const F
       if (s == 0) continue;
       const std::uint32_t m = map_.ids[i];
       if (m != 0 && !(static_layer_.depth[i] < map_.depth[i])) continue;
-      if (m != 0 && counted) std::atomic_ref<std::uint32_t>(map_.counts[m - 1]).fetch_sub(1, std::memory_order_relaxed);
       map_.ids[i] = s + n;
       map_.depth[i] = static_layer_.depth[i];
       if (normals)

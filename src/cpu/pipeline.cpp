@@ -84,7 +84,7 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     map_.resize(map.width, map.height, config_.shade);
     draw_frame(*rig, *camera, in, threads);  // static objects occlude
     stats.ms(Stage::visibility) = sw.lap();
-    count_pixels(map_, n + static_set_.size(), threads, counts_, hist_, count_scratch_, n);
+    count_pixels(map_, n + static_set_.size(), threads, counts_, hist_, count_scratch_);
     stats.ms(Stage::count) = sw.lap();
     bits = cull_and_choose_bits(std::span<const std::uint32_t>(counts_).first(n), rig->pixel_scale, config_,
                                 in.always_active, out.pixels, active_, stats);

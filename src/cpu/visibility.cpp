@@ -236,8 +236,8 @@ bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int thre
 }
 
 void count_pixels(const VisibilityMap& map, std::size_t objects, int threads, std::vector<std::uint32_t>& counts,
-                  std::vector<std::uint32_t>& hist, CountScratch& scratch, std::size_t needed) {
-  if (map.has_counts && (map.counts.size() == objects || map.counts.size() == needed)) {  // counted while rasterising
+                  std::vector<std::uint32_t>& hist, CountScratch& scratch) {
+  if (map.has_counts && map.counts.size() == objects) {  // counted while rasterising
     counts.assign(map.counts.begin(), map.counts.end());
     return;
   }

@@ -103,10 +103,9 @@ struct CountScratch {
                              std::vector<std::uint32_t>& hist, CountScratch& scratch);
 
 /// Stage 2: pixels per object over the map: the rasterizer's counts when it left them for
-/// `objects` objects (or for the first `needed` of them, when only those are needed: `counts`
-/// then holds those), else count_ids() over the id map (`hist`, `scratch`: its buffers, reused).
+/// `objects` objects, else count_ids() over the id map (`hist`, `scratch`: its buffers, reused).
 void count_pixels(const VisibilityMap& map, std::size_t objects, int threads, std::vector<std::uint32_t>& counts,
-                  std::vector<std::uint32_t>& hist, CountScratch& scratch, std::size_t needed = SIZE_MAX);
+                  std::vector<std::uint32_t>& hist, CountScratch& scratch);
 
 /// Stage 9: lit objects, red colliding, blue free, yellow culled, grey static (ids above
 /// state.size()); dark background. RGBA8.
