@@ -84,7 +84,14 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     map_.resize(map.width, map.height, config_.shade);
     draw_frame(*rig, *camera, in, threads);  // static objects occlude
     stats.ms(Stage::visibility) = sw.lap();
-    count_pixels(map_, n + static_set_.size(), threads, counts_, hist_, count_scratch_);
+    if (own_static && !static_set_.empty() && !map_.has_counts) {
+      // Ids above n are the static layer's: counted together in the bin above the moving objects
+      // and left out, so that counting costs the pixels and n, not the static count.
+      (void)count_ids(map_.ids, n, threads, hist_, count_scratch_);
+      counts_.assign(hist_.begin() + 1, hist_.begin() + 1 + static_cast<std::ptrdiff_t>(n));
+    } else {
+      count_pixels(map_, n + static_set_.size(), threads, counts_, hist_, count_scratch_);
+    }
     stats.ms(Stage::count) = sw.lap();
     bits = cull_and_choose_bits(std::span<const std::uint32_t>(counts_).first(n), rig->pixel_scale, config_,
                                 in.always_active, out.pixels, active_, stats);
