@@ -75,13 +75,8 @@ int run_pairs(const PairsArgs& a) {
     input.id_map_height = config.value().map_height;
   }
   FrameResult frame;
-  for (;;) {  // once, or twice when auto's gl refuses the input and cpu takes over
-    Detector& det = *chosen.value().detector;
-    if (Status s = set_static_objects(det, fixed); !s) return fail("--static: " + s.error());
-    const Status s = det.detect(input, frame);
-    if (s) break;
-    if (!fall_back_from_auto_gl(chosen.value(), request.value(), config.value(), s)) return fail(s.error());
-  }
+  if (Status s = detect_with_static(chosen.value(), request.value(), config.value(), fixed, input, frame); !s)
+    return fail(s.error());
   Detector& det = *chosen.value().detector;
   det.wait_for_stage_times(frame.stats);  // one frame: its GPU times are wanted now
   number_pairs(frame.pairs, n);           // static object k is N + k

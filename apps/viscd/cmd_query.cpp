@@ -82,13 +82,8 @@ int run_query(const QueryArgs& a) {
   set_frame_objects(input, table.value());
   input.filters = {};  // the file's filters do not apply to queries; always_active does
   input.camera = camera ? &*camera : nullptr;
-  for (;;) {  // once, or twice when auto's gl refuses the input and cpu takes over
-    Detector& det = *chosen.value().detector;
-    if (Status s = set_static_objects(det, fixed); !s) return fail("--static: " + s.error());
-    const Status s = det.detect(input, frame);
-    if (s) break;
-    if (!fall_back_from_auto_gl(chosen.value(), request.value(), config.value(), s)) return fail(s.error());
-  }
+  if (Status s = detect_with_static(chosen.value(), request.value(), config.value(), fixed, input, frame); !s)
+    return fail(s.error());
   Detector& det = *chosen.value().detector;
 
   std::string text;

@@ -79,6 +79,16 @@ Status set_static_objects(Detector& detector, const ObjectTable& objects) {
   return detector.set_static_spheres(objects.spheres.spheres, objects.spheres.filters);
 }
 
+Status detect_with_static(DetectorChoice& choice, const DetectorRequest& request, const Config& config,
+                          const ObjectTable& fixed, const FrameInput& input, FrameResult& frame) {
+  for (;;) {  // once, or twice when auto's gl refuses the input and cpu takes over
+    Detector& det = *choice.detector;
+    if (Status s = set_static_objects(det, fixed); !s) return Status::failure(s.kind(), "--static: " + s.error());
+    const Status s = det.detect(input, frame);
+    if (s || !fall_back_from_auto_gl(choice, request, config, s)) return s;
+  }
+}
+
 Status set_static_field(Detector& detector, std::span<const Sphere> field, ShapeKind shape) {
   if (shape == ShapeKind::sphere) return detector.set_static_spheres(field);
   std::vector<Box> cubes;

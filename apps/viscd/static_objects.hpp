@@ -10,6 +10,7 @@
 #include <string_view>
 #include <vector>
 
+#include "detector_choice.hpp"
 #include "viscd/io.hpp"
 #include "viscd/result.hpp"
 #include "viscd/viscd.hpp"
@@ -34,6 +35,12 @@ void set_frame_objects(FrameInput& input, const ObjectTable& objects);
 /// Hands the table's objects, with its filters when it has them, to `detector`'s static set
 /// (set_static_spheres() or set_static_boxes(): object k of the file takes slot k).
 [[nodiscard]] Status set_static_objects(Detector& detector, const ObjectTable& objects);
+
+/// One frame of `input` on the chosen detector, with the static set `fixed` (possibly empty) handed
+/// over first; when `--backend auto` chose gl and gl refuses the input, once more on cpu
+/// (fall_back_from_auto_gl()). A static set the detector refuses fails with "--static: ...".
+[[nodiscard]] Status detect_with_static(DetectorChoice& choice, const DetectorRequest& request, const Config& config,
+                                        const ObjectTable& fixed, const FrameInput& input, FrameResult& frame);
 
 /// Hands a generated field (static_field()) to `detector`'s static set, as spheres or as their
 /// cubes (cubes_of()) for ShapeKind::box.

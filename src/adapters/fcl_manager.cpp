@@ -29,6 +29,14 @@ namespace {
 using Object = fcl::CollisionObject<double>;
 using Aabb = fcl::AABB<double>;
 
+// Another manager's objects and their AABBs, for the queries against it.
+void objects_of(const fcl::BroadPhaseCollisionManager<double>& manager, std::vector<Object*>& objects,
+                std::vector<Aabb>& aabbs) {
+  manager.getObjects(objects);
+  aabbs.resize(objects.size());
+  for (std::size_t k = 0; k < objects.size(); ++k) aabbs[k] = objects[k]->getAABB();
+}
+
 constexpr double kHuge = std::numeric_limits<double>::max();
 // Pairs a grown frame may hold before a distance round falls back to visiting pairs one by one.
 constexpr std::size_t kGrownPairMemory = std::size_t{512} << 20;
@@ -347,10 +355,9 @@ void FclBroadphaseManager::collide(fcl::BroadPhaseCollisionManager<double>* othe
   }
   State& st = *state_;
   std::vector<Object*> others;
-  other_manager->getObjects(others);
+  std::vector<Aabb> other_aabbs;
+  objects_of(*other_manager, others, other_aabbs);
   if (st.objects.empty() || others.empty()) return;
-  std::vector<Aabb> other_aabbs(others.size());
-  for (std::size_t k = 0; k < others.size(); ++k) other_aabbs[k] = others[k]->getAABB();
   std::vector<Candidate> list;
   if (!st.cross_candidates(0, other_aabbs, list)) {  // too many pairs: one by one
     for (std::uint32_t i = 0; i < st.objects.size(); ++i)
@@ -403,10 +410,9 @@ void FclBroadphaseManager::distance(fcl::BroadPhaseCollisionManager<double>* oth
   }
   State& st = *state_;
   std::vector<Object*> others;
-  other_manager->getObjects(others);
+  std::vector<Aabb> other_aabbs;
+  objects_of(*other_manager, others, other_aabbs);
   if (st.objects.empty() || others.empty()) return;
-  std::vector<Aabb> other_aabbs(others.size());
-  for (std::size_t k = 0; k < others.size(); ++k) other_aabbs[k] = others[k]->getAABB();
   st.best_first(
       State::radii(st.aabbs, other_aabbs),
       [&](double r, std::vector<Candidate>& out) { return st.cross_candidates(r, other_aabbs, out); },

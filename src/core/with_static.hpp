@@ -28,11 +28,6 @@ class WithStatic {
   std::span<const std::uint32_t> slots;  ///< the static objects' slots
 
   [[nodiscard]] std::size_t total() const { return objects.size(); }
-  [[nodiscard]] std::size_t static_count() const { return total() - moving; }
-  /// The index reported for object k.
-  [[nodiscard]] std::uint32_t reported(std::size_t k) const {
-    return k < moving ? static_cast<std::uint32_t>(k) : static_index(slots[k - moving]);
-  }
   /// Rewrites the pairs' second indices to reported(); pairs stay sorted (slots ascend).
   void report(std::vector<Pair>& pairs) const;
   [[nodiscard]] std::uint64_t memory_bytes() const {

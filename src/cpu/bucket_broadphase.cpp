@@ -31,11 +31,19 @@ void BucketBroadphase::build(std::span<const Sphere> spheres, std::span<const st
 }
 
 template <class SphereAt>
-double BucketBroadphase::fill(std::span<const Sphere> spheres, std::size_t n, std::span<const std::uint32_t> ids,
-                              std::span<const Filter> filters, int threads, SphereAt&& sphere_at) {
+double BucketBroadphase::fill(std::size_t n, std::span<const std::uint32_t> ids, std::span<const Filter> filters,
+                              int threads, SphereAt&& sphere_at) {
   if (!extras_.boxes.empty()) return buckets_.fill_boxes(extras_.boxes, n, ids, filters, threads);
-  (void)spheres;
   return buckets_.fill(n, ids, filters, threads, sphere_at);
+}
+
+double BucketBroadphase::fill_reading(std::span<const Sphere> spheres, std::size_t n,
+                                      std::span<const std::uint32_t> ids, std::span<const Filter> filters,
+                                      int threads) {
+  return fill(n, ids, filters, threads, [&](std::size_t k) -> const Sphere& {
+    if (k + kPrefetchAhead < n) __builtin_prefetch(&spheres[ids[k + kPrefetchAhead]]);
+    return spheres[ids[k]];
+  });
 }
 
 void BucketBroadphase::erase(std::uint32_t id) {
@@ -66,13 +74,10 @@ void BucketBroadphase::build_tree(std::span<const Sphere> spheres, std::span<con
   Stopwatch sw;
   const std::size_t n = active.size();
   const std::span<const std::uint32_t> ids = order_.sorted_ids();
-  const double box_sum = order_.gathered()
-                             ? fill(spheres, n, ids, filters, threads,
-                                    [&](std::size_t k) -> const Sphere& { return order_.gathered_sphere(k); })
-                             : fill(spheres, n, ids, filters, threads, [&](std::size_t k) -> const Sphere& {
-                                 if (k + kPrefetchAhead < n) __builtin_prefetch(&spheres[ids[k + kPrefetchAhead]]);
-                                 return spheres[ids[k]];
-                               });
+  const double box_sum =
+      order_.gathered()
+          ? fill(n, ids, filters, threads, [&](std::size_t k) -> const Sphere& { return order_.gathered_sphere(k); })
+          : fill_reading(spheres, n, ids, filters, threads);
   stats.ms(Stage::build) = sw.lap() + attempt_ms;
   fit_tree(n, threads, stats);
   keep_order_.remember_sorted(spheres.size(), active, layout, box_sum);
@@ -100,10 +105,7 @@ bool BucketBroadphase::keep_last_order(std::span<const Sphere> spheres, std::spa
   stats.layout = order_.layout().info();  // the layout of the codes that ordered the objects
   // The sorted ids hold the last order (the last sorted frame's stage 6 wrote them).
   const std::span<const std::uint32_t> ids = order_.sorted_ids();
-  const double box_sum = fill(spheres, n, ids, filters, threads, [&](std::size_t k) -> const Sphere& {
-    if (k + kPrefetchAhead < n) __builtin_prefetch(&spheres[ids[k + kPrefetchAhead]]);
-    return spheres[ids[k]];
-  });
+  const double box_sum = fill_reading(spheres, n, ids, filters, threads);
   if (!keep_order_.keeps(box_sum)) return false;  // moved too much: sort
   stats.ms(Stage::build) = sw.lap();
   fit_tree(n, threads, stats);
@@ -122,8 +124,7 @@ Status BucketBroadphase::find_pairs(std::span<const std::uint32_t> active, int t
                              &tree_,
                              ids,
                              buckets_.sorted_filters(),
-                             ids.empty() ? 0u : active.back() + 1,  // active is ascending
-                             extras_.static_from};
+                             ids.empty() ? 0u : active.back() + 1};  // active is ascending
   std::uint64_t bucket_pairs = 0;
   const Status found = search_buckets(in, simd_, threads, pair_memory_cap, pairs_, pairs, bucket_pairs);
   if (!found) {

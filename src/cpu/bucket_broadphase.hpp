@@ -37,11 +37,9 @@
 namespace viscd::detail {
 
 /// What a frame may add to its spheres: for a box frame the boxes (then the spheres are their
-/// box_proxy(), which stages 4-6 order, and stages 7-8 pack and test the boxes themselves); and
-/// where the static objects start (no pair of two of them is reported).
+/// box_proxy(), which stages 4-6 order, and stages 7-8 pack and test the boxes themselves).
 struct BroadphaseExtras {
   std::span<const Box> boxes;
-  std::uint32_t static_from = ~0u;
 };
 
 class BucketBroadphase {
@@ -170,10 +168,14 @@ class BucketBroadphase {
   Buckets buckets_;
   WideTree tree_;
   PairCollector pairs_;
-  /// Stage 7's packing of the objects in `ids` order: box lanes in box frames, sphere lanes else.
+  /// Stage 7's packing of the objects in `ids` order: box lanes in box frames (from the frame's
+  /// boxes), sphere lanes else (the k-th from sphere_at(k)).
   template <class SphereAt>
-  double fill(std::span<const Sphere> spheres, std::size_t n, std::span<const std::uint32_t> ids,
-              std::span<const Filter> filters, int threads, SphereAt&& sphere_at);
+  double fill(std::size_t n, std::span<const std::uint32_t> ids, std::span<const Filter> filters, int threads,
+              SphereAt&& sphere_at);
+  /// fill() reading spheres[ids[k]], prefetched: the reads are out of the array's order.
+  double fill_reading(std::span<const Sphere> spheres, std::size_t n, std::span<const std::uint32_t> ids,
+                      std::span<const Filter> filters, int threads);
 
   SimdLevel simd_ = best_simd_level();
   SortReport report_;

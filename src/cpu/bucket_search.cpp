@@ -9,23 +9,6 @@
 namespace viscd::detail {
 namespace {
 
-// The two tests of stage 8 for each kind of lanes: `near`, the lanes whose box reaches into a
-// box; `exact`, the lanes that pass the exact test with lane i of another bucket.
-template <class Simd>
-struct SphereTests {
-  static std::uint32_t near(const BucketLanes& l, const Aabb& box) { return Simd::box_lanes(l, box); }
-  static std::uint32_t exact(const BucketLanes& l, const BucketLanes& o, std::uint32_t i) {
-    return Simd::sphere_lanes(l, o.x[i], o.y[i], o.z[i], o.r[i]);
-  }
-};
-template <class Simd>
-struct BoxTests {
-  static std::uint32_t near(const BoxLanes& l, const Aabb& box) { return Simd::node_children(l, box); }
-  static std::uint32_t exact(const BoxLanes& l, const BoxLanes& o, std::uint32_t i) {
-    return Simd::node_children(l, o.box(i));
-  }
-};
-
 // What stage 8 searches, for search_group().
 template <class Lanes>
 struct SearchView {
@@ -35,14 +18,12 @@ struct SearchView {
   const std::uint32_t* ids;  // sorted position -> object id
   const Filter* filter;      // in sorted order, when filtered
   bool filtered;
-  std::size_t n;              // objects
-  std::uint64_t* work;        // bucket pairs whose boxes overlap, summed over the groups (atomically)
-  std::uint32_t static_from;  // ids from here on are static objects: never two of them
+  std::size_t n;        // objects
+  std::uint64_t* work;  // bucket pairs whose boxes overlap, summed over the groups (atomically)
 
   // Emits the pair of sorted positions p and q when it passes the filters (when there are any).
   template <class Emit>
   void pair(std::uint32_t p, std::uint32_t q, Emit& emit) const {
-    if ((ids[p] >= static_from) & (ids[q] >= static_from)) return;
     if (!filtered || pair_passes_filter(filter[p], filter[q])) emit(ids[p], ids[q]);
   }
 };
@@ -155,8 +136,7 @@ Status search(const BucketSearchInput& in, std::span<const Lanes> lanes, SimdLev
   const std::size_t chunks = threads_for(n, threads) == 1 ? 1 : std::min<std::size_t>(groups, 8 * threads);
   bucket_pairs = 0;
   const SearchView<Lanes> view{lanes.data(),      in.boxes.data(),     in.tree, in.ids.data(),
-                               in.filters.data(), !in.filters.empty(), n,       &bucket_pairs,
-                               in.static_from};
+                               in.filters.data(), !in.filters.empty(), n,       &bucket_pairs};
   return collector.collect(groups, chunks, threads, pair_memory_cap, in.objects, pairs, [&](std::size_t g, auto& emit) {
     switch (simd) {
 #if VISCD_HAVE_AVX512

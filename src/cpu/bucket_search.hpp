@@ -22,6 +22,25 @@
 
 namespace viscd::detail {
 
+/// The two tests of stage 8 for each kind of lanes: `near`, the lanes whose box reaches into a
+/// box; `exact`, the lanes that pass the exact test with lane i of another bucket.
+template <class Simd>
+struct SphereTests {
+  using Lanes = BucketLanes;
+  static std::uint32_t near(const BucketLanes& l, const Aabb& box) { return Simd::box_lanes(l, box); }
+  static std::uint32_t exact(const BucketLanes& l, const BucketLanes& o, std::uint32_t i) {
+    return Simd::sphere_lanes(l, o.x[i], o.y[i], o.z[i], o.r[i]);
+  }
+};
+template <class Simd>
+struct BoxTests {
+  using Lanes = BoxLanes;
+  static std::uint32_t near(const BoxLanes& l, const Aabb& box) { return Simd::node_children(l, box); }
+  static std::uint32_t exact(const BoxLanes& l, const BoxLanes& o, std::uint32_t i) {
+    return Simd::node_children(l, o.box(i));
+  }
+};
+
 /// What stage 8 searches.
 struct BucketSearchInput {
   std::span<const BucketLanes> lanes;   ///< sphere frames
@@ -32,7 +51,6 @@ struct BucketSearchInput {
   std::span<const std::uint32_t> ids;  ///< sorted position -> object id
   std::span<const Filter> filters;     ///< in sorted order; empty: no filters
   std::uint32_t objects;               ///< ids are below this
-  std::uint32_t static_from = ~0u;     ///< ids from here on are static: no pair of two of them
 };
 
 /// Finds every pair (sorted, in `pairs`) with the kernels of `simd`, collected through

@@ -2,6 +2,7 @@
 
 #include "core/stopwatch.hpp"
 #include "cpu/parallel.hpp"
+#include "viscd/assert.hpp"
 
 namespace viscd {
 namespace detail {
@@ -61,20 +62,14 @@ Status CpuDetector::broadphase(const Shapes& objects, std::span<const std::uint3
                                std::span<const std::uint32_t> unpaired, std::span<const Filter> filters,
                                std::uint32_t static_from, int bits, int threads, std::vector<Pair>& pairs,
                                FrameStats& stats) {
+  // The static set is static_tree_'s (handles_static()): `objects` are the frame's alone.
+  VISCD_ASSERT(static_from == ~0u, "the cpu backend's frames hold no static objects");
+  (void)static_from;
   const std::size_t total = objects.size();
   box_queries_ = objects.is_box() || (!static_set_.empty() && static_set_.kind() == ShapeKind::box);
-  // Static objects are reported as static_index(slot).
-  const bool has_static = static_from < total;
-  if (has_static) {
-    resize_with_headroom(reported_, total);
-    parallel_for(total, threads, [&](std::size_t k) { reported_[k] = all_.reported(k); });
-  } else {
-    reported_.clear();
-  }
   // Box frames: stages 4-6 order the boxes' proxies; stages 7-8 pack and test the boxes.
   std::span<const Sphere> spheres = objects.spheres;
   BucketBroadphase::Extras extras;
-  extras.static_from = static_from;
   if (objects.is_box()) {
     resize_with_headroom(proxies_, total);
     parallel_for(total, threads, [&](std::size_t k) { proxies_[k] = box_proxy(objects.boxes[k]); });
@@ -92,7 +87,7 @@ Status CpuDetector::broadphase(const Shapes& objects, std::span<const std::uint3
   resize_with_headroom(unpaired_spheres_, kept);
   resize_with_headroom(unpaired_filters_, kept);
   for (std::size_t k = 0; k < kept; ++k) {
-    unpaired_ids_[k] = has_static ? reported_[unpaired[k]] : unpaired[k];
+    unpaired_ids_[k] = unpaired[k];
     unpaired_spheres_[k] = spheres[unpaired[k]];
     unpaired_filters_[k] = filters[unpaired[k]];
   }
@@ -156,7 +151,7 @@ const BucketBroadphase& CpuDetector::unpaired_tree() {
 
 bool CpuDetector::query_ray_first(const Ray& ray, const Filter* filter, RayHit& hit) {
   if (box_queries_) return PipelineDetector::query_ray_first(ray, filter, hit);
-  bool found = broadphase_.ray_first(ray, main_objects(), filter, hit, false);
+  bool found = broadphase_.ray_first(ray, {}, filter, hit, false);
   if (!unpaired_ids_.empty()) found = unpaired_tree().ray_first(ray, unpaired_objects(), filter, hit, found);
   StaticTree::Part parts[2];
   for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)
@@ -166,7 +161,7 @@ bool CpuDetector::query_ray_first(const Ray& ray, const Filter* filter, RayHit& 
 
 void CpuDetector::query_ray_all(const Ray& ray, const Filter* filter, std::vector<RayHit>& hits) {
   if (box_queries_) return PipelineDetector::query_ray_all(ray, filter, hits);
-  broadphase_.ray_all(ray, main_objects(), filter, hits);
+  broadphase_.ray_all(ray, {}, filter, hits);
   if (!unpaired_ids_.empty()) unpaired_tree().ray_all(ray, unpaired_objects(), filter, hits);
   StaticTree::Part parts[2];
   for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)
@@ -176,7 +171,7 @@ void CpuDetector::query_ray_all(const Ray& ray, const Filter* filter, std::vecto
 void CpuDetector::query_ray_visit(const Ray& ray, const Filter* filter, RayVisitor& visitor) {
   if (box_queries_) return PipelineDetector::query_ray_visit(ray, filter, visitor);
   float max_t = ray.max_t;  // lowered by the visitor in the first tree, it prunes the second
-  if (!broadphase_.ray_visit(ray, main_objects(), filter, max_t, visitor)) return;
+  if (!broadphase_.ray_visit(ray, {}, filter, max_t, visitor)) return;
   if (!unpaired_ids_.empty() && !unpaired_tree().ray_visit(ray, unpaired_objects(), filter, max_t, visitor)) return;
   StaticTree::Part parts[2];
   for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)
@@ -185,7 +180,7 @@ void CpuDetector::query_ray_visit(const Ray& ray, const Filter* filter, RayVisit
 
 void CpuDetector::query_sphere(const Sphere& sphere, const Filter* filter, std::vector<std::uint32_t>& indices) {
   if (box_queries_) return PipelineDetector::query_sphere(sphere, filter, indices);
-  broadphase_.overlap(sphere, main_objects(), filter, indices);
+  broadphase_.overlap(sphere, {}, filter, indices);
   if (!unpaired_ids_.empty()) unpaired_tree().overlap(sphere, unpaired_objects(), filter, indices);
   StaticTree::Part parts[2];
   for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)
@@ -194,7 +189,7 @@ void CpuDetector::query_sphere(const Sphere& sphere, const Filter* filter, std::
 
 void CpuDetector::query_box(const Box& box, const Filter* filter, std::vector<std::uint32_t>& indices) {
   if (box_queries_) return PipelineDetector::query_box(box, filter, indices);
-  broadphase_.overlap_box(box, main_objects(), filter, indices);
+  broadphase_.overlap_box(box, {}, filter, indices);
   if (!unpaired_ids_.empty()) unpaired_tree().overlap_box(box, unpaired_objects(), filter, indices);
   StaticTree::Part parts[2];
   for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)
@@ -203,7 +198,7 @@ void CpuDetector::query_box(const Box& box, const Filter* filter, std::vector<st
 
 void CpuDetector::query_sphere_visit(const Sphere& sphere, const Filter* filter, OverlapVisitor& visitor) {
   if (box_queries_) return PipelineDetector::query_sphere_visit(sphere, filter, visitor);
-  if (!broadphase_.overlap_visit(sphere, main_objects(), filter, visitor)) return;
+  if (!broadphase_.overlap_visit(sphere, {}, filter, visitor)) return;
   if (!unpaired_ids_.empty() && !unpaired_tree().overlap_visit(sphere, unpaired_objects(), filter, visitor)) return;
   StaticTree::Part parts[2];
   for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)
@@ -212,7 +207,7 @@ void CpuDetector::query_sphere_visit(const Sphere& sphere, const Filter* filter,
 
 void CpuDetector::query_box_visit(const Box& box, const Filter* filter, OverlapVisitor& visitor) {
   if (box_queries_) return PipelineDetector::query_box_visit(box, filter, visitor);
-  if (!broadphase_.overlap_box_visit(box, main_objects(), filter, visitor)) return;
+  if (!broadphase_.overlap_box_visit(box, {}, filter, visitor)) return;
   if (!unpaired_ids_.empty() && !unpaired_tree().overlap_box_visit(box, unpaired_objects(), filter, visitor)) return;
   StaticTree::Part parts[2];
   for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)

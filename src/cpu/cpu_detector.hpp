@@ -23,9 +23,9 @@ class CpuDetector final : public PipelineDetector {
   [[nodiscard]] std::uint64_t backend_memory_bytes() const override {
     return raster_.memory_bytes() + box_raster_.memory_bytes() + broadphase_.memory_bytes() +
            unpaired_tree_.memory_bytes() + bytes_of(unpaired_spheres_) + bytes_of(unpaired_ids_) +
-           bytes_of(unpaired_filters_) + bytes_of(iota_) + bytes_of(proxies_) + bytes_of(reported_) +
-           static_tree_.memory_bytes() + bytes_of(cross_) + bytes_of(merged_) + static_layer_.memory_bytes() +
-           static_raster_.memory_bytes() + static_box_raster_.memory_bytes();
+           bytes_of(unpaired_filters_) + bytes_of(iota_) + bytes_of(proxies_) + static_tree_.memory_bytes() +
+           bytes_of(cross_) + bytes_of(merged_) + static_layer_.memory_bytes() + static_raster_.memory_bytes() +
+           static_box_raster_.memory_bytes();
   }
   /// The broadphase of the last frame (its 16-wide tree over buckets, the sorted objects and codes),
   /// for tests.
@@ -67,14 +67,10 @@ class CpuDetector final : public PipelineDetector {
   const BucketBroadphase& unpaired_tree();
   /// What the unpaired tree's queries report: its ids map to unpaired_ids_, with their filters.
   [[nodiscard]] BucketBroadphase::Objects unpaired_objects() const { return {unpaired_ids_, unpaired_filters_}; }
-  /// What the main tree's queries report: its ids as they are, or through reported_ when the
-  /// frame has static objects.
-  [[nodiscard]] BucketBroadphase::Objects main_objects() const { return {reported_, {}}; }
 
   TiledRasterizer raster_;
   BoxRasterizer box_raster_;
-  std::vector<Sphere> proxies_;          // box frames: box_proxy() of each object, for stages 4-6
-  std::vector<std::uint32_t> reported_;  // frames with static objects: the index reported per object
+  std::vector<Sphere> proxies_;  // box frames: box_proxy() of each object, for stages 4-6
   StaticTree static_tree_;
   bool box_queries_ = false;  // the last frame's objects or static set are boxes: brute-force queries
   // The static set's map layer (ids: compact index + 1) and what it was drawn for.

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <bit>
+#include <type_traits>
 
 #include "cpu/bucket_search.hpp"
 #include "cpu/parallel.hpp"
@@ -13,23 +14,14 @@ namespace {
 
 constexpr std::size_t kRebuildFloor = 4096;
 
-// The stage 8 tests of each kind of lanes (as bucket_search.cpp's), on the baseline kernels.
-struct SphereSide {
-  using Lanes = BucketLanes;
-  static std::span<const Lanes> of(const BucketBroadphase& t) { return t.lanes(); }
-  static std::uint32_t near(const Lanes& l, const Aabb& box) { return SimdBaseline::box_lanes(l, box); }
-  static std::uint32_t exact(const Lanes& l, const Lanes& o, std::uint32_t i) {
-    return SimdBaseline::sphere_lanes(l, o.x[i], o.y[i], o.z[i], o.r[i]);
-  }
-};
-struct BoxSide {
-  using Lanes = BoxLanes;
-  static std::span<const Lanes> of(const BucketBroadphase& t) { return t.box_lanes(); }
-  static std::uint32_t near(const Lanes& l, const Aabb& box) { return SimdBaseline::node_children(l, box); }
-  static std::uint32_t exact(const Lanes& l, const Lanes& o, std::uint32_t i) {
-    return SimdBaseline::node_children(l, o.box(i));
-  }
-};
+// A tree's lanes of the kind K tests (stage 8's tests, cpu/bucket_search.hpp).
+template <class K>
+std::span<const typename K::Lanes> lanes_of(const BucketBroadphase& t) {
+  if constexpr (std::is_same_v<typename K::Lanes, BoxLanes>)
+    return t.box_lanes();
+  else
+    return t.lanes();
+}
 
 }  // namespace
 
@@ -147,8 +139,8 @@ void cross_pairs(const BucketBroadphase& moving, std::span<const Filter> moving_
                  std::span<const std::uint32_t> st_reported, std::span<const Filter> st_filters, std::size_t g,
                  std::vector<std::uint64_t>& out) {
   constexpr std::uint32_t kMaxCandidates = 512;
-  const auto ml = K::of(moving);
-  const auto sl = K::of(st);
+  const auto ml = lanes_of<K>(moving);
+  const auto sl = lanes_of<K>(st);
   const std::span<const Aabb> mboxes = moving.leaf_boxes();
   const std::span<const Aabb> sboxes = st.leaf_boxes();
   const std::span<const std::uint32_t> mids = moving.sorted_objects();
@@ -209,9 +201,9 @@ bool StaticTree::pairs(const BucketBroadphase& moving, std::span<const Filter> m
       for (const Side* s : {&main_, &delta_}) {
         if (s->count == 0) continue;
         if (boxes_)
-          cross_pairs<BoxSide>(moving, moving_filters, s->tree, s->reported, s->filters, b, list);
+          cross_pairs<BoxTests<SimdBaseline>>(moving, moving_filters, s->tree, s->reported, s->filters, b, list);
         else
-          cross_pairs<SphereSide>(moving, moving_filters, s->tree, s->reported, s->filters, b, list);
+          cross_pairs<SphereTests<SimdBaseline>>(moving, moving_filters, s->tree, s->reported, s->filters, b, list);
       }
       if (list.size() > max_pairs) over.store(true, std::memory_order_relaxed);
     }
