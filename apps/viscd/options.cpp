@@ -83,6 +83,11 @@ void add_scene_options(CLI::App& cmd, SceneOptions& o) {
   cmd.add_option("--scene", o.kind, "ring (the paper's flat world) | box | clusters")->capture_default_str();
   cmd.add_option("--seed", o.seed, "scene seed (same seed, same scene)")->capture_default_str();
   cmd.add_option("--dt", o.dt, "simulated seconds per frame")->capture_default_str();
+  cmd.add_option("--packing", o.packing,
+                 "volume fraction of the spheres, 0.001 to 0.5 (0.04: 0.135 pairs per object in the ring;\n"
+                 "0.18: the dense ring of docs/benchmarks.md, 0.6 pairs per object)")
+      ->check(CLI::Range(0.001f, 0.5f))
+      ->capture_default_str();
 }
 
 void add_object_options(CLI::App& cmd, ObjectOptions& o, std::string_view static_note) {
@@ -108,7 +113,7 @@ Result<SceneParams> make_scene_params(const SceneOptions& o) {
   if (!(o.dt >= 0 && std::isfinite(o.dt)))
     return Result<SceneParams>::failure(ErrorKind::invalid_input,
                                         "--dt: expected a finite number >= 0, got " + std::to_string(o.dt));
-  return SceneParams{.kind = kind.value(), .objects = o.objects, .seed = o.seed};
+  return SceneParams{.kind = kind.value(), .objects = o.objects, .seed = o.seed, .packing = o.packing};
 }
 
 Result<GlOptions> make_gl_options(const PipelineOptions& o) {

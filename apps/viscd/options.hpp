@@ -50,8 +50,9 @@ struct SceneOptions {
   std::string kind = "ring";
   std::uint64_t seed = 1;
   float dt = 1.0f / 60.0f;  ///< simulated seconds per frame
+  float packing = 0.04f;    ///< volume fraction of the spheres (SceneParams::packing)
 };
-/// Registers the scene options (--objects, --scene, --seed, --dt) on `cmd`.
+/// Registers the scene options (--objects, --scene, --seed, --dt, --packing) on `cmd`.
 void add_scene_options(CLI::App& cmd, SceneOptions& o);
 /// SceneParams from the options; the error names the bad option (--scene, --dt).
 [[nodiscard]] Result<SceneParams> make_scene_params(const SceneOptions& o);

@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <string_view>
 #include <utility>
 
 namespace viscd::gl {
@@ -14,26 +15,78 @@ std::string egl_error(const char* what) {
   return buf;
 }
 
+bool has_extension(const char* list, std::string_view name) {
+  if (!list) return false;
+  for (std::string_view rest(list); !rest.empty();) {
+    const std::size_t end = rest.find(' ');
+    if (rest.substr(0, end) == name) return true;
+    if (end == std::string_view::npos) break;
+    rest.remove_prefix(end + 1);
+  }
+  return false;
+}
+
+// A display to try: a GPU through EGL_EXT_platform_device (NVIDIA's way to render without a
+// window system), or Mesa's surfaceless platform (llvmpipe, or a Mesa GPU driver).
+struct Candidate {
+  EGLenum platform;
+  void* native;
+  std::string name;
+};
+
+std::vector<Candidate> candidates(const char* client) {
+  std::vector<Candidate> out;
+  if (has_extension(client, "EGL_EXT_platform_device") && has_extension(client, "EGL_EXT_device_enumeration")) {
+    EGLDeviceEXT devices[16];
+    EGLint count = 0;
+    if (eglQueryDevicesEXT(16, devices, &count)) {
+      for (EGLint i = 0; i < count; ++i) {
+        // Mesa lists its software rasterizer as a device too; the surfaceless platform below
+        // reaches it already.
+        if (has_extension(eglQueryDeviceStringEXT(devices[i], EGL_EXTENSIONS), "EGL_MESA_device_software")) continue;
+        out.push_back({EGL_PLATFORM_DEVICE_EXT, devices[i], "EGL device " + std::to_string(i)});
+      }
+    }
+  }
+  if (has_extension(client, "EGL_MESA_platform_surfaceless"))
+    out.push_back({EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, "surfaceless"});
+  return out;
+}
+
 }  // namespace
 
 Result<std::unique_ptr<Context>> Context::create(bool debug) {
   using R = Result<std::unique_ptr<Context>>;
-  std::unique_ptr<Context> ctx(new Context());
-  // Client extensions: EGL_EXT_platform_base and EGL_MESA_platform_surfaceless.
   const char* client = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
-  if (!client || std::string_view(client).find("EGL_MESA_platform_surfaceless") == std::string_view::npos)
+  if (!client || !has_extension(client, "EGL_EXT_platform_base"))
     return R::failure(ErrorKind::backend_failure,
-                      "OpenGL: EGL has no surfaceless platform (EGL_MESA_platform_surfaceless; install libegl-mesa0)");
-  ctx->display_ = eglGetPlatformDisplayEXT(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
-  if (ctx->display_ == EGL_NO_DISPLAY)
-    return R::failure(ErrorKind::backend_failure, "OpenGL: " + egl_error("eglGetPlatformDisplayEXT(surfaceless)"));
-  EGLint major = 0, minor = 0;
-  if (!eglInitialize(ctx->display_, &major, &minor)) {
-    ctx->display_ = EGL_NO_DISPLAY;
-    return R::failure(ErrorKind::backend_failure, "OpenGL: " + egl_error("eglInitialize"));
+                      "OpenGL: EGL has no platform extensions (EGL_EXT_platform_base); install libegl1 and a driver "
+                      "(libegl-mesa0, or the GPU vendor's)");
+  const std::vector<Candidate> tries = candidates(client);
+  if (tries.empty())
+    return R::failure(ErrorKind::backend_failure,
+                      "OpenGL: EGL offers neither a GPU device (EGL_EXT_platform_device) nor a surfaceless platform "
+                      "(EGL_MESA_platform_surfaceless; install libegl-mesa0)");
+  std::string failures;
+  for (const Candidate& c : tries) {
+    std::unique_ptr<Context> ctx(new Context());
+    std::string why = ctx->open(c.platform, c.native, debug);
+    if (why.empty()) return ctx;
+    failures += (failures.empty() ? "" : "; ") + c.name + ": " + why;
   }
-  if (!eglBindAPI(EGL_OPENGL_API))
-    return R::failure(ErrorKind::backend_failure, "OpenGL: " + egl_error("eglBindAPI(EGL_OPENGL_API)"));
+  return R::failure(ErrorKind::backend_failure,
+                    "OpenGL: no EGL display gave an OpenGL 4.5 core context (" + failures + ")");
+}
+
+std::string Context::open(EGLenum platform, void* native, bool debug) {
+  display_ = eglGetPlatformDisplayEXT(platform, native, nullptr);
+  if (display_ == EGL_NO_DISPLAY) return egl_error("eglGetPlatformDisplayEXT");
+  EGLint major = 0, minor = 0;
+  if (!eglInitialize(display_, &major, &minor)) {
+    display_ = EGL_NO_DISPLAY;
+    return egl_error("eglInitialize");
+  }
+  if (!eglBindAPI(EGL_OPENGL_API)) return egl_error("eglBindAPI(EGL_OPENGL_API)");
   const EGLint attribs[] = {EGL_CONTEXT_MAJOR_VERSION,
                             4,
                             EGL_CONTEXT_MINOR_VERSION,
@@ -43,23 +96,28 @@ Result<std::unique_ptr<Context>> Context::create(bool debug) {
                             EGL_CONTEXT_OPENGL_DEBUG,
                             debug ? EGL_TRUE : EGL_FALSE,
                             EGL_NONE};
-  // EGL_KHR_no_config_context: surfaceless contexts need no config.
-  ctx->context_ = eglCreateContext(ctx->display_, EGL_NO_CONFIG_KHR, EGL_NO_CONTEXT, attribs);
-  if (ctx->context_ == EGL_NO_CONTEXT)
-    return R::failure(ErrorKind::backend_failure, "OpenGL: " + egl_error("eglCreateContext(OpenGL 4.5 core)") +
-                                                      ": the driver offers no OpenGL 4.5 core context");
-  if (!ctx->make_current())
-    return R::failure(ErrorKind::backend_failure, "OpenGL: " + egl_error("eglMakeCurrent(surfaceless)"));
-  if (epoxy_gl_version() < 45) return R::failure(ErrorKind::backend_failure, "OpenGL: context is older than 4.5");
-  ctx->description_ = std::string(reinterpret_cast<const char*>(glGetString(GL_RENDERER))) + " | " +
-                      reinterpret_cast<const char*>(glGetString(GL_VERSION));
+  // EGL_KHR_no_config_context: a context without surfaces needs no config. Where the display
+  // lacks it, any config that renders OpenGL will do (nothing is ever drawn to its surfaces).
+  EGLConfig config = EGL_NO_CONFIG_KHR;
+  if (!has_extension(eglQueryString(display_, EGL_EXTENSIONS), "EGL_KHR_no_config_context")) {
+    const EGLint want[] = {EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT, EGL_NONE};
+    EGLint found = 0;
+    if (!eglChooseConfig(display_, want, &config, 1, &found) || found < 1) return egl_error("eglChooseConfig(OpenGL)");
+  }
+  context_ = eglCreateContext(display_, config, EGL_NO_CONTEXT, attribs);
+  if (context_ == EGL_NO_CONTEXT)
+    return egl_error("eglCreateContext(OpenGL 4.5 core)") + ": the driver offers no OpenGL 4.5 core context";
+  if (!make_current()) return egl_error("eglMakeCurrent(no surface)");
+  if (epoxy_gl_version() < 45) return "the context is older than OpenGL 4.5";
+  description_ = std::string(reinterpret_cast<const char*>(glGetString(GL_RENDERER))) + " | " +
+                 reinterpret_cast<const char*>(glGetString(GL_VERSION));
   if (debug) {
     glEnable(GL_DEBUG_OUTPUT);
     glEnable(GL_DEBUG_OUTPUT_SYNCHRONOUS);  // messages arrive inside the offending call
-    glDebugMessageCallback(&Context::on_debug, ctx.get());
+    glDebugMessageCallback(&Context::on_debug, this);
     glDebugMessageControl(GL_DONT_CARE, GL_DONT_CARE, GL_DONT_CARE, 0, nullptr, GL_TRUE);
   }
-  return ctx;
+  return {};
 }
 
 Result<std::unique_ptr<Context>> Context::adopt_current() {

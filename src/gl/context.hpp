@@ -1,6 +1,7 @@
 #pragma once
-// A headless OpenGL 4.5 core context through EGL (Mesa's surfaceless platform: llvmpipe on
-// machines without a GPU, the GPU's driver elsewhere), with debug output captured.
+// A headless OpenGL 4.5 core context through EGL, with debug output captured: a GPU found through
+// EGL_EXT_platform_device (how NVIDIA's driver renders without a window system) first, else
+// Mesa's surfaceless platform (llvmpipe on machines without a GPU, or a Mesa GPU driver).
 
 #include <epoxy/egl.h>
 #include <epoxy/gl.h>
@@ -39,6 +40,8 @@ class Context {
 
  private:
   Context() = default;
+  // Opens a display of `platform` and a context on it; an empty string on success, else why not.
+  std::string open(EGLenum platform, void* native, bool debug);
   static void GLAPIENTRY on_debug(GLenum source, GLenum type, GLuint id, GLenum severity, GLsizei length,
                                   const GLchar* message, const void* user);
 

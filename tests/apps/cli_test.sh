@@ -193,6 +193,16 @@ expect_rc 2 run --scene donut --frames 1 --objects 100 --out "$W/run5"
 expect_in "$W/err" "donut" "--scene donut error"
 pass
 
+step "run --packing: the dense ring has more pairs; out of range is a usage error"
+expect_rc 0 run --objects 3000 --frames 1 --no-culling --bits 32 --out "$W/pack1" --json "$W/pack1/s.json" --quiet
+expect_rc 0 run --objects 3000 --frames 1 --no-culling --bits 32 --packing 0.18 --out "$W/pack2" --json "$W/pack2/s.json" --quiet
+p1=$(sed -n 's/.*"pairs": \([0-9]*\).*/\1/p' "$W/pack1/s.json" | head -1)
+p2=$(sed -n 's/.*"pairs": \([0-9]*\).*/\1/p' "$W/pack2/s.json" | head -1)
+[ "$p2" -gt $((3 * p1)) ] || fail "--packing 0.18 gave $p2 pairs against $p1 at 0.04"
+expect_rc 2 run --objects 100 --frames 1 --packing 0.9 --out "$W/pack3"
+expect_in "$W/err" "--packing" "--packing 0.9 error"
+pass
+
 step "run --frames 0 is a usage error (exit 2)"
 expect_rc 2 run --frames 0 --objects 100 --out "$W/run6"
 expect_in "$W/err" "--frames" "--frames 0 error"

@@ -20,7 +20,48 @@ uniform uint u_has_filters;  // pairs also need (group_i & mask_j) != 0 && (grou
 uniform uint u_boxes;        // the objects are boxes
 uniform uint u_static_from;  // objects from here on are static: never paired with each other
 
+// GPU drivers may flush subnormal floats to zero (NVIDIA's does; GLSL allows it), which changes
+// the float test when an input is tiny. With every input 0 or at least 2^-39 in magnitude no
+// intermediate of the test can be subnormal (differences are 0 or >= 2^-62, squares >= 2^-124,
+// sums of non-negative normals stay normal), so the float test below is IEEE's. Otherwise the
+// test runs in double, each float operation rounded to float with gradual underflow
+// (round_float): sums and differences of floats are exact in double whenever a float rounding
+// could tie, and products of floats always are, so the result is the IEEE float test's.
+bool tiny(float v) {
+  const uint m = floatBitsToUint(v) & 0x7FFFFFFFu;  // bits: a flushing compare would see 0
+  return m != 0u && m < 0x2C000000u;                // 0 < |v| < 2^-39
+}
+
+double exact_value(float v) {  // the float's value, subnormals included, whatever the driver flushes
+  const uint b = floatBitsToUint(v);
+  const uint e = (b >> 23) & 0xFFu, m = b & 0x7FFFFFu;
+  if (e == 0xFFu) return double(v);  // inf, NaN
+  const double x = e == 0u ? ldexp(double(m), -149) : ldexp(double(m | 0x800000u), int(e) - 150);
+  return (b >> 31) != 0u ? -x : x;
+}
+
+double round_float(double v) {  // to the nearest float, ties to even, subnormals as IEEE
+  if (v == 0.0lf || isinf(v) || isnan(v)) return v;
+  int e;
+  frexp(v, e);  // |v| = f 2^e, f in [0.5, 1): a float's last bit weighs 2^(e - 24), at least 2^-149
+  const int q = max(e - 24, -149);
+  const double r = ldexp(roundEven(ldexp(v, -q)), q);
+  if (abs(r) >= ldexp(1.0lf, 128)) return packDouble2x32(uvec2(0u, r > 0.0lf ? 0x7FF00000u : 0xFFF00000u));
+  return r;
+}
+
+bool overlap_exact_ieee(vec4 a, vec4 b) {
+  const double dx = round_float(exact_value(a.x) - exact_value(b.x));
+  const double dy = round_float(exact_value(a.y) - exact_value(b.y));
+  const double dz = round_float(exact_value(a.z) - exact_value(b.z));
+  const double s = round_float(exact_value(a.w) + exact_value(b.w));
+  const double d2 = round_float(round_float(round_float(dx * dx) + round_float(dy * dy)) + round_float(dz * dz));
+  return d2 <= round_float(s * s);
+}
+
 bool overlap_exact(vec4 a, vec4 b) {
+  if (tiny(a.x) || tiny(a.y) || tiny(a.z) || tiny(a.w) || tiny(b.x) || tiny(b.y) || tiny(b.z) || tiny(b.w))
+    return overlap_exact_ieee(a, b);
   precise float dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
   precise float s = a.w + b.w;
   precise float d2 = dx * dx + dy * dy + dz * dz;
