@@ -17,6 +17,7 @@
 #include "options.hpp"
 #include "progress.hpp"
 #include "statistics.hpp"
+#include "viscd/cuda.hpp"
 #include "viscd/io.hpp"
 #include "viscd/scene.hpp"
 
@@ -87,6 +88,7 @@ Result<Point> measure(const std::string& backend, Config config, std::uint32_t n
 std::vector<std::string> available_backends() {
   std::vector<std::string> b = {"cpu"};
   if (gl_device()) b.push_back("gl");
+  if (cuda_device()) b.push_back("cuda");
   return b;
 }
 
@@ -269,16 +271,17 @@ void add_bench_command(CLI::App& app, int& rc) {
   bench->require_subcommand(1);
   CLI::App* paper = bench->add_subcommand(
       "paper",
-      "For each backend on this machine (cpu, and gl when an OpenGL 4.5 context exists): Table 1 (stage\n"
+      "For each backend on this machine (cpu; gl when an OpenGL 4.5 context exists; cuda with a GPU): Table 1 (stage\n"
       "split of the LBVH build, 2000 objects, 32 bits), Table 2 (sort time for 16/32/64 bits), Fig. 5\n"
       "(screenshots zoom-out and zoom-in), Fig. 6 (FPS against N with culling, lambda = 200, and without:\n"
       "every object, 64-bit codes, no visibility map),\n"
       "Fig. 7 (adaptive bits against fixed 32 and 64, a = 100, b = 400) and Fig. 8 (memory against N).\n"
       "Writes CSVs and PNG plots into --out. Frame times are wall-clock medians of simulate + detect.");
   paper
-      ->add_option("--backend", args->backends, "backends to run, of cpu, reference, gl (default: every one available)")
+      ->add_option("--backend", args->backends,
+                   "backends to run, of cpu, reference, gl, cuda (default: every one available)")
       ->delimiter(',')
-      ->check(CLI::IsMember({"cpu", "reference", "gl"}));
+      ->check(CLI::IsMember({"cpu", "reference", "gl", "cuda"}));
   paper->add_option("--sizes", args->sizes, "object counts for Figs. 6-8, each 1 to 100 000 000")
       ->delimiter(',')
       ->check(CLI::Range(std::uint32_t{1}, kMaxObjects))

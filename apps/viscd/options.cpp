@@ -33,9 +33,10 @@ Result<T> choose(std::string_view option, std::string_view text,
 }  // namespace
 
 void add_pipeline_options(CLI::App& cmd, PipelineOptions& o, bool backend_auto) {
-  cmd.add_option(
-         "--backend", o.backend,
-         backend_auto ? "cpu | reference | gl | auto (auto: gl on a hardware GPU, else cpu)" : "cpu | reference | gl")
+  cmd.add_option("--backend", o.backend,
+                 backend_auto
+                     ? "cpu | reference | gl | cuda | auto (auto: gl on a hardware GPU, else cpu; cuda only by name)"
+                     : "cpu | reference | gl | cuda")
       ->capture_default_str();
   cmd.add_option("--bits", o.bits, "Morton width: adaptive (Eq. 1 from mu, a, b) | 16 | 32 | 64")
       ->capture_default_str();
@@ -158,7 +159,9 @@ Result<Config> make_config(const PipelineOptions& o) {
     return Result<Config>::failure(ErrorKind::invalid_input, "-a/-b: expected 0 <= a <= b");
   if (o.threads < 0)
     return Result<Config>::failure(ErrorKind::invalid_input, "--threads: expected 0 (all cores) or a positive count");
-  if (auto be = choose<int>("--backend", o.backend, {{"cpu", 0}, {"reference", 0}, {"gl", 0}, {"auto", 0}}); !be)
+  if (auto be =
+          choose<int>("--backend", o.backend, {{"cpu", 0}, {"reference", 0}, {"gl", 0}, {"cuda", 0}, {"auto", 0}});
+      !be)
     return Result<Config>::failure(be.status());
   // The gl options are checked whatever the backend: a typo must not pass silently.
   if (auto g = make_gl_options(o); !g) return Result<Config>::failure(g.status());

@@ -3,7 +3,7 @@
 # put in .dev/ and the EGL loader packages in .gl/ (docs/gpu.md). Each step has its own time limit
 # and the script goes on after a failure; everything lands in $OUT/results.tgz, the last lines
 # printed are a short summary.
-# Usage: bench/gpu/device_run.sh STEP...   steps: env gltests conformance paper stages frame cuda
+# Usage: bench/gpu/device_run.sh STEP...   steps: env gltests conformance paper stages frame cuda cudapaper
 set -uo pipefail
 OUT=${OUT:-/tmp/out}
 R=/tmp/res
@@ -57,8 +57,23 @@ for s in "$@"; do
         done
       done ;;
     cuda)
-      [ -x "$D/viscd_cuda_tests" ] && step cuda_tests 240 "$D/viscd_cuda_tests" --gtest_brief=1
-      [ -x "$D/viscd_cuda_bench" ] && step cuda_bench 300 "$D/viscd_cuda_bench" --csv "$R/cuda_bench.csv" ;;
+      step cuda_tests 240 "$D/viscd_cuda_tests" --gtest_brief=1
+      step conformance_cuda 300 "$D/viscd_conformance_tests" --gtest_brief=1 --gtest_filter='cuda/*'
+      step cuda_bench 300 "$D/viscd_cuda_bench" --csv "$R/cuda_bench.csv" ;;
+    cudapaper)
+      step paper_cuda 300 "$D/viscd" bench paper --backend cuda --sizes 1000,2000,5000,10000,20000,50000,100000,200000,500000,1000000 \
+        --frames 20 --warmup 5 --out "$R/paper_cuda" --no-plots
+      for scene in ring:0.04 dense:0.18; do
+        for n in 10000 100000 1000000 10000000; do
+          frames=40; [ "$n" = 10000000 ] && frames=10
+          step "stages_${scene%%:*}_cuda_$n" 200 "$D/viscd" run --backend cuda --objects "$n" --packing "${scene##*:}" \
+            --no-culling --bits 32 --frames "$frames" --out "$R/stages_${scene%%:*}_cuda_$n" -q
+        done
+      done
+      for cam in zoom-out orbit zoom-in; do
+        step "frame_cuda_${cam}_1m" 200 "$D/viscd" run --backend cuda --objects 1000000 --camera "$cam" --frames 40 \
+          --out "$R/frame_cuda_${cam}_1m" -q
+      done ;;
   esac
 done
 (cd "$R" && find . -name "*.json" -o -name "*.csv" -o -name "*.log" -o -name "fig5_*.png" | tar czf "$OUT/results.tgz" -T -)

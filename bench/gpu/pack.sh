@@ -8,7 +8,7 @@ build=${1:-build/device}
 rm -rf .dev && mkdir -p .dev/lib
 for f in viscd viscd_peers viscd_engine_bench tests/viscd_gl_tests tests/viscd_conformance_tests \
          tests/viscd_cuda_tests viscd_cuda_bench; do
-  [ -x "$build/$f" ] && cp "$build/$f" .dev/
+  for d in "$build" "$build/bench"; do [ -x "$d/$f" ] && cp "$d/$f" .dev/; done
 done
 for lib in libepoxy.so.0 libstb.so.0; do
   cp -L "/lib/x86_64-linux-gnu/$lib" .dev/lib/

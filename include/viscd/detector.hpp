@@ -155,7 +155,7 @@ class Detector {
   /// form), in an unspecified order, until it returns false. Nothing for an invalid box.
   void overlap_box(const Box& box, OverlapVisitor& visitor, const Filter* filter = nullptr);
 
-  /// Backend name: "reference", "cpu", "gl".
+  /// Backend name: "reference", "cpu", "gl", "cuda".
   [[nodiscard]] std::string_view name() const;
 
   /// Working memory the backend holds now, in bytes: visibility map, counts, codes, sort
@@ -184,7 +184,8 @@ class Detector {
 [[nodiscard]] std::unique_ptr<Detector> make_reference_detector(const Config& config = {});
 /// The fast CPU backend: LBVH and a tiled sphere rasterizer on all cores (or Config::executor).
 [[nodiscard]] std::unique_ptr<Detector> make_cpu_detector(const Config& config = {});
-/// A backend by name ("reference", "cpu", or "gl" when built with VISCD_ENABLE_GL).
+/// A backend by name ("reference", "cpu", "gl" when built with VISCD_ENABLE_GL, "cuda" when built
+/// with VISCD_ENABLE_CUDA: viscd/cuda.hpp).
 [[nodiscard]] Result<std::unique_ptr<Detector>> make_detector(std::string_view backend, const Config& config = {});
 
 /// Largest number of pairs N objects can produce, N(N-1)/2: the capacity that always suffices

@@ -8,6 +8,7 @@
 #include "viscd/detector.hpp"
 #include "viscd/executor.hpp"
 #include "viscd/frame.hpp"
+#include "viscd/cuda.hpp"
 #include "viscd/gl.hpp"
 #include "viscd/result.hpp"
 #include "viscd/types.hpp"

@@ -7,6 +7,7 @@
 //   reference  cpu/reference_detector.cpp  brute force, the test oracle
 //   cpu        cpu/cpu_detector.hpp        tiled rasterizer + bucket broadphase on all cores
 //   gl         gl/gl_detector.hpp          OpenGL 4.5 compute shaders
+//   cuda       cuda/cuda_detector.cpp      the CPU pipeline with stages 1-2 and 5-8 on an NVIDIA GPU
 //
 // (After Jolt's split of BroadPhase, what callers see, from BroadPhaseQuadTree, what implements it.)
 

@@ -11,6 +11,7 @@
 #include "core/frame_rules.hpp"
 #include "core/geometry.hpp"
 #include "viscd/assert.hpp"
+#include "viscd/cuda.hpp"
 #include "viscd/detector.hpp"
 #include "viscd/gl.hpp"
 
@@ -35,6 +36,21 @@ Result<unsigned> make_gl_id_texture(int, int) {
 }
 #endif
 
+#ifndef VISCD_HAVE_CUDA
+// Without the cuda backend (no nvcc found, or VISCD_ENABLE_CUDA=OFF) its entry points say so;
+// src/cuda defines them otherwise.
+Result<std::unique_ptr<Detector>> make_cuda_detector(const Config&) {
+  return Result<std::unique_ptr<Detector>>::failure(
+      ErrorKind::unsupported_input,
+      "backend 'cuda' is not built in (configure with VISCD_ENABLE_CUDA=ON where nvcc is installed)");
+}
+
+Result<std::string> cuda_device() {
+  return Result<std::string>::failure(ErrorKind::unsupported_input,
+                                      "viscd was built without the cuda backend (VISCD_ENABLE_CUDA=OFF or no nvcc)");
+}
+#endif
+
 bool is_software_renderer(std::string_view device) {
   for (std::string_view soft : {"llvmpipe", "softpipe", "swrast", "lavapipe", "Software Rasterizer"})
     if (device.find(soft) != std::string_view::npos) return true;
@@ -45,8 +61,9 @@ Result<std::unique_ptr<Detector>> make_detector(std::string_view backend, const 
   if (backend == "reference") return make_reference_detector(config);
   if (backend == "cpu") return make_cpu_detector(config);
   if (backend == "gl") return make_gl_detector(config);
+  if (backend == "cuda") return make_cuda_detector(config);
   return Result<std::unique_ptr<Detector>>::failure(
-      ErrorKind::invalid_input, "unknown backend '" + std::string(backend) + "': expected reference, cpu or gl");
+      ErrorKind::invalid_input, "unknown backend '" + std::string(backend) + "': expected reference, cpu, gl or cuda");
 }
 
 bool spheres_overlap(const Sphere& a, const Sphere& b) { return detail::overlap_exact(a, b); }

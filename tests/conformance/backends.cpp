@@ -12,6 +12,9 @@ VISCD_CONFORMANCE_BACKEND(cpu);
 #ifdef VISCD_HAVE_GL
 VISCD_CONFORMANCE_BACKEND(gl);
 #endif
+#ifdef VISCD_HAVE_CUDA
+VISCD_CONFORMANCE_BACKEND(cuda);
+#endif
 
 std::optional<std::string> unavailable(const std::string& backend) {
   if (backend == "gl") {
@@ -19,6 +22,10 @@ std::optional<std::string> unavailable(const std::string& backend) {
     // has a context but fails to build its programs (a failure of the test).
     static const Result<std::string> device = gl_device();
     if (!device) return "no OpenGL 4.5 context: " + device.error();
+  }
+  if (backend == "cuda") {
+    static const Result<std::string> device = cuda_device();
+    if (!device) return device.error();
   }
   return std::nullopt;
 }

@@ -20,6 +20,8 @@ consumer_flags=(-DCMAKE_PREFIX_PATH="$prefix" -DCMAKE_BUILD_TYPE=Release -DCMAKE
 # viscd::viscd's link interface, from the installed targets file: each entry must be Threads
 # (or pthread) or, only as $<LINK_ONLY:...> (a static library's own link needs), epoxy.
 # $<LINK_ONLY:> is what a dependency of the build tree only ($<BUILD_INTERFACE:...>) leaves.
+# Built with the cuda backend, the CUDA runtime is linked statically, link-only as well: a
+# consumer's link needs the toolkit's libcudart_static.a (viscdConfig.cmake finds CUDAToolkit).
 targets="$(ls "$prefix"/lib*/cmake/viscd/viscdTargets.cmake)"
 links="$(sed -n '/^set_target_properties(viscd::viscd PROPERTIES/,/^)/p' "$targets" |
          sed -n 's/^ *INTERFACE_LINK_LIBRARIES "\(.*\)"$/\1/p')"
@@ -27,8 +29,8 @@ echo "install test: viscd::viscd INTERFACE_LINK_LIBRARIES = ${links:-(none)}"
 IFS=';' read -ra entries <<<"$links"
 for entry in "${entries[@]}"; do
   case "$entry" in
-    Threads::Threads | pthread | -pthread | '\$<LINK_ONLY:epoxy>' | '\$<LINK_ONLY:>') ;;
-    *) echo "FAIL: viscd::viscd links '$entry' (only Threads, and epoxy link-only, allowed)" >&2; exit 1 ;;
+    Threads::Threads | pthread | -pthread | '\$<LINK_ONLY:epoxy>' | '\$<LINK_ONLY:>' | '\$<LINK_ONLY:CUDA::cudart_static>') ;;
+    *) echo "FAIL: viscd::viscd links '$entry' (only Threads, and epoxy and the CUDA runtime link-only, allowed)" >&2; exit 1 ;;
   esac
 done
 [[ " ${entries[*]} " == *" Threads::Threads "* ]] || { echo "FAIL: viscd::viscd does not link Threads" >&2; exit 1; }

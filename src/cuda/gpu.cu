@@ -1,0 +1,646 @@
+// The cuda backend's kernels and their host driver (gpu.hpp). Compiled with -fmad=false and
+// IEEE division, square roots and subnormals (nvcc's defaults otherwise), so that every float
+// test here is the one the CPU evaluates: core/geometry.hpp's overlap_exact and
+// conservative_box, core/visibility.hpp's hit(), hit_box(), sphere_rect() and box_rect(), and
+// core/morton.hpp's quantisation, operation for operation.
+#include <cub/device/device_radix_sort.cuh>
+
+#include <algorithm>
+#include <cstdio>
+#include <cuda_runtime.h>
+#include <string>
+#include <utility>
+
+#include "cuda/gpu.hpp"
+
+namespace viscd::cuda {
+namespace {
+
+constexpr unsigned kLeaf = 0x80000000u;  // core/lbvh.hpp kLeafBit
+constexpr int kStack = 128;              // the deepest Karras tree over 64-bit keys is 64 + 32
+constexpr int kBlock = 256;
+
+// One internal node: the children's boxes (lo xyz, hi xyz each), the children (kLeaf marks a
+// leaf), and the last leaf below each child (the traversal visits only leaves after its own).
+struct Node {
+  float box[12];
+  unsigned child[2];
+  unsigned last[2];
+};
+
+Outcome failure(cudaError_t e, const char* what) {
+  Outcome o;
+  o.out_of_memory = e == cudaErrorMemoryAllocation;
+  o.error = std::string("CUDA: ") + what + ": " + cudaGetErrorString(e);
+  (void)cudaGetLastError();  // clear it
+  return o;
+}
+
+#define VISCD_CUDA(call)                                \
+  do {                                                  \
+    const cudaError_t viscd_e_ = (call);                \
+    if (viscd_e_ != cudaSuccess) return failure(viscd_e_, #call); \
+  } while (0)
+
+// Device memory that only grows (by half again, so that a slowly growing N reallocates rarely).
+struct Buffer {
+  void* ptr = nullptr;
+  std::size_t capacity = 0;
+  Buffer() = default;
+  Buffer(const Buffer&) = delete;
+  Buffer& operator=(const Buffer&) = delete;
+  ~Buffer() {
+    if (ptr) cudaFree(ptr);
+  }
+  cudaError_t reserve(std::size_t bytes) {
+    if (bytes <= capacity) return cudaSuccess;
+    if (ptr) cudaFree(ptr);
+    ptr = nullptr;
+    capacity = 0;
+    std::size_t want = std::max(bytes, capacity + capacity / 2);
+    if (cudaMalloc(&ptr, want) != cudaSuccess) {
+      (void)cudaGetLastError();
+      want = bytes;
+      const cudaError_t e = cudaMalloc(&ptr, want);
+      if (e != cudaSuccess) {
+        ptr = nullptr;
+        return e;
+      }
+    }
+    capacity = want;
+    return cudaSuccess;
+  }
+  template <class T>
+  [[nodiscard]] T* as() const {
+    return static_cast<T*>(ptr);
+  }
+};
+
+unsigned blocks(std::uint64_t threads) { return static_cast<unsigned>((threads + kBlock - 1) / kBlock); }
+
+// ---- stage 1-2: the splat ----
+
+__device__ float dot3(float ax, float ay, float az, const float* b) { return ax * b[0] + ay * b[1] + az * b[2]; }
+
+// CameraRig::dir(px, py).
+__device__ void ray_dir(const Rig& c, int px, int py, float d[3]) {
+  const float nx = (2.0f * (static_cast<float>(px) + 0.5f) / static_cast<float>(c.map_w) - 1.0f) * c.tan_half_x;
+  const float ny = (1.0f - 2.0f * (static_cast<float>(py) + 0.5f) / static_cast<float>(c.map_h)) * c.tan_half_y;
+  for (int k = 0; k < 3; ++k) d[k] = c.forward[k] + c.right[k] * nx + c.up[k] * ny;
+}
+
+// hit(): the nearest visible intersection with a sphere, or -1.
+__device__ float hit_sphere(const Rig& c, const float d[3], float4 s) {
+  const float ox = c.eye[0] - s.x, oy = c.eye[1] - s.y, oz = c.eye[2] - s.z;
+  const float a = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+  const float b = ox * d[0] + oy * d[1] + oz * d[2];
+  const float cc = ox * ox + oy * oy + oz * oz - s.w * s.w;
+  const float disc = b * b - a * cc;
+  if (!(disc >= 0.0f)) return -1.0f;
+  const float sq = sqrtf(disc);
+  const float t0 = (-b - sq) / a;
+  if (t0 >= c.near_plane && t0 <= c.far_plane) return t0;
+  const float t1 = (-b + sq) / a;
+  if (t1 >= c.near_plane && t1 <= c.far_plane) return t1;
+  return -1.0f;
+}
+
+// hit_box(): slabs in float.
+__device__ float hit_box(const Rig& c, const float d[3], const float* b) {
+  float t0 = -INFINITY, t1 = INFINITY;
+  for (int k = 0; k < 3; ++k) {
+    if (d[k] == 0.0f) {
+      if (c.eye[k] < b[k] || c.eye[k] > b[k + 3]) return -1.0f;
+      continue;
+    }
+    float lo = (b[k] - c.eye[k]) / d[k], hi = (b[k + 3] - c.eye[k]) / d[k];
+    if (lo > hi) {
+      const float t = lo;
+      lo = hi;
+      hi = t;
+    }
+    t0 = t0 < lo ? lo : t0;  // std::max(t0, lo)
+    t1 = hi < t1 ? hi : t1;  // std::min(t1, hi)
+  }
+  if (!(t0 <= t1)) return -1.0f;
+  if (t0 >= c.near_plane && t0 <= c.far_plane) return t0;
+  if (t1 >= c.near_plane && t1 <= c.far_plane) return t1;
+  return -1.0f;
+}
+
+struct Rect {
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+};
+
+__device__ int clamp_pixel(double v, int hi) {  // static_cast<int>(std::clamp(v, 0.0, hi))
+  const double h = static_cast<double>(hi);
+  return static_cast<int>(v < 0.0 ? 0.0 : (h < v ? h : v));
+}
+
+__device__ void span_of(float cv, float cz, float r, float tan_half, double& lo, double& hi) {
+  const double v = cv, z = cz, rr = r;
+  const double q = v * v + z * z - rr * rr;
+  const double t = sqrt(q < 0.0 ? 0.0 : q);
+  lo = (v * t - rr * z) / (z * t + v * rr) / tan_half;
+  hi = (v * t + rr * z) / (z * t - v * rr) / tan_half;
+}
+
+// sphere_rect(): every pixel whose ray hit_sphere() can accept lies in the rectangle.
+__device__ Rect sphere_rect(const Rig& cam, float sx, float sy, float sz, float sr) {
+  const float c0 = sx - cam.eye[0], c1 = sy - cam.eye[1], c2 = sz - cam.eye[2];
+  const float cz = dot3(c0, c1, c2, cam.forward), cx = dot3(c0, c1, c2, cam.right), cy = dot3(c0, c1, c2, cam.up);
+  const double o2 = static_cast<double>(cz) * cz + static_cast<double>(cx) * cx + static_cast<double>(cy) * cy;
+  const double l1 = static_cast<double>(fabsf(cz) + fabsf(cx) + fabsf(cy));
+  const double rs = static_cast<double>(sr);
+  const float r = static_cast<float>(sqrt(rs * rs + 0x1p-19 * o2) + 1e-4 * (l1 + rs) + 1e-6);
+  Rect rect;
+  if (cz + r < cam.near_plane || cz - r > cam.far_plane) return rect;
+  const float dmin = cz - r;
+  if (!(dmin > cam.near_plane * 0.5f)) return Rect{0, 0, cam.map_w, cam.map_h};
+  double nx0, nx1, ny0, ny1;
+  span_of(cx, cz, r, cam.tan_half_x, nx0, nx1);
+  span_of(cy, cz, r, cam.tan_half_y, ny0, ny1);
+  rect.x0 = clamp_pixel(floor((nx0 + 1.0) * 0.5 * cam.map_w - 0.5) - 1, cam.map_w);
+  rect.x1 = clamp_pixel(ceil((nx1 + 1.0) * 0.5 * cam.map_w - 0.5) + 2, cam.map_w);
+  rect.y0 = clamp_pixel(floor((1.0 - ny1) * 0.5 * cam.map_h - 0.5) - 1, cam.map_h);
+  rect.y1 = clamp_pixel(ceil((1.0 - ny0) * 0.5 * cam.map_h - 0.5) + 2, cam.map_h);
+  return rect;
+}
+
+// box_rect(): the rectangle of the box's bounding sphere.
+__device__ Rect box_rect(const Rig& cam, const float* b) {
+  const double hx = 0.5 * (double{b[3]} - b[0]), hy = 0.5 * (double{b[4]} - b[1]), hz = 0.5 * (double{b[5]} - b[2]);
+  const double cx = 0.5 * (double{b[0]} + b[3]), cy = 0.5 * (double{b[1]} + b[4]), cz = 0.5 * (double{b[2]} + b[5]);
+  const double rd = sqrt(hx * hx + hy * hy + hz * hz) + 0x1p-22 * (fabs(cx) + fabs(cy) + fabs(cz));
+  return sphere_rect(cam, static_cast<float>(cx), static_cast<float>(cy), static_cast<float>(cz),
+                     static_cast<float>(rd * (1.0 + 0x1p-20)));
+}
+
+__global__ void clear_map(std::uint64_t n, unsigned long long* map) {
+  const std::uint64_t i = blockIdx.x * std::uint64_t{blockDim.x} + threadIdx.x;
+  if (i < n) map[i] = ~0ull;
+}
+
+// One warp an object: its lanes take the rectangle's pixels in turn. The nearest hit wins, ties
+// to the smaller id (depth in the high word: non-negative floats order as their bits).
+__global__ void splat_objects(std::uint32_t count, const float* objects, bool boxes, Rig rig, unsigned long long* map) {
+  const std::uint64_t thread = blockIdx.x * std::uint64_t{blockDim.x} + threadIdx.x;
+  const std::uint64_t k = thread / 32;
+  const unsigned lane = threadIdx.x & 31u;
+  if (k >= count) return;
+  const float* b = boxes ? objects + 6 * k : nullptr;
+  const float4 s = boxes ? float4{} : reinterpret_cast<const float4*>(objects)[k];
+  const Rect r = boxes ? box_rect(rig, b) : sphere_rect(rig, s.x, s.y, s.z, s.w);
+  if (r.x0 >= r.x1 || r.y0 >= r.y1) return;
+  const std::uint64_t w = static_cast<std::uint64_t>(r.x1 - r.x0);
+  const std::uint64_t pixels = w * static_cast<std::uint64_t>(r.y1 - r.y0);
+  const unsigned long long id = k + 1;
+  for (std::uint64_t i = lane; i < pixels; i += 32) {
+    const int px = r.x0 + static_cast<int>(i % w), py = r.y0 + static_cast<int>(i / w);
+    float d[3];
+    ray_dir(rig, px, py, d);
+    const float t = boxes ? hit_box(rig, d, b) : hit_sphere(rig, d, s);
+    if (t >= 0.0f)
+      atomicMin(&map[static_cast<std::uint64_t>(py) * static_cast<std::uint64_t>(rig.map_w) + px],
+                (static_cast<unsigned long long>(__float_as_uint(t)) << 32) | id);
+  }
+}
+
+// The map's ids (and depths), and the pixels of each object: lanes holding the same id add once.
+__global__ void resolve_map(std::uint64_t n, const unsigned long long* map, float far_plane, std::uint32_t* ids,
+                            float* depth, std::uint32_t* counts) {
+  const std::uint64_t i = blockIdx.x * std::uint64_t{blockDim.x} + threadIdx.x;
+  if (i >= n) return;
+  const unsigned long long v = map[i];
+  const std::uint32_t id = v == ~0ull ? 0u : static_cast<std::uint32_t>(v & 0xFFFFFFFFull);
+  ids[i] = id;
+  if (depth) depth[i] = id ? __uint_as_float(static_cast<unsigned>(v >> 32)) : far_plane;
+  if (id) {
+    const unsigned peers = __match_any_sync(__activemask(), id);
+    if ((threadIdx.x & 31u) == static_cast<unsigned>(__ffs(peers) - 1)) atomicAdd(&counts[id - 1], __popc(peers));
+  }
+}
+
+// ---- stages 5-8 ----
+
+__device__ unsigned quantize(float v, double lo, double scale, double max_cell) {
+  const double q = (static_cast<double>(v) - lo) * scale;
+  if (!(q > 0.0)) return 0u;  // also NaN
+  return q >= max_cell ? static_cast<unsigned>(max_cell) : static_cast<unsigned>(q);
+}
+
+__global__ void morton_codes(std::uint32_t n, const float4* spheres, Grid g, std::uint64_t* keys, std::uint32_t* values) {
+  const std::uint32_t k = blockIdx.x * blockDim.x + threadIdx.x;
+  if (k >= n) return;
+  const float4 s = spheres[k];
+  const float c[3] = {s.x, s.y, s.z};
+  std::uint64_t key = 0;
+  for (int a = 0; a < 3; ++a) {
+    const unsigned q = quantize(c[a], g.lo[a], g.scale[a], g.max_cell[a]);
+    for (int b = 0; b < g.axis_bits[a]; ++b)
+      if ((q >> b) & 1u) key |= std::uint64_t{1} << g.position[a][b];
+  }
+  keys[k] = key;
+  values[k] = k;
+}
+
+// Karras 2012, as core/lbvh.cpp: equal keys split by position, delta = m + clz32(i ^ j).
+__device__ int delta(const std::uint64_t* keys, int n, int bits, int i, int j) {
+  if (j < 0 || j >= n) return -1;
+  const std::uint64_t a = keys[i], b = keys[j];
+  if (a != b) return __clzll(static_cast<long long>(a ^ b)) - (64 - bits);
+  return bits + __clz(i ^ j);
+}
+
+__global__ void karras_build(int n, int bits, const std::uint64_t* keys, Node* nodes, std::uint32_t* parent,
+                             std::uint32_t* arrivals) {
+  const int i = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
+  if (i >= n - 1) return;
+  arrivals[i] = 0;
+  const int d = delta(keys, n, bits, i, i + 1) - delta(keys, n, bits, i, i - 1) > 0 ? 1 : -1;
+  const int delta_min = delta(keys, n, bits, i, i - d);
+  int lmax = 2;
+  while (delta(keys, n, bits, i, i + lmax * d) > delta_min) lmax *= 2;
+  int l = 0;
+  for (int t = lmax / 2; t >= 1; t /= 2)
+    if (delta(keys, n, bits, i, i + (l + t) * d) > delta_min) l += t;
+  const int j = i + l * d;
+  const int delta_node = delta(keys, n, bits, i, j);
+  int s = 0, t = l;
+  do {
+    t = (t + 1) / 2;
+    if (delta(keys, n, bits, i, i + (s + t) * d) > delta_node) s += t;
+  } while (t > 1);
+  const int gamma = i + s * d + min(d, 0);
+  const int first = min(i, j), last = max(i, j);
+  const unsigned leaf_base = static_cast<unsigned>(n - 1);
+  Node& node = nodes[i];
+  if (first == gamma) {
+    node.child[0] = static_cast<unsigned>(gamma) | kLeaf;
+    parent[leaf_base + gamma] = i;
+  } else {
+    node.child[0] = gamma;
+    parent[gamma] = i;
+  }
+  if (last == gamma + 1) {
+    node.child[1] = static_cast<unsigned>(gamma + 1) | kLeaf;
+    parent[leaf_base + gamma + 1] = i;
+  } else {
+    node.child[1] = gamma + 1;
+    parent[gamma + 1] = i;
+  }
+  node.last[0] = gamma;
+  node.last[1] = last;
+  if (i == 0) parent[0] = 0xFFFFFFFFu;
+}
+
+// Leaf boxes (conservative_box() of a sphere, a box itself) and the bottom-up fit: at each node
+// the first thread to arrive stops, the second merges both children and climbs. The box is
+// written and fenced before the arrival count, and read back past L1 (volatile).
+__global__ void fit(std::uint32_t n, const float4* spheres, const float* boxes, const std::uint32_t* ids,
+                    const std::uint32_t* order, float4* sorted, float* leaf_boxes, std::uint32_t* frame_id, Node* nodes,
+                    const std::uint32_t* parent, std::uint32_t* arrivals) {
+  const std::uint32_t p = blockIdx.x * blockDim.x + threadIdx.x;
+  if (p >= n) return;
+  const std::uint32_t g = order[p];
+  frame_id[p] = ids ? ids[g] : g;
+  const float4 s = spheres[g];
+  sorted[p] = s;
+  float lo[3], hi[3];
+  if (boxes) {
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = boxes[6 * std::uint64_t{g} + a];
+      hi[a] = boxes[6 * std::uint64_t{g} + 3 + a];
+    }
+  } else {
+    const float m = fmaxf(fmaxf(fabsf(s.x), fabsf(s.y)), fabsf(s.z));
+    const float r = s.w + (m + s.w) * 1.9073486328125e-06f + 1e-21f;
+    lo[0] = s.x - r, lo[1] = s.y - r, lo[2] = s.z - r;
+    hi[0] = s.x + r, hi[1] = s.y + r, hi[2] = s.z + r;
+  }
+  for (int a = 0; a < 3; ++a) {
+    leaf_boxes[6 * std::uint64_t{p} + a] = lo[a];
+    leaf_boxes[6 * std::uint64_t{p} + 3 + a] = hi[a];
+  }
+  if (n == 1) return;
+  unsigned child = p | kLeaf;
+  unsigned node = parent[n - 1 + p];
+  for (;;) {
+    volatile Node& nd = nodes[node];
+    const int side = nd.child[0] == child ? 0 : 6;
+    for (int a = 0; a < 3; ++a) {
+      nd.box[side + a] = lo[a];
+      nd.box[side + 3 + a] = hi[a];
+    }
+    __threadfence();
+    if (atomicAdd(&arrivals[node], 1u) == 0u) return;  // the sibling's thread merges
+    __threadfence();
+    const int other = 6 - side;
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = fminf(lo[a], nd.box[other + a]);
+      hi[a] = fmaxf(hi[a], nd.box[other + 3 + a]);
+    }
+    if (node == 0) return;
+    child = node;
+    node = parent[node];
+  }
+}
+
+__device__ bool spheres_meet(float4 a, float4 b) {  // overlap_exact(): float, no FMA, touching counts
+  const float dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
+  const float s = a.w + b.w;
+  return dx * dx + dy * dy + dz * dz <= s * s;
+}
+
+__device__ bool boxes_meet(const float* a, const float* b) {  // box_overlap_exact(): closed
+  for (int k = 0; k < 3; ++k)
+    if (!(a[k] <= b[k + 3] && b[k] <= a[k + 3])) return false;
+  return true;
+}
+
+// One thread a leaf p: the leaves q > p whose boxes meet its own, then the exact test. Every pair
+// is counted; it is stored only below the capacity, and the host grows the buffer and runs this
+// again when the count exceeds it: no pair is ever dropped.
+__global__ void query(std::uint32_t n, const float4* sorted, const float* leaf_boxes, const Node* nodes,
+                      const std::uint32_t* frame_id, const uint2* filters, std::uint32_t static_from, bool boxes,
+                      std::uint64_t* pairs, std::uint64_t capacity, unsigned long long* count) {
+  const std::uint32_t p = blockIdx.x * blockDim.x + threadIdx.x;
+  if (p >= n || n < 2) return;
+  const float4 a = sorted[p];
+  const float* box = leaf_boxes + 6 * std::uint64_t{p};
+  const float lo[3] = {box[0], box[1], box[2]}, hi[3] = {box[3], box[4], box[5]};
+  const std::uint32_t ia = frame_id[p];
+  unsigned stack[kStack];
+  int sp = 0;
+  unsigned node = 0;
+  for (;;) {
+    unsigned next = 0xFFFFFFFFu;
+    const Node& nd = nodes[node];
+    for (int c = 0; c < 2; ++c) {
+      const float* cb = nd.box + 6 * c;
+      if (!(nd.last[c] > p && cb[0] <= hi[0] && lo[0] <= cb[3] && cb[1] <= hi[1] && lo[1] <= cb[4] &&
+            cb[2] <= hi[2] && lo[2] <= cb[5]))
+        continue;
+      const unsigned ch = nd.child[c];
+      if (ch & kLeaf) {
+        const unsigned q = ch & ~kLeaf;
+        if (!(boxes ? boxes_meet(box, leaf_boxes + 6 * std::uint64_t{q}) : spheres_meet(a, sorted[q]))) continue;
+        const std::uint32_t ib = frame_id[q];
+        if (ia >= static_from && ib >= static_from) continue;
+        if (filters) {
+          const uint2 fa = filters[ia], fb = filters[ib];
+          if ((fa.x & fb.y) == 0u || (fb.x & fa.y) == 0u) continue;
+        }
+        const unsigned long long slot = atomicAdd(count, 1ull);
+        if (slot < capacity)
+          pairs[slot] = (static_cast<std::uint64_t>(min(ia, ib)) << 32) | static_cast<std::uint64_t>(max(ia, ib));
+      } else if (next == 0xFFFFFFFFu) {
+        next = ch;
+      } else {
+        stack[sp++] = ch;
+      }
+    }
+    if (next != 0xFFFFFFFFu)
+      node = next;
+    else if (sp > 0)
+      node = stack[--sp];
+    else
+      return;
+  }
+}
+
+// Sorted keys (i << 32 | j) to Pair's memory order (i, j).
+__global__ void to_pairs(std::uint64_t n, const std::uint64_t* keys, uint2* out) {
+  const std::uint64_t k = blockIdx.x * std::uint64_t{blockDim.x} + threadIdx.x;
+  if (k < n) out[k] = make_uint2(static_cast<unsigned>(keys[k] >> 32), static_cast<unsigned>(keys[k]));
+}
+
+__global__ void probe_kernel(int* out) { *out = 1; }
+
+int bit_width(std::uint32_t v) { return v ? 32 - __builtin_clz(v) : 0; }
+
+}  // namespace
+
+struct Gpu::Impl {
+  // splat
+  Buffer map, ids, depth, counts, objects;
+  // broadphase
+  Buffer spheres, boxes, id_map, filters, keys[2], values[2], nodes, parent, arrivals, sorted, leaf_boxes, frame_id,
+      pairs[2], pair_count, temp;
+  std::uint64_t pair_capacity = 1 << 16;
+  cudaEvent_t ev[10] = {};
+  bool events = false;
+
+  ~Impl() {
+    if (events)
+      for (cudaEvent_t e : ev) cudaEventDestroy(e);
+  }
+  Outcome make_events() {
+    if (events) return {};
+    for (cudaEvent_t& e : ev) VISCD_CUDA(cudaEventCreate(&e));
+    events = true;
+    return {};
+  }
+  float between(int a, int b) const {
+    float ms = 0;
+    return cudaEventElapsedTime(&ms, ev[a], ev[b]) == cudaSuccess ? ms : 0.0f;
+  }
+  std::uint64_t bytes() const {
+    std::uint64_t b = 0;
+    for (const Buffer* x : {&map, &ids, &depth, &counts, &objects, &spheres, &boxes, &id_map, &filters, &keys[0],
+                            &keys[1], &values[0], &values[1], &nodes, &parent, &arrivals, &sorted, &leaf_boxes,
+                            &frame_id, &pairs[0], &pairs[1], &pair_count, &temp})
+      b += x->capacity;
+    return b;
+  }
+};
+
+Outcome Gpu::probe(std::string& description) {
+  int devices = 0;
+  if (const cudaError_t e = cudaGetDeviceCount(&devices); e == cudaErrorInsufficientDriver) {
+    Outcome o = failure(e, "cudaGetDeviceCount");
+    o.error = "no NVIDIA driver on this machine, or one older than the CUDA runtime viscd was built with (" +
+              o.error + ")";
+    return o;
+  } else if (e != cudaSuccess) {
+    return failure(e, "cudaGetDeviceCount");
+  }
+  if (devices < 1) {
+    Outcome o;
+    o.error = "CUDA: no device";
+    return o;
+  }
+  cudaDeviceProp prop{};
+  VISCD_CUDA(cudaGetDeviceProperties(&prop, 0));
+  int* flag = nullptr;
+  VISCD_CUDA(cudaMalloc(&flag, sizeof(int)));
+  probe_kernel<<<1, 1>>>(flag);
+  const cudaError_t launched = cudaGetLastError();
+  const cudaError_t done = cudaDeviceSynchronize();
+  cudaFree(flag);
+  if (launched != cudaSuccess) return failure(launched, "a first kernel (is this GPU among the build's architectures?)");
+  if (done != cudaSuccess) return failure(done, "a first kernel");
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "%s, sm_%d%d, %d SMs, %.0f GiB", prop.name, prop.major, prop.minor,
+                prop.multiProcessorCount, static_cast<double>(prop.totalGlobalMem) / (1u << 30));
+  description = buf;
+  return {};
+}
+
+Gpu::Gpu() : impl_(std::make_unique<Impl>()) {}
+Gpu::~Gpu() = default;
+std::uint64_t Gpu::bytes() const { return impl_->bytes(); }
+
+Outcome Gpu::splat(const Rig& rig, const float* objects, bool boxes, std::uint32_t count, std::uint32_t* ids,
+                   float* depth, std::uint32_t* counts, Times& times) {
+  Impl& m = *impl_;
+  if (Outcome o = m.make_events(); !o.ok()) return o;
+  const std::uint64_t pixels = static_cast<std::uint64_t>(rig.map_w) * static_cast<std::uint64_t>(rig.map_h);
+  const std::size_t object_bytes = (boxes ? 24 : 16) * std::size_t{count};
+  VISCD_CUDA(m.map.reserve(8 * pixels));
+  VISCD_CUDA(m.ids.reserve(4 * pixels));
+  if (depth) VISCD_CUDA(m.depth.reserve(4 * pixels));
+  VISCD_CUDA(m.counts.reserve(4 * std::size_t{count} + 4));
+  VISCD_CUDA(m.objects.reserve(object_bytes + 16));
+  VISCD_CUDA(cudaEventRecord(m.ev[0]));
+  if (count) VISCD_CUDA(cudaMemcpy(m.objects.ptr, objects, object_bytes, cudaMemcpyHostToDevice));
+  VISCD_CUDA(cudaMemsetAsync(m.counts.ptr, 0, 4 * std::size_t{count} + 4));
+  clear_map<<<blocks(pixels), kBlock>>>(pixels, m.map.as<unsigned long long>());
+  VISCD_CUDA(cudaEventRecord(m.ev[1]));
+  if (count)
+    splat_objects<<<blocks(32 * std::uint64_t{count}), kBlock>>>(count, m.objects.as<float>(), boxes, rig,
+                                                          m.map.as<unsigned long long>());
+  VISCD_CUDA(cudaGetLastError());
+  VISCD_CUDA(cudaEventRecord(m.ev[2]));
+  resolve_map<<<blocks(pixels), kBlock>>>(pixels, m.map.as<unsigned long long>(), rig.far_plane,
+                                          m.ids.as<std::uint32_t>(), depth ? m.depth.as<float>() : nullptr,
+                                          m.counts.as<std::uint32_t>());
+  VISCD_CUDA(cudaGetLastError());
+  VISCD_CUDA(cudaEventRecord(m.ev[3]));
+  VISCD_CUDA(cudaMemcpy(ids, m.ids.ptr, 4 * pixels, cudaMemcpyDeviceToHost));
+  if (depth) VISCD_CUDA(cudaMemcpy(depth, m.depth.ptr, 4 * pixels, cudaMemcpyDeviceToHost));
+  if (count) VISCD_CUDA(cudaMemcpy(counts, m.counts.ptr, 4 * std::size_t{count}, cudaMemcpyDeviceToHost));
+  VISCD_CUDA(cudaEventRecord(m.ev[4]));
+  VISCD_CUDA(cudaEventSynchronize(m.ev[4]));
+  times.splat = m.between(0, 2);  // the upload, the clear and the splat
+  times.count = m.between(2, 3);
+  times.map_download = m.between(3, 4);
+  return {};
+}
+
+Outcome Gpu::broadphase(const BroadphaseInput& in, const Grid& grid, std::uint64_t max_pairs, PairSink sink,
+                        void* sink_context, Times& times) {
+  Impl& m = *impl_;
+  if (Outcome o = m.make_events(); !o.ok()) return o;
+  const std::uint32_t n = in.n;
+  const bool boxes = in.boxes != nullptr;
+  times.upload = times.codes = times.sort = times.build = times.fit = times.query = times.pair_sort = times.download = 0;
+  if (n < 2) {  // no pair; nothing to run
+    sink(sink_context, 0);
+    return {};
+  }
+  // Buffers (n >= 2).
+  VISCD_CUDA(m.spheres.reserve(16 * std::size_t{n}));
+  if (boxes) VISCD_CUDA(m.boxes.reserve(24 * std::size_t{n}));
+  if (in.ids) VISCD_CUDA(m.id_map.reserve(4 * std::size_t{n}));
+  if (in.filters) VISCD_CUDA(m.filters.reserve(8 * std::size_t{in.total}));
+  for (int k = 0; k < 2; ++k) {
+    VISCD_CUDA(m.keys[k].reserve(8 * std::size_t{n}));
+    VISCD_CUDA(m.values[k].reserve(4 * std::size_t{n}));
+  }
+  VISCD_CUDA(m.nodes.reserve(sizeof(Node) * std::size_t{n}));
+  VISCD_CUDA(m.parent.reserve(4 * (2 * std::size_t{n})));
+  VISCD_CUDA(m.arrivals.reserve(4 * std::size_t{n}));
+  VISCD_CUDA(m.sorted.reserve(16 * std::size_t{n}));
+  VISCD_CUDA(m.leaf_boxes.reserve(24 * std::size_t{n}));
+  VISCD_CUDA(m.frame_id.reserve(4 * std::size_t{n}));
+  VISCD_CUDA(m.pair_count.reserve(8));
+  std::size_t sort_temp = 0;
+  {
+    cub::DoubleBuffer<std::uint64_t> k(m.keys[0].as<std::uint64_t>(), m.keys[1].as<std::uint64_t>());
+    cub::DoubleBuffer<std::uint32_t> v(m.values[0].as<std::uint32_t>(), m.values[1].as<std::uint32_t>());
+    VISCD_CUDA(cub::DeviceRadixSort::SortPairs(nullptr, sort_temp, k, v, static_cast<int>(n), 0, grid.bits));
+  }
+  VISCD_CUDA(m.temp.reserve(sort_temp));
+
+  VISCD_CUDA(cudaEventRecord(m.ev[0]));
+  VISCD_CUDA(cudaMemcpy(m.spheres.ptr, in.spheres, 16 * std::size_t{n}, cudaMemcpyHostToDevice));
+  if (boxes) VISCD_CUDA(cudaMemcpy(m.boxes.ptr, in.boxes, 24 * std::size_t{n}, cudaMemcpyHostToDevice));
+  if (in.ids) VISCD_CUDA(cudaMemcpy(m.id_map.ptr, in.ids, 4 * std::size_t{n}, cudaMemcpyHostToDevice));
+  if (in.filters) VISCD_CUDA(cudaMemcpy(m.filters.ptr, in.filters, 8 * std::size_t{in.total}, cudaMemcpyHostToDevice));
+  VISCD_CUDA(cudaEventRecord(m.ev[1]));
+  morton_codes<<<blocks(n), kBlock>>>(n, m.spheres.as<float4>(), grid, m.keys[0].as<std::uint64_t>(),
+                                      m.values[0].as<std::uint32_t>());
+  VISCD_CUDA(cudaGetLastError());
+  VISCD_CUDA(cudaEventRecord(m.ev[2]));
+  cub::DoubleBuffer<std::uint64_t> keys(m.keys[0].as<std::uint64_t>(), m.keys[1].as<std::uint64_t>());
+  cub::DoubleBuffer<std::uint32_t> values(m.values[0].as<std::uint32_t>(), m.values[1].as<std::uint32_t>());
+  VISCD_CUDA(cub::DeviceRadixSort::SortPairs(m.temp.ptr, sort_temp, keys, values, static_cast<int>(n), 0, grid.bits));
+  VISCD_CUDA(cudaEventRecord(m.ev[3]));
+  karras_build<<<blocks(n - 1), kBlock>>>(static_cast<int>(n), grid.bits, keys.Current(), m.nodes.as<Node>(),
+                                          m.parent.as<std::uint32_t>(), m.arrivals.as<std::uint32_t>());
+  VISCD_CUDA(cudaGetLastError());
+  VISCD_CUDA(cudaEventRecord(m.ev[4]));
+  fit<<<blocks(n), kBlock>>>(n, m.spheres.as<float4>(), boxes ? m.boxes.as<float>() : nullptr,
+                             in.ids ? m.id_map.as<std::uint32_t>() : nullptr, values.Current(), m.sorted.as<float4>(),
+                             m.leaf_boxes.as<float>(), m.frame_id.as<std::uint32_t>(), m.nodes.as<Node>(),
+                             m.parent.as<std::uint32_t>(), m.arrivals.as<std::uint32_t>());
+  VISCD_CUDA(cudaGetLastError());
+  VISCD_CUDA(cudaEventRecord(m.ev[5]));
+  // The query; with more pairs than the buffer holds, the buffer grows to the count and the
+  // query runs again.
+  unsigned long long count = 0;
+  for (int attempt = 0;; ++attempt) {
+    VISCD_CUDA(m.pairs[0].reserve(8 * m.pair_capacity));
+    VISCD_CUDA(cudaMemsetAsync(m.pair_count.ptr, 0, 8));
+    query<<<blocks(n), kBlock>>>(n, m.sorted.as<float4>(), m.leaf_boxes.as<float>(), m.nodes.as<Node>(),
+                                 m.frame_id.as<std::uint32_t>(), in.filters ? m.filters.as<uint2>() : nullptr,
+                                 in.static_from, boxes, m.pairs[0].as<std::uint64_t>(), m.pair_capacity,
+                                 m.pair_count.as<unsigned long long>());
+    VISCD_CUDA(cudaGetLastError());
+    VISCD_CUDA(cudaEventRecord(m.ev[6]));
+    VISCD_CUDA(cudaMemcpy(&count, m.pair_count.ptr, 8, cudaMemcpyDeviceToHost));
+    if (max_pairs && count > max_pairs) {
+      Outcome o;
+      o.over_limit = true;
+      o.pairs = count;
+      return o;
+    }
+    if (count <= m.pair_capacity || attempt > 0) break;
+    m.pair_capacity = count;
+  }
+  if (count > 0x7FFFFFFFull) {  // CUB sorts at most 2^31 - 1 items at a time
+    Outcome o;
+    o.error = "the cuda backend sorts at most 2^31 - 1 pairs a frame; this frame has " + std::to_string(count);
+    return o;
+  }
+  // The pairs sorted as 64-bit keys over the bits that frame indices use, then to (i, j).
+  const int key_bits = 32 + bit_width(in.total ? in.total - 1 : 0u);
+  std::size_t pair_temp = 0;
+  VISCD_CUDA(m.pairs[1].reserve(8 * std::max<std::uint64_t>(count, 1)));
+  cub::DoubleBuffer<std::uint64_t> pk(m.pairs[0].as<std::uint64_t>(), m.pairs[1].as<std::uint64_t>());
+  VISCD_CUDA(cub::DeviceRadixSort::SortKeys(nullptr, pair_temp, pk, static_cast<int>(count), 0, key_bits));
+  VISCD_CUDA(m.temp.reserve(pair_temp));
+  if (count) VISCD_CUDA(cub::DeviceRadixSort::SortKeys(m.temp.ptr, pair_temp, pk, static_cast<int>(count), 0, key_bits));
+  uint2* out = reinterpret_cast<uint2*>(pk.Alternate());
+  if (count) to_pairs<<<blocks(count), kBlock>>>(count, pk.Current(), out);
+  VISCD_CUDA(cudaGetLastError());
+  VISCD_CUDA(cudaEventRecord(m.ev[7]));
+  std::uint32_t* dst = sink(sink_context, count);
+  if (count) VISCD_CUDA(cudaMemcpy(dst, out, 8 * std::size_t{count}, cudaMemcpyDeviceToHost));
+  VISCD_CUDA(cudaEventRecord(m.ev[8]));
+  VISCD_CUDA(cudaEventSynchronize(m.ev[8]));
+  times.upload = m.between(0, 1);
+  times.codes = m.between(1, 2);
+  times.sort = m.between(2, 3);
+  times.build = m.between(3, 4);
+  times.fit = m.between(4, 5);
+  times.query = m.between(5, 6);  // the last attempt's start is the fit's end when there was one attempt
+  times.pair_sort = m.between(6, 7);
+  times.download = m.between(7, 8);
+  Outcome o;
+  o.pairs = count;
+  return o;
+}
+
+}  // namespace viscd::cuda

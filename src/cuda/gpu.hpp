@@ -1,0 +1,93 @@
+#pragma once
+// The cuda backend's device side (gpu.cu), behind an interface of plain types so that the host
+// code (cuda_detector.cpp) is compiled by the C++ compiler and only gpu.cu by nvcc.
+//
+//   splat()       stage 1-2: every object's pixels (its conservative rectangle) ray-tested as the
+//                 CPU rasterizers do, the nearest kept by a 64-bit atomicMin of (depth, id);
+//                 then the ids, optionally the depths, and the pixel counts per object back.
+//   broadphase()  stages 5-8 over n objects: Morton codes, CUB radix sort over the key width m,
+//                 Karras build, bottom-up fit, traversal with a pair buffer that counts, grows
+//                 and re-runs, CUB sort of the pairs; the sorted pairs back.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+namespace viscd::cuda {
+
+/// core/visibility.hpp's CameraRig, as floats and ints.
+struct Rig {
+  float eye[3], forward[3], right[3], up[3];
+  float tan_half_x, tan_half_y, near_plane, far_plane;
+  int map_w, map_h;
+};
+
+/// core/morton.hpp's MortonGrid and MortonLayout: cell q = (v - lo) * scale in double, clamped
+/// to [0, max_cell]; bit b of axis a goes to code bit position[a][b].
+struct Grid {
+  double lo[3], scale[3], max_cell[3];
+  int axis_bits[3];
+  signed char position[3][32];
+  int bits;  ///< m: 16, 32 or 64
+};
+
+/// A broadphase's input, on the host. Object k of the n is spheres[k] (a box's proxy sphere for
+/// boxes) and, for boxes, boxes[k]; its index in the frame is ids[k] (k itself when ids is null).
+/// filters (group, mask per frame index, `total` of them) may be null. Frame indices from
+/// static_from on are static: never paired with each other.
+struct BroadphaseInput {
+  const float* spheres = nullptr;  ///< 4 floats an object: x, y, z, r
+  const float* boxes = nullptr;    ///< 6 floats an object: min xyz, max xyz; null for spheres
+  const std::uint32_t* ids = nullptr;
+  const std::uint32_t* filters = nullptr;
+  std::uint32_t n = 0, total = 0, static_from = 0xFFFFFFFFu;
+};
+
+/// GPU time of each part of a frame, milliseconds (CUDA events).
+struct Times {
+  float upload = 0, codes = 0, sort = 0, build = 0, fit = 0, query = 0, pair_sort = 0, download = 0;
+  float splat = 0, count = 0, map_download = 0;
+};
+
+/// What a call came to: ok, or an error (out of memory told apart), or more pairs than allowed.
+struct Outcome {
+  std::string error;  ///< empty: ok
+  bool out_of_memory = false;
+  bool over_limit = false;  ///< broadphase(): more than max_pairs pairs (`pairs` holds the count)
+  std::uint64_t pairs = 0;
+  [[nodiscard]] bool ok() const { return error.empty() && !over_limit; }
+};
+
+/// Receives the sorted pairs: returns room for `count` pairs of (i, j), 2 count words.
+using PairSink = std::uint32_t* (*)(void* context, std::size_t count);
+
+class Gpu {
+ public:
+  /// The device ("NVIDIA H100 80GB HBM3, sm_90, 132 SMs, 79 GiB"), or an error saying why there
+  /// is none (no driver, no device, a device this build has no code for).
+  static Outcome probe(std::string& description);
+
+  Gpu();
+  ~Gpu();
+  Gpu(const Gpu&) = delete;
+  Gpu& operator=(const Gpu&) = delete;
+
+  /// Draws `count` objects (4 floats a sphere, or 6 a box) into a rig.map_w x rig.map_h map:
+  /// ids (object index + 1, 0 = background) and, when `depth` is not null, view depths (far plane
+  /// on the background); counts[k] = pixels of object k (count entries).
+  Outcome splat(const Rig& rig, const float* objects, bool boxes, std::uint32_t count, std::uint32_t* ids, float* depth,
+                std::uint32_t* counts, Times& times);
+
+  /// Every overlapping pair of the input (frame indices i < j; sorted), given to `sink`.
+  Outcome broadphase(const BroadphaseInput& in, const Grid& grid, std::uint64_t max_pairs, PairSink sink,
+                     void* sink_context, Times& times);
+
+  /// Device memory held (bytes).
+  [[nodiscard]] std::uint64_t bytes() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace viscd::cuda
