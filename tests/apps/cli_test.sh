@@ -203,6 +203,17 @@ expect_rc 2 run --objects 100 --frames 1 --packing 0.9 --out "$W/pack3"
 expect_in "$W/err" "--packing" "--packing 0.9 error"
 pass
 
+step "run --backend cuda: runs on a GPU, else fails (exit 1) saying why; never a usage error"
+set +e
+"$VISCD" run --backend cuda --objects 300 --frames 1 --out "$W/cuda" --quiet 2>"$W/err"
+rc=$?
+set -e
+if [ "$rc" -ne 0 ]; then
+  [ "$rc" -eq 1 ] || fail "--backend cuda exited $rc (want 0 on a GPU, 1 without)"
+  expect_in "$W/err" "CUDA" "--backend cuda error"
+fi
+pass
+
 step "run --frames 0 is a usage error (exit 2)"
 expect_rc 2 run --frames 0 --objects 100 --out "$W/run6"
 expect_in "$W/err" "--frames" "--frames 0 error"
