@@ -2,7 +2,8 @@
 /// \file gl.hpp
 /// The OpenGL 4.5 backend's own settings and factory (docs/gl.md). Available when
 /// viscd is built with VISCD_ENABLE_GL (the default); the backend runs headless through EGL
-/// (Mesa's surfaceless platform, llvmpipe where there is no GPU). See docs/gl.md.
+/// (a GPU through EGL's device platform, e.g. NVIDIA's driver; else Mesa's surfaceless platform,
+/// llvmpipe where there is no GPU). See docs/gl.md and docs/gpu.md.
 
 #include <cstdint>
 #include <memory>

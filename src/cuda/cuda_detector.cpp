@@ -75,7 +75,6 @@ class CudaDetector final : public PipelineDetector {
   // Stage 1 on the GPU; the map's ids (and, for shading, depths and then normals) and the
   // pixel counts come back. A failure is kept for broadphase(), the next step that can report it.
   void rasterize(const CameraRig& cam, const Shapes& objects, int threads) override {
-    Stopwatch sw;
     map_.stamp = 0;
     map_.has_counts = false;
     const bool boxes = objects.is_box();
@@ -101,7 +100,6 @@ class CudaDetector final : public PipelineDetector {
       // No depths came back: the map holds ids only (nothing reads its depths without shading).
       std::fill(map_.depth.begin(), map_.depth.end(), cam.far_plane);
     }
-    (void)sw;
   }
 
   Status broadphase(const Shapes& objects, std::span<const std::uint32_t> pairable, std::span<const std::uint32_t>,
@@ -170,7 +168,7 @@ class CudaDetector final : public PipelineDetector {
     return {};
   }
 
-  mutable cuda::Gpu gpu_;
+  cuda::Gpu gpu_;
   cuda::Times times_;
   bool splatted_ = false;  // this frame ran rasterize()
   cuda::Outcome splat_error_;
