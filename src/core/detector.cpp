@@ -4,6 +4,7 @@
 #include <cstdlib>
 #include <limits>
 #include <new>
+#include <numeric>
 #include <string>
 
 #include "core/backend.hpp"
@@ -253,14 +254,31 @@ void Detector::keep_query_objects(detail::Backend& b, const FrameInput& input, c
   b.query_ids_.reserve(total);
   const bool filters = !input.filters.empty() || stat.filtered;  // else every object has Filter{}: no copy
   if (filters) b.query_filters_.reserve(total);
-  for (std::size_t k = 0; k < n; ++k) {
-    if (out.state[k] == ObjectState::culled) continue;
+  // Runs of objects that are not culled, copied a run at a time (all of them, in one copy, when
+  // nothing is culled: a frame of every object).
+  for (std::size_t begin = 0; begin < n;) {
+    if (out.state[begin] == ObjectState::culled) {
+      ++begin;
+      continue;
+    }
+    std::size_t end = begin + 1;
+    while (end < n && out.state[end] != ObjectState::culled) ++end;
+    const auto from = static_cast<std::ptrdiff_t>(begin), to = static_cast<std::ptrdiff_t>(end);
     if (boxes)
-      b.query_boxes_.push_back(input.boxes[k]);
+      b.query_boxes_.insert(b.query_boxes_.end(), input.boxes.begin() + from, input.boxes.begin() + to);
     else
-      b.query_spheres_.push_back(input.spheres[k]);
-    b.query_ids_.push_back(static_cast<std::uint32_t>(k));
-    if (filters) b.query_filters_.push_back(input.filters.empty() ? Filter{} : input.filters[k]);
+      b.query_spheres_.insert(b.query_spheres_.end(), input.spheres.begin() + from, input.spheres.begin() + to);
+    const std::size_t at = b.query_ids_.size();
+    b.query_ids_.resize(at + (end - begin));
+    std::iota(b.query_ids_.begin() + static_cast<std::ptrdiff_t>(at), b.query_ids_.end(),
+              static_cast<std::uint32_t>(begin));
+    if (filters) {
+      if (input.filters.empty())
+        b.query_filters_.insert(b.query_filters_.end(), end - begin, Filter{});
+      else
+        b.query_filters_.insert(b.query_filters_.end(), input.filters.begin() + from, input.filters.begin() + to);
+    }
+    begin = end;
   }
   for (std::size_t k = 0; k < stat.shapes.size(); ++k) {
     if (boxes)

@@ -296,7 +296,7 @@ __global__ void karras_build(int n, int bits, const std::uint64_t* keys, Node* n
 
 // Leaf boxes (conservative_box() of a sphere, a box itself) and the bottom-up fit: at each node
 // the first thread to arrive stops, the second merges both children and climbs. The box is
-// written and fenced before the arrival count, and read back past L1 (volatile).
+// written and fenced before the arrival count, and read back past L1 (__ldcg).
 __global__ void fit(std::uint32_t n, const float4* spheres, const float* boxes, const std::uint32_t* ids,
                     const std::uint32_t* order, float4* sorted, float* leaf_boxes, std::uint32_t* frame_id, Node* nodes,
                     const std::uint32_t* parent, std::uint32_t* arrivals) {
@@ -326,8 +326,8 @@ __global__ void fit(std::uint32_t n, const float4* spheres, const float* boxes, 
   unsigned child = p | kLeaf;
   unsigned node = parent[n - 1 + p];
   for (;;) {
-    volatile Node& nd = nodes[node];
-    const int side = nd.child[0] == child ? 0 : 6;
+    Node& nd = nodes[node];
+    const int side = nd.child[0] == child ? 0 : 6;  // the build's, fixed before this launch
     for (int a = 0; a < 3; ++a) {
       nd.box[side + a] = lo[a];
       nd.box[side + 3 + a] = hi[a];
@@ -336,9 +336,9 @@ __global__ void fit(std::uint32_t n, const float4* spheres, const float* boxes, 
     if (atomicAdd(&arrivals[node], 1u) == 0u) return;  // the sibling's thread merges
     __threadfence();
     const int other = 6 - side;
-    for (int a = 0; a < 3; ++a) {
-      lo[a] = fminf(lo[a], nd.box[other + a]);
-      hi[a] = fmaxf(hi[a], nd.box[other + 3 + a]);
+    for (int a = 0; a < 3; ++a) {  // the sibling's box, read from L2 (__ldcg): L1 may hold none of it
+      lo[a] = fminf(lo[a], __ldcg(&nd.box[other + a]));
+      hi[a] = fmaxf(hi[a], __ldcg(&nd.box[other + 3 + a]));
     }
     if (node == 0) return;
     child = node;
@@ -361,9 +361,12 @@ __device__ bool boxes_meet(const float* a, const float* b) {  // box_overlap_exa
 // One thread a leaf p: the leaves q > p whose boxes meet its own, then the exact test. Every pair
 // is counted; it is stored only below the capacity, and the host grows the buffer and runs this
 // again when the count exceeds it: no pair is ever dropped.
-__global__ void query(std::uint32_t n, const float4* sorted, const float* leaf_boxes, const Node* nodes,
-                      const std::uint32_t* frame_id, const uint2* filters, std::uint32_t static_from, bool boxes,
-                      std::uint64_t* pairs, std::uint64_t capacity, unsigned long long* count) {
+// A pair is the key (i << id_bits) | j, i < j frame indices of id_bits bits each, so that the
+// pair sort runs over 2 id_bits bits only.
+__global__ void query(std::uint32_t n, const float4* __restrict__ sorted, const float* __restrict__ leaf_boxes,
+                      const Node* __restrict__ nodes, const std::uint32_t* __restrict__ frame_id,
+                      const uint2* __restrict__ filters, std::uint32_t static_from, bool boxes, int id_bits,
+                      std::uint64_t* __restrict__ pairs, std::uint64_t capacity, unsigned long long* count) {
   const std::uint32_t p = blockIdx.x * blockDim.x + threadIdx.x;
   if (p >= n || n < 2) return;
   const float4 a = sorted[p];
@@ -393,7 +396,7 @@ __global__ void query(std::uint32_t n, const float4* sorted, const float* leaf_b
         }
         const unsigned long long slot = atomicAdd(count, 1ull);
         if (slot < capacity)
-          pairs[slot] = (static_cast<std::uint64_t>(min(ia, ib)) << 32) | static_cast<std::uint64_t>(max(ia, ib));
+          pairs[slot] = (static_cast<std::uint64_t>(min(ia, ib)) << id_bits) | static_cast<std::uint64_t>(max(ia, ib));
       } else if (next == 0xFFFFFFFFu) {
         next = ch;
       } else {
@@ -409,10 +412,13 @@ __global__ void query(std::uint32_t n, const float4* sorted, const float* leaf_b
   }
 }
 
-// Sorted keys (i << 32 | j) to Pair's memory order (i, j).
-__global__ void to_pairs(std::uint64_t n, const std::uint64_t* keys, uint2* out) {
+// Sorted keys (i << id_bits | j) to Pair's memory order (i, j).
+__global__ void to_pairs(std::uint64_t n, const std::uint64_t* keys, int id_bits, uint2* out) {
   const std::uint64_t k = blockIdx.x * std::uint64_t{blockDim.x} + threadIdx.x;
-  if (k < n) out[k] = make_uint2(static_cast<unsigned>(keys[k] >> 32), static_cast<unsigned>(keys[k]));
+  if (k >= n) return;
+  const std::uint64_t key = keys[k];
+  out[k] = make_uint2(static_cast<unsigned>(key >> id_bits),
+                      static_cast<unsigned>(key & ((std::uint64_t{1} << id_bits) - 1)));
 }
 
 __global__ void probe_kernel(int* out) { *out = 1; }
@@ -589,13 +595,14 @@ Outcome Gpu::broadphase(const BroadphaseInput& in, const Grid& grid, std::uint64
   VISCD_CUDA(cudaEventRecord(m.ev[5]));
   // The query; with more pairs than the buffer holds, the buffer grows to the count and the
   // query runs again.
+  const int id_bits = std::max(1, bit_width(in.total ? in.total - 1 : 0u));
   unsigned long long count = 0;
   for (int attempt = 0;; ++attempt) {
     VISCD_CUDA(m.pairs[0].reserve(8 * m.pair_capacity));
     VISCD_CUDA(cudaMemsetAsync(m.pair_count.ptr, 0, 8));
     query<<<blocks(n), kBlock>>>(n, m.sorted.as<float4>(), m.leaf_boxes.as<float>(), m.nodes.as<Node>(),
                                  m.frame_id.as<std::uint32_t>(), in.filters ? m.filters.as<uint2>() : nullptr,
-                                 in.static_from, boxes, m.pairs[0].as<std::uint64_t>(), m.pair_capacity,
+                                 in.static_from, boxes, id_bits, m.pairs[0].as<std::uint64_t>(), m.pair_capacity,
                                  m.pair_count.as<unsigned long long>());
     VISCD_CUDA(cudaGetLastError());
     VISCD_CUDA(cudaEventRecord(m.ev[6]));
@@ -614,8 +621,8 @@ Outcome Gpu::broadphase(const BroadphaseInput& in, const Grid& grid, std::uint64
     o.error = "the cuda backend sorts at most 2^31 - 1 pairs a frame; this frame has " + std::to_string(count);
     return o;
   }
-  // The pairs sorted as 64-bit keys over the bits that frame indices use, then to (i, j).
-  const int key_bits = 32 + bit_width(in.total ? in.total - 1 : 0u);
+  // The pairs sorted as keys of 2 id_bits bits, then to (i, j).
+  const int key_bits = 2 * id_bits;
   std::size_t pair_temp = 0;
   VISCD_CUDA(m.pairs[1].reserve(8 * std::max<std::uint64_t>(count, 1)));
   cub::DoubleBuffer<std::uint64_t> pk(m.pairs[0].as<std::uint64_t>(), m.pairs[1].as<std::uint64_t>());
@@ -623,7 +630,7 @@ Outcome Gpu::broadphase(const BroadphaseInput& in, const Grid& grid, std::uint64
   VISCD_CUDA(m.temp.reserve(pair_temp));
   if (count) VISCD_CUDA(cub::DeviceRadixSort::SortKeys(m.temp.ptr, pair_temp, pk, static_cast<int>(count), 0, key_bits));
   uint2* out = reinterpret_cast<uint2*>(pk.Alternate());
-  if (count) to_pairs<<<blocks(count), kBlock>>>(count, pk.Current(), out);
+  if (count) to_pairs<<<blocks(count), kBlock>>>(count, pk.Current(), id_bits, out);
   VISCD_CUDA(cudaGetLastError());
   VISCD_CUDA(cudaEventRecord(m.ev[7]));
   std::uint32_t* dst = sink(sink_context, count);
