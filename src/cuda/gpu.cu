@@ -54,10 +54,10 @@ struct Buffer {
   }
   cudaError_t reserve(std::size_t bytes) {
     if (bytes <= capacity) return cudaSuccess;
+    std::size_t want = std::max(bytes, capacity + capacity / 2);
     if (ptr) cudaFree(ptr);
     ptr = nullptr;
     capacity = 0;
-    std::size_t want = std::max(bytes, capacity + capacity / 2);
     if (cudaMalloc(&ptr, want) != cudaSuccess) {
       (void)cudaGetLastError();
       want = bytes;
