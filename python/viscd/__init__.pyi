@@ -84,7 +84,7 @@ class Detector:
 
     def __init__(
         self,
-        backend: Literal["cpu", "reference", "gl"] = "cpu",
+        backend: Literal["cpu", "reference", "gl", "cuda"] = "cpu",
         *,
         lambda_: float = 200.0,
         pixels_for_32_bits: float = 100.0,

@@ -145,6 +145,17 @@ def test_unknown_backend():
         viscd.Detector("vulkan")
 
 
+def test_cuda_backend_runs_or_says_why():
+    # Where there is a GPU the cuda backend finds the pairs; elsewhere making it fails, naming CUDA.
+    try:
+        det = viscd.Detector("cuda")
+    except (viscd.BackendError, ValueError) as e:
+        assert "CUDA" in str(e) or "cuda" in str(e)
+        return
+    pairs = det.detect(np.array([[0, 0, 0, 1], [1.5, 0, 0, 1], [9, 0, 0, 1]], np.float32)).pairs
+    assert pairs.tolist() == [[0, 1]]
+
+
 def test_set_config_errors(det):
     with pytest.raises(TypeError, match="'speed'"):
         det.set_config(speed=3)
