@@ -117,7 +117,8 @@ const std::vector<Keyword>& keywords() {
        }},
       {"gl_geometry", true,
        [](py::handle v, const std::string& k, Config&, GlOptions& g) {
-         g.geometry = choice_value(v, k, {"impostor", "mesh"}) == 0 ? GlGeometry::impostor : GlGeometry::mesh;
+         const std::size_t choice = choice_value(v, k, {"impostor", "mesh", "splat"});
+         g.geometry = choice == 0 ? GlGeometry::impostor : choice == 1 ? GlGeometry::mesh : GlGeometry::splat;
        }},
       {"gl_counter", true,
        [](py::handle v, const std::string& k, Config&, GlOptions& g) {
@@ -204,7 +205,7 @@ const char* keywords_doc() {
     keep_order: bool = True       cpu: keep the last frame's object order while it stays good
     simd: "best" | "sse2" | "scalar" = "best"      widest SIMD kernels the cpu backend may use
   backend="gl" only (viscd::GlOptions):
-    gl_geometry: "impostor" | "mesh" = "impostor", gl_counter: "ssbo" | "atomic_uint" = "ssbo",
+    gl_geometry: "impostor" | "mesh" | "splat" = "impostor", gl_counter: "ssbo" | "atomic_uint" = "ssbo",
     gl_debug: bool = False, gl_initial_pair_capacity: int = 65536, gl_sync_layout: bool = False
 An unknown keyword raises TypeError; a bad value raises ValueError.)";
 }

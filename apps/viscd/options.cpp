@@ -62,7 +62,9 @@ void add_pipeline_options(CLI::App& cmd, PipelineOptions& o, bool backend_auto) 
                  "starts" +
                      (cap ? " (here " + format_bytes(cap) + ")" : std::string(" (unknown here: no cap)")))
       ->capture_default_str();
-  cmd.add_option("--geometry", o.geometry, "gl backend: sphere geometry in the visibility map, impostor | mesh")
+  cmd.add_option(
+         "--geometry", o.geometry,
+         "gl backend: sphere geometry in the visibility map, impostor | mesh | splat (compute shaders, no raster)")
       ->capture_default_str();
   cmd.add_option("--counter", o.counter, "gl backend: pixel counting, ssbo (any N) | atomic_uint (the paper's)")
       ->capture_default_str();
@@ -119,8 +121,9 @@ Result<SceneParams> make_scene_params(const SceneOptions& o) {
 
 Result<GlOptions> make_gl_options(const PipelineOptions& o) {
   GlOptions g;
-  auto geometry =
-      choose<GlGeometry>("--geometry", o.geometry, {{"impostor", GlGeometry::impostor}, {"mesh", GlGeometry::mesh}});
+  auto geometry = choose<GlGeometry>(
+      "--geometry", o.geometry,
+      {{"impostor", GlGeometry::impostor}, {"mesh", GlGeometry::mesh}, {"splat", GlGeometry::splat}});
   if (!geometry) return Result<GlOptions>::failure(geometry.status());
   g.geometry = geometry.value();
   auto counter =

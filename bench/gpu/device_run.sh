@@ -3,7 +3,7 @@
 # put in .dev/ and the EGL loader packages in .gl/ (docs/gpu.md). Each step has its own time limit
 # and the script goes on after a failure; everything lands in $OUT/results.tgz, the last lines
 # printed are a short summary.
-# Usage: bench/gpu/device_run.sh STEP...   steps: env gltests conformance paper stages frame cuda cudapaper
+# Usage: bench/gpu/device_run.sh STEP...   steps: env gltests conformance paper stages frame splat cuda cudapaper
 set -uo pipefail
 OUT=${OUT:-/tmp/out}
 R=/tmp/res
@@ -54,6 +54,15 @@ for s in "$@"; do
         for cam in zoom-out orbit zoom-in; do
           step "frame_${b}_${cam}_1m" 200 "$D/viscd" run --backend "$b" --objects 1000000 --camera "$cam" --frames 40 \
             --out "$R/frame_${b}_${cam}_1m" -q
+        done
+      done ;;
+    splat)
+      for n in 10000 100000 1000000; do
+        for g in impostor splat; do
+          for cam in zoom-out orbit zoom-in; do
+            step "geom_${g}_${cam}_$n" 200 "$D/viscd" run --backend gl --geometry "$g" --objects "$n" --camera "$cam" \
+              --frames 40 --out "$R/geom_${g}_${cam}_$n" -q
+          done
         done
       done ;;
     cuda)

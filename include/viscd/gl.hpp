@@ -20,6 +20,8 @@ namespace viscd {
 enum class GlGeometry : std::uint8_t {
   impostor,  ///< default: one camera-facing quad per sphere, ray-cast per pixel (exact silhouettes)
   mesh,      ///< the paper's instanced tessellated sphere (960 triangles, inscribed: slightly smaller)
+  splat,     ///< compute shaders, no raster: each sphere's pixels ray-cast as the impostor's, nearest by
+             ///< atomics (for GPUs with few graphics units, docs/gpu.md). Boxes stay cubes.
 };
 
 /// How pixels are counted per object (stage 2).

@@ -101,7 +101,7 @@ class Detector:
         threads: int = 0,
         keep_order: bool = True,
         simd: Literal["best", "sse2", "scalar"] = "best",
-        gl_geometry: Literal["impostor", "mesh"] = "impostor",
+        gl_geometry: Literal["impostor", "mesh", "splat"] = "impostor",
         gl_counter: Literal["ssbo", "atomic_uint"] = "ssbo",
         gl_debug: bool = False,
         gl_initial_pair_capacity: int = 65536,

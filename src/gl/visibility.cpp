@@ -35,7 +35,13 @@ void dispatch_over_map(GLuint program, int w, int h) {
 }  // namespace
 
 Status Visibility::init() {
-  if (Status s = build_compute_programs({{&count_, "count.comp"}, {&shade_, "shade.comp"}}); !s) return s;
+  if (Status s = build_compute_programs({{&count_, "count.comp"},
+                                         {&shade_, "shade.comp"},
+                                         {&splat_plan_, "splat_plan.comp"},
+                                         {&splat_, "splat.comp"},
+                                         {&splat_resolve_, "splat_resolve.comp"}});
+      !s)
+    return s;
   auto imp = Program::graphics("gbuffer_impostor.vert", "gbuffer_impostor.frag");
   if (!imp) return imp.status();
   impostor_ = std::move(imp.value());
@@ -213,7 +219,71 @@ void Visibility::make_mesh() {
 // Stage 1: instanced draw of every object (the static ones after the moving ones, so that they
 // occlude), ids ascending; depth test LESS keeps the nearest hit and, on equal depth, the first
 // drawn (smaller id), GL's primitive order guarantee.
+void Visibility::splat_gbuffer(std::uint32_t n) {
+  const auto pixels = static_cast<GLsizeiptr>(map_w_) * static_cast<GLsizeiptr>(map_h_);
+  splat_depth_.reserve(4 * pixels);
+  splat_ids_.reserve(4 * pixels);
+  const GLuint none = 0xFFFFFFFFu;
+  glClearNamedBufferSubData(splat_depth_.get(), GL_R32UI, 0, 4 * pixels, GL_RED_INTEGER, GL_UNSIGNED_INT, &none);
+  glClearNamedBufferSubData(splat_ids_.get(), GL_R32UI, 0, 4 * pixels, GL_RED_INTEGER, GL_UNSIGNED_INT, &none);
+  frame_.spheres.bind_storage(VISCD_BIND_SPHERES);
+  splat_depth_.bind_storage(VISCD_BIND_SPLAT_DEPTH);
+  splat_ids_.bind_storage(VISCD_BIND_SPLAT_IDS);
+  if (n > 0) {
+    // Plan: each sphere's rectangle, cut into chunks; the host reads how many (this mode's one
+    // wait of its own) and, when the list was too short, grows it and plans again.
+    splat_rects_.reserve(16 * static_cast<GLsizeiptr>(n));
+    splat_rects_.bind_storage(VISCD_BIND_SPLAT_RECTS);
+    splat_count_.reserve(4);
+    splat_count_.bind_storage(VISCD_BIND_SPLAT_COUNT);
+    set_camera_uniforms(splat_plan_);
+    glProgramUniform1ui(splat_plan_.get(), splat_plan_.uniform("u_objects"), n);
+    const GLuint groups = (n + VISCD_WG_SIZE - 1) / VISCD_WG_SIZE;
+    const GLuint gx = std::min<GLuint>(groups, 65535u), gy = (groups + gx - 1) / gx;
+    GLuint chunks = 0;
+    for (int attempt = 0; attempt < 2; ++attempt) {
+      splat_chunks_.reserve(8 * static_cast<GLsizeiptr>(std::max(splat_capacity_, 1u)));
+      splat_chunks_.bind_storage(VISCD_BIND_SPLAT_CHUNKS);
+      const GLuint zero = 0;
+      glClearNamedBufferSubData(splat_count_.get(), GL_R32UI, 0, 4, GL_RED_INTEGER, GL_UNSIGNED_INT, &zero);
+      glProgramUniform1ui(splat_plan_.get(), splat_plan_.uniform("u_capacity"), splat_capacity_);
+      glUseProgram(splat_plan_.get());
+      glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
+      glDispatchCompute(gx, gy, 1);
+      glMemoryBarrier(GL_BUFFER_UPDATE_BARRIER_BIT | GL_SHADER_STORAGE_BARRIER_BIT);
+      glGetNamedBufferSubData(splat_count_.get(), 0, 4, &chunks);
+      if (chunks <= splat_capacity_) break;
+      splat_capacity_ = chunks;  // the exact count: the second plan writes every chunk
+    }
+    if (chunks > 0) {
+      // One work group per chunk, on a 2D grid: GL promises 65 535 groups per dimension.
+      const GLuint cx = std::min<GLuint>(chunks, 65535u), cy = (chunks + cx - 1) / cx;
+      set_camera_uniforms(splat_);
+      glProgramUniform1ui(splat_.get(), splat_.uniform("u_chunks"), chunks);
+      glUseProgram(splat_.get());
+      for (GLuint pass = 0; pass < 2; ++pass) {
+        glProgramUniform1ui(splat_.get(), splat_.uniform("u_pass"), pass);
+        glDispatchCompute(cx, cy, 1);
+        glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT);
+      }
+    }
+  }
+  glMemoryBarrier(GL_SHADER_STORAGE_BARRIER_BIT | GL_BUFFER_UPDATE_BARRIER_BIT);
+  set_camera_uniforms(splat_resolve_);
+  glBindImageTexture(0, ids_tex_.get(), 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_R32UI);
+  glBindImageTexture(1, depth_tex_.get(), 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_R32F);
+  glBindImageTexture(2, normal_tex_.get(), 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+  glUseProgram(splat_resolve_.get());
+  glDispatchCompute((static_cast<GLuint>(map_w_) + VISCD_TILE_SIDE - 1) / VISCD_TILE_SIDE,
+                    (static_cast<GLuint>(map_h_) + VISCD_TILE_SIDE - 1) / VISCD_TILE_SIDE, 1);
+  glMemoryBarrier(GL_ALL_BARRIER_BITS);
+}
+
 void Visibility::draw_gbuffer(std::uint32_t n) {
+  if (options_.geometry == GlGeometry::splat && !frame_.has_boxes) {
+    splat_gbuffer(n);
+    return;
+  }
   const detail::CameraRig& rig = *frame_.rig;
   const GLuint zero_id[4] = {0, 0, 0, 0};
   const float far_depth[4] = {rig.far_plane, 0, 0, 0};
@@ -340,7 +410,9 @@ void Visibility::shade(FrameResult& out) {
 
 std::uint64_t Visibility::memory_bytes() const {
   std::uint64_t b = 0;
-  for (const Buffer* buf : {&image_, &mesh_vbo_, &mesh_ibo_}) b += static_cast<std::uint64_t>(buf->size());
+  for (const Buffer* buf :
+       {&image_, &mesh_vbo_, &mesh_ibo_, &splat_depth_, &splat_ids_, &splat_rects_, &splat_chunks_, &splat_count_})
+    b += static_cast<std::uint64_t>(buf->size());
   // G-buffer: R32UI ids, R32F depth, RGBA32F normals, 32-bit float z-buffer.
   b += static_cast<std::uint64_t>(map_w_) * static_cast<std::uint64_t>(map_h_) * (4 + 4 + 16 + 4);
   return b;

@@ -1,10 +1,10 @@
 #pragma once
 // Stages 1, 2 and 9 of the gl backend, the part that owns the visibility map: the G-buffer
 // (ids, view depth, normals, depth buffer), the draws that fill it (spheres as impostors or
-// meshes, boxes as cubes whose fragments ray-cast the box), the pixel count per object (ssbo or
-// atomic_uint), the caller's id map (an array uploaded into the id texture, or the caller's own
-// texture checked and read), and the shading that reads the G-buffer back. Counting and shading live here because both
-// read the map this part draws.
+// meshes, or splatted by compute shaders; boxes as cubes whose fragments ray-cast the box), the pixel count per object
+// (ssbo or atomic_uint), the caller's id map (an array uploaded into the id texture, or the caller's own texture
+// checked and read), and the shading that reads the G-buffer back. Counting and shading live here because both read the
+// map this part draws.
 
 #include <cstdint>
 #include <span>
@@ -63,6 +63,9 @@ class Visibility {
   void ensure_map(int w, int h);
   /// Stage 1: clears the G-buffer and draws n objects into it.
   void draw_gbuffer(std::uint32_t n);
+  /// Stage 1 for GlGeometry::splat (spheres): splat_plan.comp, splat.comp's two passes and
+  /// splat_resolve.comp.
+  void splat_gbuffer(std::uint32_t n);
   /// Counts the ids of `ids` (w x h) into FrameData::counts[0..n) in the given mode (ssbo: ids
   /// above n into FrameInfo.id_check).
   [[nodiscard]] Status count_pixels(GLuint ids, int w, int h, std::uint32_t n, GlCounter mode);
@@ -74,7 +77,7 @@ class Visibility {
   StageTimers& timers_;
   const Config& config_;
   const GlOptions& options_;
-  Program impostor_, mesh_, box_, count_, shade_;
+  Program impostor_, mesh_, box_, count_, shade_, splat_plan_, splat_, splat_resolve_;
   // The atomic_uint counting program: its counter array's size is compiled in, so it is built
   // on first use and rebuilt when N changes.
   Program count_atomic_;
@@ -96,6 +99,10 @@ class Visibility {
   VertexArray mesh_vao_;
   GLsizei mesh_indices_ = 0;
   Buffer image_;  // stage 9's RGBA8 pixels
+  // GlGeometry::splat: nearest depth bits and id per map pixel; each sphere's rectangle, the
+  // (sphere, chunk) list, its count, and the chunks the list holds (grown to the largest count).
+  Buffer splat_depth_, splat_ids_, splat_rects_, splat_chunks_, splat_count_;
+  std::uint32_t splat_capacity_ = 1u << 12;  // small: the tests grow it
 };
 
 }  // namespace viscd::gl

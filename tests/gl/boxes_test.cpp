@@ -197,7 +197,7 @@ TEST(GlBoxes, FramesWithACameraEqualTheReference) {
   for (const Case& c :
        {Case{"outside", &cloud, &outside}, Case{"near plane", &near_plane, &near}, Case{"inside a box", &inside, &near},
         Case{"room", &room, &near}, Case{"far away", &cloud, &far_cam}}) {
-    for (GlGeometry geometry : {GlGeometry::impostor, GlGeometry::mesh}) {
+    for (GlGeometry geometry : {GlGeometry::impostor, GlGeometry::mesh, GlGeometry::splat}) {  // boxes: cubes in all
       for (bool sync : {true, false}) {
         SCOPED_TRACE(std::string(c.name) + (geometry == GlGeometry::mesh ? ", mesh" : ", impostor") +
                      (sync ? ", sync" : ", default"));

@@ -31,6 +31,8 @@ struct dvec2 {
 // Passes over the map's pixels (counting, shading) run 2D work groups of this many pixels a
 // side, so that any map within kMaxMapSide fits the minimum work-group count limit (65535).
 #define VISCD_TILE_SIDE 16
+// The splat (GlGeometry::splat): one work group per chunk of this many pixels of a sphere.
+#define VISCD_SPLAT_CHUNK 256
 // Radix sort: a work group of VISCD_SORT_GROUP invocations (one per 8-bit digit: the stable
 // local ranking gives each invocation one digit) handles a tile of VISCD_SORT_TILE keys per pass,
 // VISCD_SORT_GROUP at a time. Larger tiles mean fewer tiles for the one-group offset scan.
@@ -72,6 +74,11 @@ struct dvec2 {
 #define VISCD_BIND_FILTERS 23     // uvec2 filters[N]: x = group, y = mask (viscd::Filter)
 #define VISCD_BIND_ALWAYS 24      // uint always[(N + 3) / 4]: FrameInput::always_active, 4 bytes a word
 #define VISCD_BIND_BOXES 25       // LeafBox boxes[N]: a box frame's boxes (viscd::Box: min xyz, max xyz)
+#define VISCD_BIND_SPLAT_DEPTH 26  // uint depth_bits[W * H]: the splat's nearest depth (float bits), rows top down
+#define VISCD_BIND_SPLAT_IDS 27    // uint ids[W * H]: the splat's smallest id at that depth
+#define VISCD_BIND_SPLAT_RECTS 28  // uvec4 rects[N]: each sphere's pixel rectangle and nearest depth bits
+#define VISCD_BIND_SPLAT_CHUNKS 29  // uvec2 chunks[]: (sphere, chunk of VISCD_SPLAT_CHUNK pixels)
+#define VISCD_BIND_SPLAT_COUNT 30   // uint: the chunks listed
 // Atomic counter buffer binding of the paper's atomic_uint counting mode.
 #define VISCD_BIND_ATOMIC_COUNTERS 0
 // Texture units.
