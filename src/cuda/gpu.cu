@@ -5,9 +5,10 @@
 // core/morton.hpp's quantisation, operation for operation.
 #include <cub/device/device_radix_sort.cuh>
 
+#include <cuda_runtime.h>
 #include <algorithm>
 #include <cstdio>
-#include <cuda_runtime.h>
+#include <cstdlib>
 #include <string>
 #include <utility>
 
@@ -36,9 +37,9 @@ Outcome failure(cudaError_t e, const char* what) {
   return o;
 }
 
-#define VISCD_CUDA(call)                                \
-  do {                                                  \
-    const cudaError_t viscd_e_ = (call);                \
+#define VISCD_CUDA(call)                                          \
+  do {                                                            \
+    const cudaError_t viscd_e_ = (call);                          \
     if (viscd_e_ != cudaSuccess) return failure(viscd_e_, #call); \
   } while (0)
 
@@ -130,6 +131,7 @@ __device__ float hit_box(const Rig& c, const float d[3], const float* b) {
 
 struct Rect {
   int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  float near_depth = 0;  // no hit of the sphere is nearer (0: unknown)
 };
 
 __device__ int clamp_pixel(double v, int hi) {  // static_cast<int>(std::clamp(v, 0.0, hi))
@@ -164,6 +166,7 @@ __device__ Rect sphere_rect(const Rig& cam, float sx, float sy, float sz, float 
   rect.x1 = clamp_pixel(ceil((nx1 + 1.0) * 0.5 * cam.map_w - 0.5) + 2, cam.map_w);
   rect.y0 = clamp_pixel(floor((1.0 - ny1) * 0.5 * cam.map_h - 0.5) - 1, cam.map_h);
   rect.y1 = clamp_pixel(ceil((1.0 - ny0) * 0.5 * cam.map_h - 0.5) + 2, cam.map_h);
+  rect.near_depth = dmin;  // r includes the slack, so every hit has t >= dmin
   return rect;
 }
 
@@ -181,11 +184,19 @@ __global__ void clear_map(std::uint64_t n, unsigned long long* map) {
   if (i < n) map[i] = ~0ull;
 }
 
-// One warp an object: its lanes take the rectangle's pixels in turn. The nearest hit wins, ties
-// to the smaller id (depth in the high word: non-negative floats order as their bits).
+constexpr unsigned kChunk = 32;          // pixels of a rectangle a warp of the splat takes
+constexpr unsigned kChunksPerBlock = 8;  // warps (chunks) a block
+// Longest chunk list (1 GiB); a frame whose rectangles need more is splatted a warp an object.
+// VISCD_CUDA_MAX_CHUNKS lowers it (the tests run the fallback with 0).
+constexpr unsigned long long kMaxChunks = 1ull << 27;
+unsigned long long max_chunks() {
+  const char* v = std::getenv("VISCD_CUDA_MAX_CHUNKS");
+  return v && *v ? std::min(std::strtoull(v, nullptr, 10), kMaxChunks) : kMaxChunks;
+}
+
+// The fallback splat: one warp an object, its lanes taking the rectangle's pixels in turn.
 __global__ void splat_objects(std::uint32_t count, const float* objects, bool boxes, Rig rig, unsigned long long* map) {
-  const std::uint64_t thread = blockIdx.x * std::uint64_t{blockDim.x} + threadIdx.x;
-  const std::uint64_t k = thread / 32;
+  const std::uint64_t k = (blockIdx.x * std::uint64_t{blockDim.x} + threadIdx.x) / 32;
   const unsigned lane = threadIdx.x & 31u;
   if (k >= count) return;
   const float* b = boxes ? objects + 6 * k : nullptr;
@@ -194,7 +205,6 @@ __global__ void splat_objects(std::uint32_t count, const float* objects, bool bo
   if (r.x0 >= r.x1 || r.y0 >= r.y1) return;
   const std::uint64_t w = static_cast<std::uint64_t>(r.x1 - r.x0);
   const std::uint64_t pixels = w * static_cast<std::uint64_t>(r.y1 - r.y0);
-  const unsigned long long id = k + 1;
   for (std::uint64_t i = lane; i < pixels; i += 32) {
     const int px = r.x0 + static_cast<int>(i % w), py = r.y0 + static_cast<int>(i / w);
     float d[3];
@@ -202,8 +212,54 @@ __global__ void splat_objects(std::uint32_t count, const float* objects, bool bo
     const float t = boxes ? hit_box(rig, d, b) : hit_sphere(rig, d, s);
     if (t >= 0.0f)
       atomicMin(&map[static_cast<std::uint64_t>(py) * static_cast<std::uint64_t>(rig.map_w) + px],
-                (static_cast<unsigned long long>(__float_as_uint(t)) << 32) | id);
+                (static_cast<unsigned long long>(__float_as_uint(t)) << 32) | (k + 1));
   }
+}
+
+// The plan: one thread an object computes its rectangle and cuts it into chunks of kChunk pixels,
+// listed as (object, chunk), so that an object covering the screen spreads over the whole GPU and
+// one covering a pixel costs one warp. Entries past `capacity` are counted, not written: the
+// host reads the count, grows the list and plans again.
+__global__ void plan_splat(std::uint32_t count, const float* objects, bool boxes, Rig rig, uint4* rects,
+                           unsigned long long* chunk_count, uint2* chunks, unsigned long long capacity) {
+  const std::uint32_t k = blockIdx.x * blockDim.x + threadIdx.x;
+  if (k >= count) return;
+  Rect r;
+  if (boxes) {
+    r = box_rect(rig, objects + 6 * std::uint64_t{k});
+    r.near_depth = 0;  // early rejection for spheres only
+  } else {
+    const float4 s = reinterpret_cast<const float4*>(objects)[k];
+    r = sphere_rect(rig, s.x, s.y, s.z, s.w);
+  }
+  if (r.x0 >= r.x1 || r.y0 >= r.y1) return;
+  const unsigned w = static_cast<unsigned>(r.x1 - r.x0), h = static_cast<unsigned>(r.y1 - r.y0);
+  rects[k] = make_uint4(static_cast<unsigned>(r.x0) | (static_cast<unsigned>(r.y0) << 16), w, h,
+                        __float_as_uint(r.near_depth));  // map sides < 2^16
+  const unsigned n = (w * h + kChunk - 1) / kChunk;
+  const unsigned long long base = atomicAdd(chunk_count, static_cast<unsigned long long>(n));
+  for (unsigned c = 0; c < n && base + c < capacity; ++c) chunks[base + c] = make_uint2(k, c);
+}
+
+// One warp a chunk, one thread a pixel. The nearest hit wins, ties to the smaller id (depth in
+// the high word: non-negative floats order as their bits). A pixel already nearer than any hit
+// of the sphere is skipped before its ray is cast.
+__global__ void splat_chunks(unsigned long long count, const uint2* chunks, const uint4* rects, const float* objects,
+                             bool boxes, Rig rig, unsigned long long* map) {
+  const unsigned long long entry = blockIdx.x * std::uint64_t{kChunksPerBlock} + threadIdx.x / kChunk;
+  if (entry >= count) return;
+  const uint2 e = chunks[entry];
+  const uint4 r = rects[e.x];  // x0 | y0 << 16, width, height, near depth bits
+  const unsigned i = e.y * kChunk + threadIdx.x % kChunk;
+  if (i >= r.y * r.z) return;
+  const int px = static_cast<int>((r.x & 0xFFFFu) + i % r.y), py = static_cast<int>((r.x >> 16) + i / r.y);
+  unsigned long long* cell = &map[static_cast<std::uint64_t>(py) * static_cast<std::uint64_t>(rig.map_w) + px];
+  if (static_cast<unsigned>(*cell >> 32) < r.w) return;
+  float d[3];
+  ray_dir(rig, px, py, d);
+  const float t = boxes ? hit_box(rig, d, objects + 6 * std::uint64_t{e.x})
+                        : hit_sphere(rig, d, reinterpret_cast<const float4*>(objects)[e.x]);
+  if (t >= 0.0f) atomicMin(cell, (static_cast<unsigned long long>(__float_as_uint(t)) << 32) | (e.x + 1ull));
 }
 
 // The map's ids (and depths), and the pixels of each object: lanes holding the same id add once.
@@ -229,7 +285,8 @@ __device__ unsigned quantize(float v, double lo, double scale, double max_cell) 
   return q >= max_cell ? static_cast<unsigned>(max_cell) : static_cast<unsigned>(q);
 }
 
-__global__ void morton_codes(std::uint32_t n, const float4* spheres, Grid g, std::uint64_t* keys, std::uint32_t* values) {
+__global__ void morton_codes(std::uint32_t n, const float4* spheres, Grid g, std::uint64_t* keys,
+                             std::uint32_t* values) {
   const std::uint32_t k = blockIdx.x * blockDim.x + threadIdx.x;
   if (k >= n) return;
   const float4 s = spheres[k];
@@ -381,8 +438,8 @@ __global__ void query(std::uint32_t n, const float4* __restrict__ sorted, const 
     const Node& nd = nodes[node];
     for (int c = 0; c < 2; ++c) {
       const float* cb = nd.box + 6 * c;
-      if (!(nd.last[c] > p && cb[0] <= hi[0] && lo[0] <= cb[3] && cb[1] <= hi[1] && lo[1] <= cb[4] &&
-            cb[2] <= hi[2] && lo[2] <= cb[5]))
+      if (!(nd.last[c] > p && cb[0] <= hi[0] && lo[0] <= cb[3] && cb[1] <= hi[1] && lo[1] <= cb[4] && cb[2] <= hi[2] &&
+            lo[2] <= cb[5]))
         continue;
       const unsigned ch = nd.child[c];
       if (ch & kLeaf) {
@@ -429,7 +486,9 @@ int bit_width(std::uint32_t v) { return v ? 32 - __builtin_clz(v) : 0; }
 
 struct Gpu::Impl {
   // splat
-  Buffer map, ids, depth, counts, objects;
+  Buffer map, ids, depth, counts, objects, rects, chunks, chunk_count;
+  unsigned long long chunk_capacity = 1u << 16;
+  unsigned long long chunk_limit = max_chunks();
   // broadphase
   Buffer spheres, boxes, id_map, filters, keys[2], values[2], nodes, parent, arrivals, sorted, leaf_boxes, frame_id,
       pairs[2], pair_count, temp;
@@ -453,9 +512,10 @@ struct Gpu::Impl {
   }
   std::uint64_t bytes() const {
     std::uint64_t b = 0;
-    for (const Buffer* x : {&map, &ids, &depth, &counts, &objects, &spheres, &boxes, &id_map, &filters, &keys[0],
-                            &keys[1], &values[0], &values[1], &nodes, &parent, &arrivals, &sorted, &leaf_boxes,
-                            &frame_id, &pairs[0], &pairs[1], &pair_count, &temp})
+    for (const Buffer* x :
+         {&map,      &ids,    &depth,      &counts,   &objects,  &rects,     &chunks,     &chunk_count, &spheres,
+          &boxes,    &id_map, &filters,    &keys[0],  &keys[1],  &values[0], &values[1],  &nodes,       &parent,
+          &arrivals, &sorted, &leaf_boxes, &frame_id, &pairs[0], &pairs[1],  &pair_count, &temp})
       b += x->capacity;
     return b;
   }
@@ -465,8 +525,8 @@ Outcome Gpu::probe(std::string& description) {
   int devices = 0;
   if (const cudaError_t e = cudaGetDeviceCount(&devices); e == cudaErrorInsufficientDriver) {
     Outcome o = failure(e, "cudaGetDeviceCount");
-    o.error = "no NVIDIA driver on this machine, or one older than the CUDA runtime viscd was built with (" +
-              o.error + ")";
+    o.error =
+        "no NVIDIA driver on this machine, or one older than the CUDA runtime viscd was built with (" + o.error + ")";
     return o;
   } else if (e != cudaSuccess) {
     return failure(e, "cudaGetDeviceCount");
@@ -484,7 +544,8 @@ Outcome Gpu::probe(std::string& description) {
   const cudaError_t launched = cudaGetLastError();
   const cudaError_t done = cudaDeviceSynchronize();
   cudaFree(flag);
-  if (launched != cudaSuccess) return failure(launched, "a first kernel (is this GPU among the build's architectures?)");
+  if (launched != cudaSuccess)
+    return failure(launched, "a first kernel (is this GPU among the build's architectures?)");
   if (done != cudaSuccess) return failure(done, "a first kernel");
   char buf[256];
   std::snprintf(buf, sizeof buf, "%s, sm_%d%d, %d SMs, %.0f GiB", prop.name, prop.major, prop.minor,
@@ -513,10 +574,31 @@ Outcome Gpu::splat(const Rig& rig, const float* objects, bool boxes, std::uint32
   VISCD_CUDA(cudaMemsetAsync(m.counts.ptr, 0, 4 * std::size_t{count} + 4));
   clear_map<<<blocks(pixels), kBlock>>>(pixels, m.map.as<unsigned long long>());
   VISCD_CUDA(cudaEventRecord(m.ev[1]));
-  if (count)
-    splat_objects<<<blocks(32 * std::uint64_t{count}), kBlock>>>(count, m.objects.as<float>(), boxes, rig,
-                                                          m.map.as<unsigned long long>());
-  VISCD_CUDA(cudaGetLastError());
+  if (count) {
+    // The plan, its count read back (grown and planned again when the list was short), the chunks.
+    VISCD_CUDA(m.rects.reserve(16 * std::size_t{count}));
+    VISCD_CUDA(m.chunk_count.reserve(8));
+    unsigned long long chunks = 0;
+    for (int attempt = 0; attempt < 2; ++attempt) {
+      VISCD_CUDA(m.chunks.reserve(8 * m.chunk_capacity));
+      VISCD_CUDA(cudaMemsetAsync(m.chunk_count.ptr, 0, 8));
+      plan_splat<<<blocks(count), kBlock>>>(count, m.objects.as<float>(), boxes, rig, m.rects.as<uint4>(),
+                                            m.chunk_count.as<unsigned long long>(), m.chunks.as<uint2>(),
+                                            m.chunk_capacity);
+      VISCD_CUDA(cudaGetLastError());
+      VISCD_CUDA(cudaMemcpy(&chunks, m.chunk_count.ptr, 8, cudaMemcpyDeviceToHost));
+      if (chunks <= m.chunk_capacity || chunks > m.chunk_limit) break;
+      m.chunk_capacity = chunks;
+    }
+    if (chunks > m.chunk_limit)
+      splat_objects<<<blocks(32 * std::uint64_t{count}), kBlock>>>(count, m.objects.as<float>(), boxes, rig,
+                                                                   m.map.as<unsigned long long>());
+    else if (chunks)
+      splat_chunks<<<static_cast<unsigned>((chunks + kChunksPerBlock - 1) / kChunksPerBlock),
+                     kChunk * kChunksPerBlock>>>(chunks, m.chunks.as<uint2>(), m.rects.as<uint4>(),
+                                                 m.objects.as<float>(), boxes, rig, m.map.as<unsigned long long>());
+    VISCD_CUDA(cudaGetLastError());
+  }
   VISCD_CUDA(cudaEventRecord(m.ev[2]));
   resolve_map<<<blocks(pixels), kBlock>>>(pixels, m.map.as<unsigned long long>(), rig.far_plane,
                                           m.ids.as<std::uint32_t>(), depth ? m.depth.as<float>() : nullptr,
@@ -540,7 +622,8 @@ Outcome Gpu::broadphase(const BroadphaseInput& in, const Grid& grid, std::uint64
   if (Outcome o = m.make_events(); !o.ok()) return o;
   const std::uint32_t n = in.n;
   const bool boxes = in.boxes != nullptr;
-  times.upload = times.codes = times.sort = times.build = times.fit = times.query = times.pair_sort = times.download = 0;
+  times.upload = times.codes = times.sort = times.build = times.fit = times.query = times.pair_sort = times.download =
+      0;
   if (n < 2) {  // no pair; nothing to run
     sink(sink_context, 0);
     return {};
@@ -628,7 +711,8 @@ Outcome Gpu::broadphase(const BroadphaseInput& in, const Grid& grid, std::uint64
   cub::DoubleBuffer<std::uint64_t> pk(m.pairs[0].as<std::uint64_t>(), m.pairs[1].as<std::uint64_t>());
   VISCD_CUDA(cub::DeviceRadixSort::SortKeys(nullptr, pair_temp, pk, static_cast<int>(count), 0, key_bits));
   VISCD_CUDA(m.temp.reserve(pair_temp));
-  if (count) VISCD_CUDA(cub::DeviceRadixSort::SortKeys(m.temp.ptr, pair_temp, pk, static_cast<int>(count), 0, key_bits));
+  if (count)
+    VISCD_CUDA(cub::DeviceRadixSort::SortKeys(m.temp.ptr, pair_temp, pk, static_cast<int>(count), 0, key_bits));
   uint2* out = reinterpret_cast<uint2*>(pk.Alternate());
   if (count) to_pairs<<<blocks(count), kBlock>>>(count, pk.Current(), id_bits, out);
   VISCD_CUDA(cudaGetLastError());

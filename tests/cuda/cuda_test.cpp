@@ -3,6 +3,7 @@
 // device. On a machine without a usable GPU every test but the last skips, saying why.
 #include <gtest/gtest.h>
 
+#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -69,29 +70,63 @@ TEST(Cuda, PairBufferGrowsAndNothingIsLost) {
   EXPECT_TRUE(test::same_pairs(test::run_frame(gpu, few).pairs, test::oracle_pairs(few)));
 }
 
-// The splat's map: the same ray model as the reference ray caster, the same float operations
-// and the same tie rule (the smaller id), so the ids agree pixel for pixel.
-TEST(Cuda, SplatMatchesReferenceMap) {
-  Config c;
-  c.map_width = 160;
-  c.map_height = 90;
-  VISCD_CUDA_OR_SKIP(gpu, c);
+// The splat's map against the reference ray caster's, for spheres and their cubes, from three
+// cameras: the same ray model, the same float operations and the same tie rule (the smaller id),
+// so the ids agree pixel for pixel, and so do the pixel counts and the pairs.
+void expect_reference_maps(Detector& gpu, std::uint64_t seed) {
+  Config c = gpu.config();
   auto ref = make_reference_detector(c);
-  Scene scene = Scene::make(SceneParams{.objects = 600, .seed = 11});
+  Scene scene = Scene::make(SceneParams{.objects = 600, .seed = seed});
+  std::vector<Box> boxes;
+  for (const Sphere& s : scene.spheres())
+    boxes.push_back(Box{{s.x - s.r, s.y - s.r, s.z - s.r}, {s.x + s.r, s.y + s.r, s.z + s.r}});
   for (const char* preset : {"zoom-out", "zoom-in", "orbit"}) {
     const auto cam = camera_preset(preset, scene, 1280, 720);
     ASSERT_TRUE(cam.ok()) << cam.error();
-    const FrameResult want = test::run_frame(*ref, scene.spheres(), &cam.value());
-    const FrameResult got = test::run_frame(gpu, scene.spheres(), &cam.value());
-    const auto& a = detail::backend_as<detail::PipelineDetector>(gpu).visibility_map();
-    const auto& b = detail::backend_as<detail::PipelineDetector>(*ref).visibility_map();
-    ASSERT_EQ(a.ids.size(), b.ids.size());
-    std::size_t differ = 0;
-    for (std::size_t i = 0; i < a.ids.size(); ++i) differ += a.ids[i] != b.ids[i];
-    EXPECT_EQ(differ, 0u) << preset;
-    EXPECT_EQ(got.pixels, want.pixels) << preset;
-    EXPECT_TRUE(test::same_pairs(got.pairs, want.pairs)) << preset;
+    for (bool as_boxes : {false, true}) {
+      SCOPED_TRACE(std::string(preset) + (as_boxes ? ", boxes" : ", spheres"));
+      FrameInput in;
+      if (as_boxes)
+        in.boxes = boxes;
+      else
+        in.spheres = scene.spheres();
+      in.camera = &cam.value();
+      FrameResult got, want;
+      ASSERT_TRUE(gpu.detect(in, got).ok());
+      ASSERT_TRUE(ref->detect(in, want).ok());
+      const auto& a = detail::backend_as<detail::PipelineDetector>(gpu).visibility_map();
+      const auto& b = detail::backend_as<detail::PipelineDetector>(*ref).visibility_map();
+      ASSERT_EQ(a.ids.size(), b.ids.size());
+      std::size_t differ = 0;
+      for (std::size_t i = 0; i < a.ids.size(); ++i) differ += a.ids[i] != b.ids[i];
+      EXPECT_EQ(differ, 0u);
+      EXPECT_EQ(got.pixels, want.pixels);
+      EXPECT_TRUE(test::same_pairs(got.pairs, want.pairs));
+    }
   }
+}
+
+Config small_map() {
+  Config c;
+  c.map_width = 160;
+  c.map_height = 90;
+  return c;
+}
+
+// The splat as it runs: a plan cuts each object's rectangle into chunks, a block a chunk.
+TEST(Cuda, SplatMatchesReferenceMap) {
+  VISCD_CUDA_OR_SKIP(gpu, small_map());
+  expect_reference_maps(gpu, 11);
+}
+
+// Its fallback for frames whose rectangles would need too long a chunk list (a warp per object),
+// forced by VISCD_CUDA_MAX_CHUNKS=0.
+TEST(Cuda, SplatFallbackMatchesReferenceMap) {
+  ::setenv("VISCD_CUDA_MAX_CHUNKS", "0", 1);
+  auto made = make_cuda_detector(small_map());
+  ::unsetenv("VISCD_CUDA_MAX_CHUNKS");
+  if (!made) GTEST_SKIP() << "no cuda backend here: " << made.error();
+  expect_reference_maps(*made.value(), 13);
 }
 
 // Boxes, a static set and filters together, against the cpu backend.
