@@ -88,7 +88,12 @@ class CudaDetector final : public PipelineDetector {
     const cuda::Outcome o = gpu_.splat(to_rig(cam), data, boxes, count, map_.ids.data(),
                                        shading ? map_.depth.data() : nullptr, map_.counts.data(), times_);
     if (!o.ok()) {
+      // An empty map and no counts, so that the pipeline's next stages run harmlessly up to
+      // broadphase(), which reports the error.
       splat_error_ = o;
+      std::fill(map_.ids.begin(), map_.ids.end(), 0u);
+      std::fill(map_.counts.begin(), map_.counts.end(), 0u);
+      map_.has_counts = true;
       return;
     }
     map_.has_counts = true;
