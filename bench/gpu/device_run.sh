@@ -27,35 +27,47 @@ step() {  # step NAME TIMEOUT_S CMD...
   tail -n 3 "$R/$name.log"
 }
 
+paper() {  # paper BACKEND [OPTIONS]: the paper's tables and figures to 10^6 objects
+  local b=$1
+  shift
+  step "paper_$b" 420 "$D/viscd" bench paper --backend "$b" \
+    --sizes 1000,2000,5000,10000,20000,50000,100000,200000,500000,1000000 --frames 20 --warmup 5 --out "$R/paper_$b" "$@"
+}
+
+stages() {  # stages BACKEND...: every object active, 32 bits, ring and dense, 10^4..10^7 objects
+  local scene n b frames
+  for scene in ring:0.04 dense:0.18; do
+    for n in 10000 100000 1000000 10000000; do
+      frames=40
+      [ "$n" = 10000000 ] && frames=10
+      for b in "$@"; do
+        step "stages_${scene%%:*}_${b}_$n" 200 "$D/viscd" run --backend "$b" --objects "$n" --packing "${scene##*:}" \
+          --no-culling --bits 32 --frames "$frames" --out "$R/stages_${scene%%:*}_${b}_$n" -q
+      done
+    done
+  done
+}
+
+frames() {  # frames BACKEND...: 10^6 objects with culling from the three cameras
+  local b cam
+  for b in "$@"; do
+    for cam in zoom-out orbit zoom-in; do
+      step "frame_${b}_${cam}_1m" 200 "$D/viscd" run --backend "$b" --objects 1000000 --camera "$cam" --frames 40 \
+        --out "$R/frame_${b}_${cam}_1m" -q
+    done
+  done
+}
+
 for s in "$@"; do
   case $s in
     env)
       step env 60 bash -c "date -u; nvidia-smi; nvidia-smi --query-gpu=name,driver_version,clocks.max.sm,clocks.max.mem --format=csv;
         ldd --version | head -1; nproc; free -g; ldd $D/viscd | grep -i 'not found'; $D/viscd run --backend gl --objects 1000 --frames 2 --out $R/probe" ;;
-    gltests)
-      step gl_tests 240 "$D/viscd_gl_tests" --gtest_brief=1 ;;
-    conformance)
-      step conformance 300 "$D/viscd_conformance_tests" --gtest_brief=1 ;;
-    paper)
-      step paper_gl 420 "$D/viscd" bench paper --backend gl --sizes 1000,2000,5000,10000,20000,50000,100000,200000,500000,1000000 \
-        --frames 20 --warmup 5 --out "$R/paper_gl" ;;
-    stages)
-      for scene in ring:0.04 dense:0.18; do
-        for n in 10000 100000 1000000 10000000; do
-          frames=40; [ "$n" = 10000000 ] && frames=10
-          for b in gl cpu; do
-            step "stages_${scene%%:*}_${b}_$n" 200 "$D/viscd" run --backend "$b" --objects "$n" --packing "${scene##*:}" \
-              --no-culling --bits 32 --frames "$frames" --out "$R/stages_${scene%%:*}_${b}_$n" -q
-          done
-        done
-      done ;;
-    frame)
-      for b in gl cpu; do
-        for cam in zoom-out orbit zoom-in; do
-          step "frame_${b}_${cam}_1m" 200 "$D/viscd" run --backend "$b" --objects 1000000 --camera "$cam" --frames 40 \
-            --out "$R/frame_${b}_${cam}_1m" -q
-        done
-      done ;;
+    gltests) step gl_tests 240 "$D/viscd_gl_tests" --gtest_brief=1 ;;
+    conformance) step conformance 300 "$D/viscd_conformance_tests" --gtest_brief=1 ;;
+    paper) paper gl ;;
+    stages) stages gl cpu ;;
+    frame) frames gl cpu ;;
     splat)
       for n in 10000 100000 1000000; do
         for g in impostor splat; do
@@ -70,19 +82,9 @@ for s in "$@"; do
       step conformance_cuda 300 "$D/viscd_conformance_tests" --gtest_brief=1 --gtest_filter='cuda/*'
       step cuda_bench 300 "$D/viscd_cuda_bench" --csv "$R/cuda_bench.csv" ;;
     cudapaper)
-      step paper_cuda 300 "$D/viscd" bench paper --backend cuda --sizes 1000,2000,5000,10000,20000,50000,100000,200000,500000,1000000 \
-        --frames 20 --warmup 5 --out "$R/paper_cuda" --no-plots
-      for scene in ring:0.04 dense:0.18; do
-        for n in 10000 100000 1000000 10000000; do
-          frames=40; [ "$n" = 10000000 ] && frames=10
-          step "stages_${scene%%:*}_cuda_$n" 200 "$D/viscd" run --backend cuda --objects "$n" --packing "${scene##*:}" \
-            --no-culling --bits 32 --frames "$frames" --out "$R/stages_${scene%%:*}_cuda_$n" -q
-        done
-      done
-      for cam in zoom-out orbit zoom-in; do
-        step "frame_cuda_${cam}_1m" 200 "$D/viscd" run --backend cuda --objects 1000000 --camera "$cam" --frames 40 \
-          --out "$R/frame_cuda_${cam}_1m" -q
-      done ;;
+      paper cuda --no-plots
+      stages cuda
+      frames cuda ;;
   esac
 done
 (cd "$R" && find . -name "*.json" -o -name "*.csv" -o -name "*.log" -o -name "fig5_*.png" | tar czf "$OUT/results.tgz" -T -)

@@ -2,11 +2,11 @@
 /// \file cuda.hpp
 /// The cuda backend (docs/gpu.md): the visibility map as an analytic splat on the GPU (each
 /// object's pixels, in chunks of 32 a warp, ray-tested as the CPU rasterizers do, the nearest
-/// kept by a 64-bit atomicMin of depth and id), and stages 4-8 on the GPU: Morton codes, CUB radix sort over the key width
-/// m, Karras build, bottom-up fit, traversal with a pair buffer that counts, grows and re-runs
-/// (never drops a pair), CUB sort of the pairs. Counting, culling, the filters' pre-pass, states
-/// and shading run on the host, as in the cpu backend. Spheres and boxes, static sets, filters,
-/// always-active objects and the caller's id map, like every backend.
+/// kept by a 64-bit atomicMin of depth and id), and stages 4-8 on the GPU: Morton codes, CUB radix sort over the key
+/// width m, Karras build, bottom-up fit, traversal with a pair buffer that counts, grows and re-runs (never drops a
+/// pair), CUB sort of the pairs. Counting, culling, the filters' pre-pass, states and shading run on the host, as in
+/// the cpu backend. Spheres and boxes, static sets, filters, always-active objects and the caller's id map, like every
+/// backend.
 ///
 /// Built when CMake finds nvcc (VISCD_ENABLE_CUDA, default ON); needs an NVIDIA GPU of compute
 /// capability 9.0 (Hopper) at run time, for which the build compiles its code (configure with

@@ -126,6 +126,9 @@ struct Camera {
   float far_plane = 1000;       ///< distance of the far plane, > near_plane
   int width = 1280;             ///< screen width in pixels, >= 1
   int height = 720;             ///< screen height in pixels, >= 1
+
+  /// Every field equal (floats by ==).
+  friend bool operator==(const Camera&, const Camera&) = default;
 };
 
 }  // namespace viscd

@@ -5,10 +5,10 @@
 /// viscd/io.hpp for those.
 
 #include "viscd/config.hpp"
+#include "viscd/cuda.hpp"
 #include "viscd/detector.hpp"
 #include "viscd/executor.hpp"
 #include "viscd/frame.hpp"
-#include "viscd/cuda.hpp"
 #include "viscd/gl.hpp"
 #include "viscd/result.hpp"
 #include "viscd/types.hpp"

@@ -7,15 +7,6 @@
 namespace viscd {
 namespace detail {
 
-namespace {
-bool same_camera(const Camera& a, const Camera& b) {
-  for (int k = 0; k < 3; ++k)
-    if (a.eye[k] != b.eye[k] || a.target[k] != b.target[k] || a.up[k] != b.up[k]) return false;
-  return a.fov_y_deg == b.fov_y_deg && a.near_plane == b.near_plane && a.far_plane == b.far_plane &&
-         a.width == b.width && a.height == b.height;
-}
-}  // namespace
-
 void CpuDetector::draw_frame(const CameraRig& cam, const Camera& camera, const FrameInput& in, int threads) {
   const Shapes moving = Shapes::of(in);
   if (static_set_.empty()) {
@@ -24,7 +15,7 @@ void CpuDetector::draw_frame(const CameraRig& cam, const Camera& camera, const F
   }
   // The static layer, redrawn only when the camera, the map or the set changed.
   const bool normals = !map_.normal.empty();
-  if (!same_camera(layer_key_.camera, camera) || layer_key_.width != map_.width || layer_key_.height != map_.height ||
+  if (layer_key_.camera != camera || layer_key_.width != map_.width || layer_key_.height != map_.height ||
       layer_key_.normals != normals || layer_key_.version != static_set_.version()) {
     static_layer_.resize(map_.width, map_.height, normals);
     const Shapes st = static_set_.compact().shapes;

@@ -55,10 +55,10 @@ cuda::Grid to_grid(const MortonLayout& layout, const Aabb& bounds) {
   return out;
 }
 
-Status to_status(const cuda::Outcome& o, std::size_t objects, const Camera* camera, const Config& config) {
+Status to_status(const cuda::Outcome& o, std::size_t objects, const Config& config) {
   if (o.out_of_memory)
     return Status::failure(ErrorKind::out_of_memory,
-                           out_of_memory_message(objects, camera, config) + " (GPU memory; " + o.error + ")");
+                           out_of_memory_message(objects, nullptr, config) + " (GPU memory; " + o.error + ")");
   return Status::failure(ErrorKind::backend_failure, o.error);
 }
 
@@ -112,7 +112,7 @@ class CudaDetector final : public PipelineDetector {
                     std::vector<Pair>& pairs, FrameStats& stats) override {
     if (!splat_error_.ok()) {
       const cuda::Outcome o = std::exchange(splat_error_, cuda::Outcome{});
-      return to_status(o, objects.size(), nullptr, config_);
+      return to_status(o, objects.size(), config_);
     }
     ActiveExtent extent;
     const MortonLayout layout = layout_stage(objects, pairable, bits, config_.layout, threads, extent, stats);
@@ -163,7 +163,7 @@ class CudaDetector final : public PipelineDetector {
     const cuda::Outcome o = gpu_.broadphase(in, to_grid(layout, extent.bounds), cap, &Sink::give, &sink, t);
     times_ = t;
     if (o.over_limit) return check_pair_cap(o.pairs, config_.pair_memory_cap);
-    if (!o.ok()) return to_status(o, objects.size(), nullptr, config_);
+    if (!o.ok()) return to_status(o, objects.size(), config_);
     // GPU times by stage; the packing on the host and the upload count as the codes' stage.
     stats.ms(Stage::codes) = host_ms + t.upload + t.codes;
     stats.ms(Stage::sort) = t.sort;

@@ -3,8 +3,8 @@
 // code (cuda_detector.cpp) is compiled by the C++ compiler and only gpu.cu by nvcc.
 //
 //   splat()       stage 1-2: every object's pixels (its conservative rectangle, planned into chunks
-//                 of 32 a warp) ray-tested as the CPU rasterizers do, the nearest kept by a 64-bit atomicMin of (depth, id);
-//                 then the ids, optionally the depths, and the pixel counts per object back.
+//                 of 32 a warp) ray-tested as the CPU rasterizers do, the nearest kept by a 64-bit atomicMin of (depth,
+//                 id); then the ids, optionally the depths, and the pixel counts per object back.
 //   broadphase()  stages 5-8 over n objects: Morton codes, CUB radix sort over the key width m,
 //                 Karras build, bottom-up fit, traversal with a pair buffer that counts, grows
 //                 and re-runs, CUB sort of the pairs; the sorted pairs back.

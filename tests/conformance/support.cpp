@@ -76,13 +76,6 @@ float pixel_margin(float pixels) { return 6.0f + 0.05f * pixels; }
 
 namespace {
 
-bool same_camera(const Camera& a, const Camera& b) {
-  for (int k = 0; k < 3; ++k)
-    if (a.eye[k] != b.eye[k] || a.target[k] != b.target[k] || a.up[k] != b.up[k]) return false;
-  return a.fov_y_deg == b.fov_y_deg && a.near_plane == b.near_plane && a.far_plane == b.far_plane &&
-         a.width == b.width && a.height == b.height;
-}
-
 // The reference backend's frame, remembered for the last few inputs: cases check several frames
 // of one scene (the ray caster costs O(pixels x N) per frame). The settings that change its
 // pixels and pairs are the key; m, the layout and the thresholds a, b do not.
@@ -102,7 +95,7 @@ const FrameResult& reference_frame(std::span<const Sphere> spheres, const Camera
   for (std::size_t k = 0; k < cache.size(); ++k) {
     const Entry& e = cache[k];
     if (e.culling != culling || e.lambda != lambda || e.camera.has_value() != (camera != nullptr) ||
-        (camera && !same_camera(*e.camera, *camera)) || e.spheres.size() != spheres.size() ||
+        (camera && *e.camera != *camera) || e.spheres.size() != spheres.size() ||
         (camera && (e.map_width != config.map_width || e.map_height != config.map_height)) ||
         !std::equal(spheres.begin(), spheres.end(), e.spheres.begin(),
                     [](const Sphere& a, const Sphere& b) { return std::memcmp(&a, &b, sizeof(Sphere)) == 0; }))

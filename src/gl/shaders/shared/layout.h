@@ -62,21 +62,21 @@ struct dvec2 {
 #define VISCD_BIND_SCAN_IN 11  // generic scan: input, output, block sums
 #define VISCD_BIND_SCAN_OUT 12
 #define VISCD_BIND_SCAN_BLOCKS 13
-#define VISCD_BIND_NODES 14       // LbvhNode nodes[n - 1]
-#define VISCD_BIND_PARENT 15      // uint parent[n - 1] (internal nodes), then leaf_parent[n]
-#define VISCD_BIND_ARRIVALS 16    // uint arrivals[n - 1]: fit arrival counters
-#define VISCD_BIND_SORTED 17      // vec4 sorted_spheres[n]
-#define VISCD_BIND_LEAF_BOXES 18  // LeafBox leaf_boxes[n]
-#define VISCD_BIND_PAIRS 19       // uvec2 pairs[capacity]: (x = j, y = i), i < j
-#define VISCD_BIND_STATE 20       // uint state[N]: ObjectState
-#define VISCD_BIND_IMAGE 21       // uint rgba8[W * H], rows top to bottom
-#define VISCD_BIND_DISPATCH 22    // DispatchArgs: indirect dispatch sizes from the active count
-#define VISCD_BIND_FILTERS 23     // uvec2 filters[N]: x = group, y = mask (viscd::Filter)
-#define VISCD_BIND_ALWAYS 24      // uint always[(N + 3) / 4]: FrameInput::always_active, 4 bytes a word
-#define VISCD_BIND_BOXES 25       // LeafBox boxes[N]: a box frame's boxes (viscd::Box: min xyz, max xyz)
-#define VISCD_BIND_SPLAT_DEPTH 26  // uint depth_bits[W * H]: the splat's nearest depth (float bits), rows top down
-#define VISCD_BIND_SPLAT_IDS 27    // uint ids[W * H]: the splat's smallest id at that depth
-#define VISCD_BIND_SPLAT_RECTS 28  // uvec4 rects[N]: each sphere's pixel rectangle and nearest depth bits
+#define VISCD_BIND_NODES 14         // LbvhNode nodes[n - 1]
+#define VISCD_BIND_PARENT 15        // uint parent[n - 1] (internal nodes), then leaf_parent[n]
+#define VISCD_BIND_ARRIVALS 16      // uint arrivals[n - 1]: fit arrival counters
+#define VISCD_BIND_SORTED 17        // vec4 sorted_spheres[n]
+#define VISCD_BIND_LEAF_BOXES 18    // LeafBox leaf_boxes[n]
+#define VISCD_BIND_PAIRS 19         // uvec2 pairs[capacity]: (x = j, y = i), i < j
+#define VISCD_BIND_STATE 20         // uint state[N]: ObjectState
+#define VISCD_BIND_IMAGE 21         // uint rgba8[W * H], rows top to bottom
+#define VISCD_BIND_DISPATCH 22      // DispatchArgs: indirect dispatch sizes from the active count
+#define VISCD_BIND_FILTERS 23       // uvec2 filters[N]: x = group, y = mask (viscd::Filter)
+#define VISCD_BIND_ALWAYS 24        // uint always[(N + 3) / 4]: FrameInput::always_active, 4 bytes a word
+#define VISCD_BIND_BOXES 25         // LeafBox boxes[N]: a box frame's boxes (viscd::Box: min xyz, max xyz)
+#define VISCD_BIND_SPLAT_DEPTH 26   // uint depth_bits[W * H]: the splat's nearest depth (float bits), rows top down
+#define VISCD_BIND_SPLAT_IDS 27     // uint ids[W * H]: the splat's smallest id at that depth
+#define VISCD_BIND_SPLAT_RECTS 28   // uvec4 rects[N]: each sphere's pixel rectangle and nearest depth bits
 #define VISCD_BIND_SPLAT_CHUNKS 29  // uvec2 chunks[]: (sphere, chunk of VISCD_SPLAT_CHUNK pixels)
 #define VISCD_BIND_SPLAT_COUNT 30   // uint: the chunks listed
 // Atomic counter buffer binding of the paper's atomic_uint counting mode.
