@@ -41,6 +41,10 @@ class Backend {
   /// Detector::wait_for_stage_times(); backends that time stages on the host do nothing.
   virtual void wait_for_stage_times(FrameStats& stats) { (void)stats; }
 
+  /// The frame's objects, as validate_spheres() / validate_boxes() check them (the same errors);
+  /// Detector::detect() calls it after the other input rules. The cpu backend checks in parallel.
+  [[nodiscard]] virtual Status validate_objects(const Shapes& objects);
+
   /// One frame, after Detector::detect() checked the shared input rules (objects, camera, map
   /// sizes, filter count, id map size, Config::threads, the static set's kind): writes pairs,
   /// states, pixels, image and stats. Applies `input.filters` to the pairs. The static set

@@ -7,6 +7,10 @@
 #include <numeric>
 #include <string>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "core/backend.hpp"
 #include "core/brute_queries.hpp"
 #include "core/frame_rules.hpp"
@@ -196,6 +200,10 @@ void brute_overlap_box_visit(const QueryObjects& o, const Box& box, const Filter
     if (query_passes(filter, filter_of(o, k)) && o.shapes.meets_box(k, box) && !visitor.on_overlap(o.ids[k])) return;
 }
 
+Status Backend::validate_objects(const Shapes& objects) {
+  return objects.is_box() ? validate_boxes(objects.boxes) : validate_spheres(objects.spheres);
+}
+
 bool Backend::query_ray_first(const Ray& ray, const Filter* filter, RayHit& hit) {
   return brute_ray(query_objects(), ray, filter, hit);
 }
@@ -317,7 +325,8 @@ Status Detector::detect(const FrameInput& input, FrameResult& out) {
   detail::Backend& b = *backend_;
   b.queries_ready_ = false;
   try {
-    if (Status s = detail::validate_frame_input(input, b.config()); !s) return s;
+    if (Status s = detail::validate_frame_input(input, b.config(), false); !s) return s;
+    if (Status s = b.validate_objects(detail::Shapes::of(input)); !s) return s;
     if (Status s = detail::validate_static_kind(input, b.static_set_); !s) return s;
     if (Status s = b.run_frame(input, out); !s) return s;
     if (b.config().contact_events) {
@@ -381,19 +390,60 @@ void Detector::overlap_box(const Box& box, OverlapVisitor& visitor, const Filter
   if (backend_->queries_ready_ && valid_box(box)) backend_->query_box_visit(box, filter, visitor);
 }
 
-Status validate_spheres(std::span<const Sphere> spheres) {
-  if (spheres.size() > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
-    return Status::failure(ErrorKind::invalid_input,
-                           "too many spheres: " + std::to_string(spheres.size()) + " (at most 2^31 - 1)");
-  // A pass without branches first (every frame pays it): |v| <= 1e18 is false for NaN and
-  // infinities too. Only a failing set is searched for its first bad sphere.
+namespace detail {
+
+// |v| <= 1e18 is false for NaN and infinities too.
+bool spheres_all_valid(std::span<const Sphere> spheres) {
+#if defined(__SSE2__)
+  // A sphere is one register (x, y, z, r); two accumulators of "every lane so far valid".
+  const __m128 limit = _mm_set1_ps(kMaxCoordinate), sign = _mm_set1_ps(-0.0f), zero = _mm_setzero_ps();
+  __m128 ok0 = _mm_cmpeq_ps(zero, zero), ok1 = ok0, radius0 = ok0, radius1 = ok0;
+  const float* p = reinterpret_cast<const float*>(spheres.data());
+  std::size_t k = 0;
+  for (; k + 2 <= spheres.size(); k += 2) {
+    const __m128 a = _mm_loadu_ps(p + 4 * k), b = _mm_loadu_ps(p + 4 * k + 4);
+    ok0 = _mm_and_ps(ok0, _mm_cmple_ps(_mm_andnot_ps(sign, a), limit));
+    ok1 = _mm_and_ps(ok1, _mm_cmple_ps(_mm_andnot_ps(sign, b), limit));
+    radius0 = _mm_and_ps(radius0, _mm_cmpge_ps(a, zero));
+    radius1 = _mm_and_ps(radius1, _mm_cmpge_ps(b, zero));
+  }
+  if (k < spheres.size()) {
+    const __m128 a = _mm_loadu_ps(p + 4 * k);
+    ok0 = _mm_and_ps(ok0, _mm_cmple_ps(_mm_andnot_ps(sign, a), limit));
+    radius0 = _mm_and_ps(radius0, _mm_cmpge_ps(a, zero));
+  }
+  const int ok = _mm_movemask_ps(_mm_and_ps(ok0, ok1)), radius = _mm_movemask_ps(_mm_and_ps(radius0, radius1));
+  return ok == 0xF && (radius & 0x8) != 0;  // lane 3: r >= 0
+#else
   bool all_valid = true;
   for (const Sphere& s : spheres) {
     const float ax = std::fabs(s.x), ay = std::fabs(s.y), az = std::fabs(s.z), ar = std::fabs(s.r);
     all_valid &=
         (ax <= kMaxCoordinate) & (ay <= kMaxCoordinate) & (az <= kMaxCoordinate) & (ar <= kMaxCoordinate) & (s.r >= 0);
   }
-  if (all_valid) return {};
+  return all_valid;
+#endif
+}
+
+bool boxes_all_valid(std::span<const Box> boxes) {
+  bool all_valid = true;
+  for (const Box& b : boxes)
+    for (int k = 0; k < 3; ++k) {
+      const float lo = std::fabs(b.min[k]), hi = std::fabs(b.max[k]);
+      all_valid &= (lo <= kMaxCoordinate) & (hi <= kMaxCoordinate) & (b.min[k] <= b.max[k]);
+    }
+  return all_valid;
+}
+
+}  // namespace detail
+
+Status validate_spheres(std::span<const Sphere> spheres) {
+  if (spheres.size() > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
+    return Status::failure(ErrorKind::invalid_input,
+                           "too many spheres: " + std::to_string(spheres.size()) + " (at most 2^31 - 1)");
+  // A pass without branches first (every frame pays it). Only a failing set is searched for its
+  // first bad sphere.
+  if (detail::spheres_all_valid(spheres)) return {};
   for (std::size_t k = 0; k < spheres.size(); ++k) {
     const Sphere& s = spheres[k];
     const float v[4] = {s.x, s.y, s.z, s.r};
@@ -416,13 +466,7 @@ Status validate_boxes(std::span<const Box> boxes) {
   if (boxes.size() > static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
     return Status::failure(ErrorKind::invalid_input,
                            "too many boxes: " + std::to_string(boxes.size()) + " (at most 2^31 - 1)");
-  bool all_valid = true;  // branch-free first pass, as validate_spheres()
-  for (const Box& b : boxes)
-    for (int k = 0; k < 3; ++k) {
-      const float lo = std::fabs(b.min[k]), hi = std::fabs(b.max[k]);
-      all_valid &= (lo <= kMaxCoordinate) & (hi <= kMaxCoordinate) & (b.min[k] <= b.max[k]);
-    }
-  if (all_valid) return {};
+  if (detail::boxes_all_valid(boxes)) return {};  // without branches, as validate_spheres()
   static constexpr const char* kNames[2][3] = {{"minx", "miny", "minz"}, {"maxx", "maxy", "maxz"}};
   for (std::size_t i = 0; i < boxes.size(); ++i) {
     const Box& b = boxes[i];

@@ -8,11 +8,12 @@
 
 namespace viscd::detail {
 
-Status validate_frame(const Shapes& objects, const Camera* camera, const Config& config) {
+Status validate_frame(const Shapes& objects, const Camera* camera, const Config& config, bool check_objects) {
   if (config.threads < 0)
     return Status::failure(ErrorKind::invalid_input, "Config::threads = " + std::to_string(config.threads) +
                                                          ": expected 0 (all cores) or a positive count");
-  if (Status s = objects.is_box() ? validate_boxes(objects.boxes) : validate_spheres(objects.spheres); !s) return s;
+  if (check_objects)
+    if (Status s = objects.is_box() ? validate_boxes(objects.boxes) : validate_spheres(objects.spheres); !s) return s;
   if (camera) {
     if (Status s = validate_camera(*camera); !s) return s;
     if (config.map_width < 0 || config.map_height < 0 || (config.map_width == 0) != (config.map_height == 0))
@@ -43,7 +44,7 @@ Status validate_static_kind(const FrameInput& in, const StaticSet& set) {
                                                        "; a frame and its static set hold the same kind");
 }
 
-Status validate_frame_input(const FrameInput& in, const Config& config) {
+Status validate_frame_input(const FrameInput& in, const Config& config, bool check_objects) {
   if (!in.spheres.empty() && !in.boxes.empty())
     return Status::failure(ErrorKind::invalid_input, "FrameInput: " + std::to_string(in.spheres.size()) +
                                                          " spheres and " + std::to_string(in.boxes.size()) +
@@ -55,12 +56,12 @@ Status validate_frame_input(const FrameInput& in, const Config& config) {
     return Status::failure(ErrorKind::invalid_input,
                            "FrameInput: id_map and gl_id_texture are both set; give the visibility map one way");
   if (!has_callers_map(in))
-    if (Status s = validate_frame(objects, in.camera, config); !s) return s;
+    if (Status s = validate_frame(objects, in.camera, config, check_objects); !s) return s;
   if (has_callers_map(in)) {
     // The caller's map: its own size replaces Config's, so only the rest of validate_frame().
     Config own = config;
     own.map_width = own.map_height = 0;
-    if (Status s = validate_frame(objects, in.camera, own); !s) return s;
+    if (Status s = validate_frame(objects, in.camera, own, check_objects); !s) return s;
     const int w = in.id_map_width, h = in.id_map_height;
     if (w < 1 || h < 1)
       return Status::failure(ErrorKind::invalid_input,

@@ -25,14 +25,21 @@ std::uint64_t bytes_of(const std::vector<T>& v) {
 }
 
 /// The checks every backend makes on a frame's input: objects, camera, the map size, threads.
-[[nodiscard]] Status validate_frame(const Shapes& objects, const Camera* camera, const Config& config);
+/// `check_objects` false leaves out the objects themselves (the caller checks them: Backend::validate_objects()).
+[[nodiscard]] Status validate_frame(const Shapes& objects, const Camera* camera, const Config& config,
+                                    bool check_objects = true);
 /// A frame's objects and a non-empty static set must be of one kind.
 [[nodiscard]] Status validate_static_kind(const FrameInput& input, const StaticSet& set);
 /// validate_frame() for a whole FrameInput (Detector::detect() runs it before run_frame()): also
 /// the filter count, and the id map's size (which then replaces Config's map size); an id map
 /// and a gl texture together are an error. The ids themselves are checked where they are
 /// counted (id_map_error()).
-[[nodiscard]] Status validate_frame_input(const FrameInput& input, const Config& config);
+[[nodiscard]] Status validate_frame_input(const FrameInput& input, const Config& config, bool check_objects = true);
+
+/// validate_spheres()'s and validate_boxes()'s pass over every shape, without branches: true when
+/// all are valid (only then is the first bad one not searched for).
+[[nodiscard]] bool spheres_all_valid(std::span<const Sphere> spheres);
+[[nodiscard]] bool boxes_all_valid(std::span<const Box> boxes);
 
 /// Whether the frame brings the caller's visibility map (FrameInput::id_map or gl_id_texture).
 [[nodiscard]] inline bool has_callers_map(const FrameInput& input) {

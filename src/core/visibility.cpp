@@ -102,17 +102,14 @@ int cull_and_choose_bits(std::span<const std::uint32_t> counts, double pixel_sca
   pixels.resize(n);
   active.clear();
   active.reserve(n);  // at most every object: no allocation as the active count changes
-  double total = 0;
-  for (std::size_t k = 0; k < n; ++k) {
-    const double px = static_cast<double>(counts[k]) * pixel_scale;
-    pixels[k] = static_cast<float>(px);
-    total += px;
-    const bool kept = !always_active.empty() && always_active[k] != 0;
-    if (!config.culling || px >= static_cast<double>(config.lambda) || kept)
-      active.push_back(static_cast<std::uint32_t>(k));
-  }
-  stats.mean_pixels = n ? total / static_cast<double>(n) : 0.0;
-  stats.active = static_cast<std::uint32_t>(active.size());
+  const std::uint64_t counted = cull_range(counts, pixel_scale, config, always_active, 0, n, pixels.data(), active);
+  return finish_cull(config, n, counted, pixel_scale, active.size(), stats);
+}
+
+int finish_cull(const Config& config, std::size_t objects, std::uint64_t counted, double pixel_scale,
+                std::size_t active, FrameStats& stats) {
+  stats.mean_pixels = objects ? static_cast<double>(counted) * pixel_scale / static_cast<double>(objects) : 0.0;
+  stats.active = static_cast<std::uint32_t>(active);
   return choose_bits(config, true, stats.mean_pixels);
 }
 

@@ -95,10 +95,34 @@ struct PixelRect {
 
 /// Stage 3: screen-scaled pixels, mu over all N, active set (pixels >= lambda, or a non-zero
 /// `always_active` flag when there are flags, or all when culling is off), and m from Eq. (1) or
-/// Config::bits. Fills stats.active/mean_pixels.
+/// Config::bits. Fills stats.active/mean_pixels. mu = (the sum of the counts, exact in 64 bits) x
+/// pixel_scale / N, so that any split of the objects into ranges (the cpu backend's threads) gives
+/// the same bits.
 int cull_and_choose_bits(std::span<const std::uint32_t> counts, double pixel_scale, const Config& config,
                          std::span<const std::uint8_t> always_active, std::vector<float>& pixels,
                          std::vector<std::uint32_t>& active, FrameStats& stats);
+
+/// Stage 3 over the objects [b, e): pixels[k] = counts[k] x pixel_scale (as float) and the active
+/// ones appended to `active` in ascending order; returns the sum of their counts.
+inline std::uint64_t cull_range(std::span<const std::uint32_t> counts, double pixel_scale, const Config& config,
+                                std::span<const std::uint8_t> always_active, std::size_t b, std::size_t e,
+                                float* pixels, std::vector<std::uint32_t>& active) {
+  std::uint64_t counted = 0;
+  const double lambda = config.lambda;
+  const bool flags = !always_active.empty();
+  for (std::size_t k = b; k < e; ++k) {
+    counted += counts[k];
+    const double px = static_cast<double>(counts[k]) * pixel_scale;
+    pixels[k] = static_cast<float>(px);
+    if (!config.culling || px >= lambda || (flags && always_active[k] != 0))
+      active.push_back(static_cast<std::uint32_t>(k));
+  }
+  return counted;
+}
+
+/// Stage 3's end: mu from the counts' sum, stats.active, and m.
+int finish_cull(const Config& config, std::size_t objects, std::uint64_t counted, double pixel_scale,
+                std::size_t active, FrameStats& stats);
 
 /// Stage 1's map size: Config::map_width x map_height, or the camera's screen when they are 0.
 struct MapSize {

@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <atomic>
+#include <limits>
 #include <new>
 #include <optional>
 
+#include "core/frame_rules.hpp"
 #include "core/morton.hpp"
 #include "core/stopwatch.hpp"
 #include "cpu/pair_collector.hpp"
@@ -14,8 +16,8 @@ namespace viscd::detail {
 
 std::uint64_t PipelineDetector::memory_bytes() const {
   return map_.memory_bytes() + all_.memory_bytes() + draw_.memory_bytes() + bytes_of(counts_) + bytes_of(hist_) +
-         count_scratch_.memory_bytes() + bytes_of(active_) + bytes_of(pairable_) + bytes_of(unpaired_) +
-         backend_memory_bytes();
+         count_scratch_.memory_bytes() + cull_scratch_.memory_bytes() + bytes_of(active_) + bytes_of(pairable_) +
+         bytes_of(unpaired_) + backend_memory_bytes();
 }
 
 FilterSplit split_by_filters(std::span<const std::uint32_t> active, std::span<const Filter> filters,
@@ -41,6 +43,23 @@ FilterSplit split_by_filters(std::span<const std::uint32_t> active, std::span<co
 void PipelineDetector::draw_frame(const CameraRig& cam, const Camera&, const FrameInput& in, int threads) {
   draw_.build(in, &static_set_);
   rasterize(cam, draw_.objects, threads);
+}
+
+Status PipelineDetector::validate_objects(const Shapes& objects) {
+  const std::size_t n = objects.size();
+  const ExecutorScope scope(config_.executor);
+  const int threads = resolve_threads(config_.threads, config_.executor ? config_.executor->concurrency() : 0);
+  std::atomic<bool> all_valid{true};
+  for_chunks(n, n < kParallelThreshold ? 1 : 2 * static_cast<std::size_t>(threads),
+             [&](std::size_t b, std::size_t e, std::size_t) {
+               const bool ok = objects.is_box() ? boxes_all_valid(objects.boxes.subspan(b, e - b))
+                                                : spheres_all_valid(objects.spheres.subspan(b, e - b));
+               if (!ok) all_valid.store(false, std::memory_order_relaxed);
+             });
+  if (all_valid.load(std::memory_order_relaxed) &&
+      n <= static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
+    return {};
+  return Backend::validate_objects(objects);  // finds the first bad object and names it
 }
 
 Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
@@ -75,8 +94,8 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     if (!count_ids(in.id_map, n, threads, hist_, count_scratch_)) return id_map_error(in.id_map, in.id_map_width, n);
     stats.ms(Stage::count) = sw.lap();
     const double scale = map_pixel_scale(camera, in.id_map_width, in.id_map_height);
-    bits = cull_and_choose_bits(std::span<const std::uint32_t>(hist_).subspan(1, n), scale, config_, in.always_active,
-                                out.pixels, active_, stats);
+    bits = cull_in_parallel(std::span<const std::uint32_t>(hist_).subspan(1, n), scale, config_, in.always_active,
+                            threads, out.pixels, active_, cull_scratch_, stats);
     stats.ms(Stage::cull) = sw.lap();
   } else if (renders_own_map(in, config_)) {
     const MapSize map = map_size(config_, *camera);
@@ -93,8 +112,8 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
       count_pixels(map_, n + static_set_.size(), threads, counts_, hist_, count_scratch_);
     }
     stats.ms(Stage::count) = sw.lap();
-    bits = cull_and_choose_bits(std::span<const std::uint32_t>(counts_).first(n), rig->pixel_scale, config_,
-                                in.always_active, out.pixels, active_, stats);
+    bits = cull_in_parallel(std::span<const std::uint32_t>(counts_).first(n), rig->pixel_scale, config_,
+                            in.always_active, threads, out.pixels, active_, cull_scratch_, stats);
     stats.ms(Stage::cull) = sw.lap();
   } else {
     // No camera, or one whose map nothing would use (culling off, fixed bits, no shading, no

@@ -24,6 +24,8 @@ class PipelineDetector : public Backend {
  protected:
   explicit PipelineDetector(const Config& config) : Backend(config) {}
   [[nodiscard]] Status run_frame(const FrameInput& input, FrameResult& out) final;
+  /// The objects checked in ranges on the frame's threads (a pass over every shape each frame).
+  [[nodiscard]] Status validate_objects(const Shapes& objects) final;
   /// Stage 1 into map_ (already sized): every object, the static ones after the moving ones.
   virtual void rasterize(const CameraRig& cam, const Shapes& objects, int threads) = 0;
   /// Stage 1 of a frame: the frame's objects and the static set's into map_ (ids: moving k as
@@ -56,6 +58,7 @@ class PipelineDetector : public Backend {
  private:
   std::vector<std::uint32_t> counts_, hist_, active_, pairable_, unpaired_;
   CountScratch count_scratch_;
+  CullScratch cull_scratch_;
 };
 
 /// The filters' pre-pass: with G the OR of the groups and M the OR of the masks over `active`, an

@@ -44,7 +44,7 @@ class ThreadPool final : public Executor {
       // A worker that woke for the previous stage after it ended may still hold that stage's
       // task (it finds no index left and returns): let it leave before the indices restart.
       std::unique_lock lock(mutex_);
-      finished_.wait(lock, [&] { return busy_workers_ == 0; });
+      finished_.wait(lock, [&] { return busy_workers_.load(std::memory_order_relaxed) == 0; });
       task_ = task;
       count_ = count;
       next_.store(0, std::memory_order_relaxed);
@@ -55,9 +55,19 @@ class ThreadPool final : public Executor {
     wake_.notify_all();
     take_tasks(task, count);
     // Wait until every task has finished and no worker is still looking for one (a worker that
-    // woke for this stage must not take an index of the next).
+    // woke for this stage must not take an index of the next). A worker's last task usually ends
+    // within microseconds of the caller's: look briefly before sleeping (kSpin, as the workers),
+    // since being woken costs tens of microseconds.
+    const auto finished = [&] {
+      return done_.load(std::memory_order_acquire) == count && busy_workers_.load(std::memory_order_acquire) == 0;
+    };
+    const auto until = std::chrono::steady_clock::now() + kSpin;
+    for (int k = 1; !finished(); ++k) {
+      pause();
+      if (k % 64 == 0 && std::chrono::steady_clock::now() > until) break;
+    }
     std::unique_lock lock(mutex_);
-    finished_.wait(lock, [&] { return done_.load(std::memory_order_acquire) == count && busy_workers_ == 0; });
+    finished_.wait(lock, finished);
   }
 
  private:
@@ -91,12 +101,11 @@ class ThreadPool final : public Executor {
       seen = generation_;
       const TaskRef task = task_;
       const std::uint32_t count = count_;
-      ++busy_workers_;
+      busy_workers_.fetch_add(1, std::memory_order_relaxed);
       lock.unlock();
       take_tasks(task, count);
       lock.lock();
-      --busy_workers_;
-      if (busy_workers_ == 0) finished_.notify_all();
+      if (busy_workers_.fetch_sub(1, std::memory_order_acq_rel) == 1) finished_.notify_all();
     }
   }
 
@@ -114,7 +123,7 @@ class ThreadPool final : public Executor {
   std::uint64_t generation_ = 0;
   std::atomic<std::uint64_t> published_{0};  // generation_, readable without the lock
   bool stop_ = false;
-  int busy_workers_ = 0;
+  std::atomic<int> busy_workers_{0};  // changed under mutex_; read without it by a spinning caller
   TaskRef task_;
   std::uint32_t count_ = 0;
   std::atomic<std::uint32_t> next_{0}, done_{0};

@@ -6,10 +6,6 @@
 #include <cmath>
 #include <limits>
 
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
-
 #include "cpu/parallel.hpp"
 #include "viscd/assert.hpp"
 
@@ -145,94 +141,226 @@ void BoxRasterizer::run(const CameraRig& cam, std::span<const Box> boxes, int th
 
 namespace {
 
-// Runs of equal ids in ids[b, e): add(id, length) per run, ids above `bad` as `bad`. Eight pixels at
-// a time: the positions where an id differs from its left neighbour come out as bits, and a run
-// costs one pass of the loop over those bits (a branch per pixel would mispredict at every run).
-template <class Add>
-void count_runs(const std::uint32_t* p, std::size_t b, std::size_t e, std::uint32_t bad, Add&& add) {
-  if (b == e) return;
-  std::uint32_t cur = p[b];
-  std::size_t start = b, i = b + 1;
-#if defined(__SSE2__)
+// Runs of equal ids, a block of pixels at a time: ids[b, e) becomes runs r = 0..count-1, run r
+// holding id[r] from pixel start[r] to start[r + 1] (start[count] = e). A run that crosses a
+// block's edge is counted as two: their lengths add up the same. Without branches: every pixel
+// writes its id and position, and the write position advances where the id differs from its left
+// neighbour (a branch per run would mispredict at every run). The buffers hold kBlock + 17 entries.
+constexpr std::size_t kBlock = 2048;
+
+std::size_t block_runs_scalar(const std::uint32_t* p, std::size_t b, std::size_t e, std::uint32_t* id,
+                              std::uint32_t* start) {
+  id[0] = p[b];
+  start[0] = static_cast<std::uint32_t>(b);
+  std::size_t r = 1;
+  for (std::size_t i = b + 1; i < e; ++i) {
+    id[r] = p[i];
+    start[r] = static_cast<std::uint32_t>(i);
+    r += p[i] != p[i - 1] ? 1 : 0;
+  }
+  start[r] = static_cast<std::uint32_t>(e);
+  return r;
+}
+
+#if VISCD_HAVE_AVX512
+// The same, 16 pixels a step: the lanes that start a run are compressed into the front of a
+// register, which is stored whole (the tail past the runs is overwritten by the next step).
+VISCD_AVX512_TARGET std::size_t block_runs_avx512(const std::uint32_t* p, std::size_t b, std::size_t e,
+                                                  std::uint32_t* id, std::uint32_t* start) {
+  id[0] = p[b];
+  start[0] = static_cast<std::uint32_t>(b);
+  std::size_t r = 1, i = b + 1;
+  const __m512i lane = _mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0);
   for (; i + 16 <= e; i += 16) {
-    const auto* q = reinterpret_cast<const __m128i*>(p + i);
-    const auto* left = reinterpret_cast<const __m128i*>(p + i - 1);
-    auto same = [&](int k) {
-      return static_cast<std::uint32_t>(
-          _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(_mm_loadu_si128(q + k), _mm_loadu_si128(left + k)))));
-    };
-    for (std::uint32_t m = (same(0) | same(1) << 4 | same(2) << 8 | same(3) << 12) ^ 0xFFFFu; m; m &= m - 1) {
-      const std::size_t j = i + static_cast<std::size_t>(std::countr_zero(m));
-      add(std::min(cur, bad), static_cast<std::uint32_t>(j - start));
-      cur = p[j];
-      start = j;
-    }
+    const __m512i cur = _mm512_loadu_si512(p + i), left = _mm512_loadu_si512(p + i - 1);
+    const __mmask16 m = _mm512_cmpneq_epi32_mask(cur, left);
+    const __m512i at = _mm512_add_epi32(lane, _mm512_set1_epi32(static_cast<int>(i)));
+    _mm512_storeu_si512(id + r, _mm512_maskz_compress_epi32(m, cur));
+    _mm512_storeu_si512(start + r, _mm512_maskz_compress_epi32(m, at));
+    r += static_cast<std::size_t>(std::popcount(static_cast<unsigned>(m)));
   }
-#endif
   for (; i < e; ++i) {
-    if (p[i] == cur) continue;
-    add(std::min(cur, bad), static_cast<std::uint32_t>(i - start));
-    cur = p[i];
-    start = i;
+    id[r] = p[i];
+    start[r] = static_cast<std::uint32_t>(i);
+    r += p[i] != p[i - 1] ? 1 : 0;
   }
-  add(std::min(cur, bad), static_cast<std::uint32_t>(e - start));
+  start[r] = static_cast<std::uint32_t>(e);
+  return r;
+}
+#endif
+
+// The runs of ids[b, e), a block at a time: add(id, length, count) over the block's run arrays.
+template <class Add>
+void for_runs(std::span<const std::uint32_t> ids, std::size_t b, std::size_t e, bool avx512, CountScratch::Runs& buf,
+              Add&& add) {
+  buf.id.resize(kBlock + 17);
+  buf.start.resize(kBlock + 17);
+  for (std::size_t at = b; at < e; at += kBlock) {
+    const std::size_t end = std::min(e, at + kBlock);
+#if VISCD_HAVE_AVX512
+    const std::size_t runs = avx512 ? block_runs_avx512(ids.data(), at, end, buf.id.data(), buf.start.data())
+                                    : block_runs_scalar(ids.data(), at, end, buf.id.data(), buf.start.data());
+#else
+    (void)avx512;
+    const std::size_t runs = block_runs_scalar(ids.data(), at, end, buf.id.data(), buf.start.data());
+#endif
+    add(buf.id.data(), buf.start.data(), runs);
+  }
 }
 
 }  // namespace
 
 bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int threads, std::vector<std::uint32_t>& hist,
-               CountScratch& scratch) {
+               CountScratch& scratch, SimdLevel simd) {
   VISCD_ASSERT(objects < 0xFFFFFFFFu - 1, "ids are 32-bit");
-  const std::size_t slots = objects + 2;
-  hist.assign(slots, 0u);
+  VISCD_ASSERT(ids.size() <= 0xFFFFFFFFu, "pixel positions are 32-bit");
+  const std::size_t slots = objects + 2, n = ids.size();
   const auto bad = static_cast<std::uint32_t>(objects + 1);
-  const std::size_t n = ids.size();
-  // In parallel only with few objects for the pixels: a range of rows after the first pays for
-  // every id it touches once more when its counts are added (from another core's cache), and with
-  // many objects, each covering few pixels, that costs more than the second thread saves
-  // (measured on a 1280x720 map, docs/benchmarks.md: at 10^4 objects two threads took 0.40 ms and
-  // one 0.44; at 5 x 10^4, 0.76 and 0.54).
-  const auto tasks = static_cast<std::size_t>(slots * 32 <= n ? threads_for(n, threads) : 1);
-  if (tasks == 1) {
-    count_runs(ids.data(), 0, n, bad, [&](std::uint32_t id, std::uint32_t run) { hist[id] += run; });
+  const bool avx512 = usable_simd_level(simd) == SimdLevel::avx512;
+  // Ranges of pixels, two per thread: a thread that gets no core then holds up half its share,
+  // which the others take over.
+  const std::size_t chunks = n < kParallelThreshold ? 1 : 2 * static_cast<std::size_t>(std::max(1, threads));
+  if (scratch.runs.size() < chunks) scratch.runs.resize(chunks);
+
+  if (slots <= CountScratch::kSegment) {
+    // Few objects: each range of pixels adds its runs into a histogram of its own (the first
+    // into `hist`), all small enough to stay in the core's cache; they are summed after.
+    hist.assign(slots + 8, 0u);  // 8 spare counters, cut off at the end
+    if (scratch.hist.size() < chunks - 1) scratch.hist.resize(chunks - 1);
+    for (std::size_t c = 1; c < chunks; ++c) scratch.hist[c - 1].assign(slots + 8, 0u);
+    if (scratch.foreground.size() < chunks) scratch.foreground.resize(chunks);
+    for_chunks(n, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
+      std::uint32_t* h = c == 0 ? hist.data() : scratch.hist[c - 1].data();
+      // Every other run is the background's: adding them all into h[0] would make each wait for
+      // the one before (a chain through memory). They go to eight spare counters past the
+      // objects' in turn instead (chosen by arithmetic, not a branch), and the background's count
+      // is what the other runs leave.
+      std::uint64_t foreground = 0;
+      for_runs(ids, b, e, avx512, scratch.runs[c],
+               [&](const std::uint32_t* id, const std::uint32_t* start, std::size_t r) {
+                 for (std::size_t k = 0; k < r; ++k) {
+                   const std::uint32_t v = std::min(id[k], bad), len = start[k + 1] - start[k];
+                   const std::uint32_t background = 0u - static_cast<std::uint32_t>(v == 0);  // all ones or 0
+                   h[v + (background & static_cast<std::uint32_t>(slots + (k & 7)))] += len;
+                   foreground += len & ~background;
+                 }
+               });
+      scratch.foreground[c] = foreground;
+    });
+    const std::size_t used = std::min(chunks, std::max<std::size_t>(n, 1));
+    if (used > 1)
+      for_chunks(slots, slots >= kParallelThreshold ? static_cast<std::size_t>(threads) : 1,
+                 [&](std::size_t b, std::size_t e, std::size_t) {
+                   for (std::size_t c = 1; c < used; ++c) {
+                     const std::uint32_t* h = scratch.hist[c - 1].data();
+                     for (std::size_t k = b; k < e; ++k) hist[k] += h[k];
+                   }
+                 });
+    std::uint64_t foreground = 0;
+    for (std::size_t c = 0; c < used; ++c) foreground += scratch.foreground[c];
+    hist.resize(slots);
+    hist[0] = static_cast<std::uint32_t>(n - foreground);
     return hist[bad] == 0;
   }
-  // The first chunk counts into `hist`; each other one into a histogram of its own, kept all zero
-  // between calls, noting the ids it touches. Those are added to `hist` after and cleared again:
-  // the cost follows the ids seen, not the objects, and no add is atomic. Four chunks per thread:
-  // a thread that gets no core then holds up a quarter of its share, which the others take over.
-  const std::size_t chunks = 4 * tasks;
-  if (scratch.hist.size() < chunks - 1) {
-    scratch.hist.resize(chunks - 1);
-    scratch.touched.resize(chunks - 1);
-  }
-  for (std::size_t t = 1; t < chunks; ++t) {  // outside the tasks: may allocate
-    if (scratch.hist[t - 1].size() < slots) scratch.hist[t - 1].resize(slots, 0u);
-    const Chunk c = chunk_of(n, t, chunks);
-    scratch.touched[t - 1].clear();
-    scratch.touched[t - 1].reserve(std::min(slots, c.end - c.begin));  // a run per new id at most
-  }
-  for_chunks(n, chunks, [&](std::size_t b, std::size_t e, std::size_t t) {
-    if (t == 0) {
-      count_runs(ids.data(), b, e, bad, [&](std::uint32_t id, std::uint32_t run) { hist[id] += run; });
-      return;
-    }
-    std::uint32_t* h = scratch.hist[t - 1].data();
-    std::vector<std::uint32_t>& touched = scratch.touched[t - 1];
-    count_runs(ids.data(), b, e, bad, [&](std::uint32_t id, std::uint32_t run) {
-      const std::uint32_t before = h[id];
-      h[id] = before + run;
-      if (before == 0) touched.push_back(id);
-    });
+
+  // Many objects: a histogram of all of them is larger than a core's cache, and adding runs into
+  // it at random would wait on memory at every run. So the runs are first sorted into segments
+  // of kSegment ids (a bucket per range of pixels and segment, written in order), then each
+  // segment of `hist` is counted from its buckets while it stays in cache.
+  const std::size_t segments = (slots + CountScratch::kSegment - 1) / CountScratch::kSegment;
+  // Four buckets per range and segment, taken by consecutive runs in turn: a run's write waits
+  // for its bucket's end from the run before, and four buckets keep four such chains apart.
+  constexpr std::size_t kWays = 4;
+  const std::size_t per_chunk = segments * kWays;
+  hist.resize(slots);
+  if (scratch.buckets.size() < chunks * per_chunk) scratch.buckets.resize(chunks * per_chunk);
+  if (scratch.ends.size() < chunks * per_chunk) scratch.ends.resize(chunks * per_chunk);
+  if (scratch.foreground.size() < chunks) scratch.foreground.resize(chunks);
+  for_chunks(n, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
+    std::vector<std::uint64_t>* bucket = &scratch.buckets[c * per_chunk];
+    // Each bucket's end, as a pointer (a run's write, a std::uint64_t, cannot alias it).
+    std::uint64_t** end = &scratch.ends[c * per_chunk];
+    for (std::size_t s = 0; s < per_chunk; ++s) end[s] = bucket[s].data();
+    std::uint64_t foreground = 0;
+    for_runs(ids, b, e, avx512, scratch.runs[c],
+             [&](const std::uint32_t* id, const std::uint32_t* start, std::size_t r) {
+               for (std::size_t s = 0; s < per_chunk; ++s) {  // room for every run of the block in any bucket
+                 const auto filled = static_cast<std::size_t>(end[s] - bucket[s].data());
+                 if (bucket[s].size() < filled + r) {
+                   bucket[s].resize(std::max(filled + r, 2 * bucket[s].size()));
+                   end[s] = bucket[s].data() + filled;
+                 }
+               }
+               // Background runs are written but not kept (the end stays): the background's count is what
+               // the others leave.
+               for (std::size_t k = 0; k < r; ++k) {
+                 const std::uint32_t v = std::min(id[k], bad), len = start[k + 1] - start[k];
+                 const std::uint64_t keep = (std::uint64_t{v} + 0xFFFFFFFFu) >> 32;  // v != 0, as arithmetic: no branch
+                 std::uint64_t*& to = end[v / CountScratch::kSegment * kWays + (k & (kWays - 1))];
+                 std::uint64_t* at = to;
+                 *at = std::uint64_t{v} << 32 | len;
+                 to = at + keep;
+                 foreground += len & (0 - keep);
+               }
+             });
+    scratch.foreground[c] = foreground;
   });
-  for (std::size_t t = 1; t < chunks; ++t) {
-    std::uint32_t* h = scratch.hist[t - 1].data();
-    for (const std::uint32_t id : scratch.touched[t - 1]) {
-      hist[id] += h[id];
-      h[id] = 0;
-    }
-  }
+  const std::size_t used = std::min(chunks, std::max<std::size_t>(n, 1));
+  for_chunks(segments, std::min<std::size_t>(segments, static_cast<std::size_t>(std::max(1, threads))) * 2,
+             [&](std::size_t sb, std::size_t se, std::size_t) {
+               for (std::size_t s = sb; s < se; ++s) {
+                 const std::size_t lo = s * CountScratch::kSegment, hi = std::min(slots, lo + CountScratch::kSegment);
+                 std::uint32_t* h = hist.data() + lo;
+                 std::fill(h, hist.data() + hi, 0u);
+                 for (std::size_t c = 0; c < used; ++c)
+                   for (std::size_t w = 0; w < kWays; ++w) {
+                     const std::size_t at = c * per_chunk + s * kWays + w;
+                     const std::uint64_t* run = scratch.buckets[at].data();
+                     for (const std::uint64_t* run_end = scratch.ends[at]; run != run_end; ++run)
+                       h[static_cast<std::uint32_t>(*run >> 32) - lo] += static_cast<std::uint32_t>(*run);
+                   }
+               }
+             });
+  std::uint64_t foreground = 0;
+  for (std::size_t c = 0; c < used; ++c) foreground += scratch.foreground[c];
+  hist[0] = static_cast<std::uint32_t>(n - foreground);
   return hist[bad] == 0;
+}
+
+int cull_in_parallel(std::span<const std::uint32_t> counts, double pixel_scale, const Config& config,
+                     std::span<const std::uint8_t> always_active, int threads, std::vector<float>& pixels,
+                     std::vector<std::uint32_t>& active, CullScratch& scratch, FrameStats& stats) {
+  const std::size_t n = counts.size();
+  const std::size_t chunks = n < kParallelThreshold ? 1 : 2 * static_cast<std::size_t>(std::max(1, threads));
+  if (chunks == 1) return cull_and_choose_bits(counts, pixel_scale, config, always_active, pixels, active, stats);
+  pixels.resize(n);
+  if (scratch.active.size() < chunks) scratch.active.resize(chunks);
+  scratch.counted.assign(chunks, 0);
+  // Room for every object of its range (outside the tasks: may allocate): no allocation as the
+  // active count changes (memory that is reserved but never written takes no pages).
+  for (std::size_t c = 0; c < chunks; ++c) {
+    const Chunk range = chunk_of(n, c, chunks);
+    scratch.active[c].reserve(range.end - range.begin);
+  }
+  for_chunks(n, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
+    std::vector<std::uint32_t>& part = scratch.active[c];
+    part.clear();
+    scratch.counted[c] = cull_range(counts, pixel_scale, config, always_active, b, e, pixels.data(), part);
+  });
+  std::uint64_t counted = 0;
+  std::size_t total = 0;
+  for (std::size_t c = 0; c < chunks; ++c) {
+    counted += scratch.counted[c];
+    total += scratch.active[c].size();
+  }
+  active.reserve(n);  // at most every object: no allocation as the active count changes
+  active.resize(total);
+  std::size_t at = 0;
+  for (std::size_t c = 0; c < chunks; ++c) {
+    std::copy(scratch.active[c].begin(), scratch.active[c].end(), active.begin() + static_cast<std::ptrdiff_t>(at));
+    at += scratch.active[c].size();
+  }
+  return finish_cull(config, n, counted, pixel_scale, total, stats);
 }
 
 void count_pixels(const VisibilityMap& map, std::size_t objects, int threads, std::vector<std::uint32_t>& counts,

@@ -12,6 +12,7 @@
 
 #include "core/shapes.hpp"
 #include "core/visibility.hpp"
+#include "cpu/simd.hpp"
 
 namespace viscd::detail {
 
@@ -81,26 +82,60 @@ class BoxRasterizer {
   std::vector<std::uint32_t> items_;
 };
 
-/// count_ids()'s buffers, kept between frames: per range of rows but the first, a histogram (all
-/// zero between calls) and the ids it touched.
+/// count_ids()'s buffers, kept between frames.
 struct CountScratch {
-  std::vector<std::vector<std::uint32_t>> hist, touched;
+  /// Ids per histogram segment: a segment (256 KiB) stays in a core's cache while it is counted.
+  static constexpr std::size_t kSegment = std::size_t{1} << 17;
+  /// One block's runs (ids and start pixels), per range of pixels.
+  struct Runs {
+    std::vector<std::uint32_t> id, start;
+  };
+  std::vector<Runs> runs;
+  /// Few objects: per range of pixels but the first, a histogram of its own.
+  std::vector<std::vector<std::uint32_t>> hist;
+  /// Many objects: per range of pixels and segment, its runs but the background's as
+  /// (id << 32 | length), and where they end; per range, the pixels of those runs.
+  std::vector<std::vector<std::uint64_t>> buckets;
+  std::vector<std::uint64_t*> ends;
+  std::vector<std::uint64_t> foreground;
   [[nodiscard]] std::uint64_t memory_bytes() const {
-    std::uint64_t b = 0;
+    std::uint64_t b = ends.capacity() * sizeof(std::uint64_t*) + foreground.capacity() * sizeof(std::uint64_t);
+    for (const auto& r : runs) b += (r.id.capacity() + r.start.capacity()) * sizeof(std::uint32_t);
     for (const auto& v : hist) b += v.capacity() * sizeof(std::uint32_t);
-    for (const auto& v : touched) b += v.capacity() * sizeof(std::uint32_t);
+    for (const auto& v : buckets) b += v.capacity() * sizeof(std::uint64_t);
     return b;
   }
 };
 
 /// Stage 2 over an id map (the detector's own or the caller's): hist[id] = the pixels holding id,
 /// for id in [0, objects] (0 = background), and hist[objects + 1] = the pixels whose id exceeds
-/// `objects`. Returns false when there are any. Counts runs of equal ids, 16 pixels at a time.
-/// With few objects for the pixels (objects + 2 <= pixels / 32) in parallel, four contiguous
-/// ranges of rows per thread: the first adds into `hist`, the others into histograms of their own
-/// whose touched entries are added after; else on the calling thread. Needs objects < 2^32 - 2.
+/// `objects`. Returns false when there are any. The map is read once, as runs of equal ids found
+/// a block at a time without branches (16 pixels a step with AVX-512 when `simd` allows it), in
+/// ranges of pixels on `threads` threads. With few objects (at most CountScratch::kSegment slots)
+/// each range adds its runs into a histogram of its own, summed after; with more, the runs are
+/// sorted into segments of ids first and each segment is counted while it stays in cache
+/// (docs/architecture.md, "Counting pixels"). Needs objects < 2^32 - 2 and fewer than 2^32 pixels.
 [[nodiscard]] bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int threads,
-                             std::vector<std::uint32_t>& hist, CountScratch& scratch);
+                             std::vector<std::uint32_t>& hist, CountScratch& scratch,
+                             SimdLevel simd = SimdLevel::avx512);
+
+/// cull_in_parallel()'s buffers, kept between frames: per range of objects, its active ones and
+/// the sum of its counts.
+struct CullScratch {
+  std::vector<std::vector<std::uint32_t>> active;
+  std::vector<std::uint64_t> counted;
+  [[nodiscard]] std::uint64_t memory_bytes() const {
+    std::uint64_t b = counted.capacity() * sizeof(std::uint64_t);
+    for (const auto& v : active) b += v.capacity() * sizeof(std::uint32_t);
+    return b;
+  }
+};
+
+/// Stage 3 as cull_and_choose_bits(), on `threads` threads: ranges of objects each cull into a
+/// list of their own (cull_range()), concatenated in order. The same pixels, active set, mu and m.
+int cull_in_parallel(std::span<const std::uint32_t> counts, double pixel_scale, const Config& config,
+                     std::span<const std::uint8_t> always_active, int threads, std::vector<float>& pixels,
+                     std::vector<std::uint32_t>& active, CullScratch& scratch, FrameStats& stats);
 
 /// Stage 2: pixels per object over the map: the rasterizer's counts when it left them for
 /// `objects` objects, else count_ids() over the id map (`hist`, `scratch`: its buffers, reused).

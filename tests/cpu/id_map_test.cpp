@@ -42,13 +42,99 @@ TEST(CountIds, AgainstAHistogram) {
       // Few objects for the pixels (in parallel, a histogram per range of rows) and many (serial).
       for (std::size_t objects : {1u, 7u, 1000u, 300000u}) {
         const auto ids = random_map(pixels, static_cast<std::uint32_t>(objects), max_run, pixels + max_run);
-        for (int threads : {1, 2, 5}) {
-          ASSERT_TRUE(detail::count_ids(ids, objects, threads, hist, scratch));
-          ASSERT_EQ(hist, histogram(ids, objects)) << pixels << " pixels, runs up to " << max_run << ", " << objects
-                                                   << " objects, " << threads << " threads";
-        }
+        for (int threads : {1, 2, 5})
+          for (const detail::SimdLevel simd : {detail::SimdLevel::scalar, detail::SimdLevel::avx512}) {
+            ASSERT_TRUE(detail::count_ids(ids, objects, threads, hist, scratch, simd));
+            ASSERT_EQ(hist, histogram(ids, objects))
+                << pixels << " pixels, runs up to " << max_run << ", " << objects << " objects, " << threads
+                << " threads, " << detail::simd_name(simd);
+          }
       }
     }
+  }
+}
+
+// Object counts around the histogram's segments (one histogram per range of pixels up to
+// CountScratch::kSegment slots, segments of ids beyond), ids bunched at the top and bottom of the
+// range, maps of background only and of one object only, and one run across every block.
+TEST(CountIds, AroundTheSegments) {
+  std::vector<std::uint32_t> hist;
+  detail::CountScratch scratch;
+  constexpr std::size_t kSeg = detail::CountScratch::kSegment;
+  for (std::size_t objects : {kSeg - 3, kSeg - 2, kSeg - 1, kSeg, 2 * kSeg - 2, 2 * kSeg + 5, 5 * kSeg + 1}) {
+    std::mt19937_64 rng(objects);
+    std::vector<std::vector<std::uint32_t>> maps;
+    std::vector<std::uint32_t> ids;
+    for (std::size_t k = 0; k < 70000; ++k) {  // ids near both ends and at segment edges
+      const std::uint64_t pick = rng() % 6;
+      const std::uint64_t edge = (rng() % (objects / kSeg + 1)) * kSeg;
+      const std::uint64_t id = pick == 0   ? objects - rng() % 3
+                               : pick == 1 ? rng() % 3
+                               : pick == 2 ? std::min<std::uint64_t>(objects, edge + rng() % 2)
+                               : pick == 3 ? (edge == 0 ? 0 : edge - 1)
+                                           : rng() % (objects + 1);
+      const std::size_t run = 1 + rng() % 7;
+      for (std::size_t r = 0; r < run; ++r) ids.push_back(static_cast<std::uint32_t>(id));
+    }
+    maps.push_back(ids);
+    maps.emplace_back(100003, 0u);                                   // background only
+    maps.emplace_back(100003, static_cast<std::uint32_t>(objects));  // the last object only
+    maps.emplace_back(2048 * 3 + 17, 1u);                            // one run across blocks
+    for (const auto& map : maps)
+      for (int threads : {1, 2, 3})
+        for (const detail::SimdLevel simd : {detail::SimdLevel::scalar, detail::SimdLevel::avx512}) {
+          ASSERT_TRUE(detail::count_ids(map, objects, threads, hist, scratch, simd));
+          ASSERT_EQ(hist, histogram(map, objects)) << objects << " objects, " << map.size() << " pixels, " << threads
+                                                   << " threads, " << detail::simd_name(simd);
+        }
+  }
+}
+
+// Stage 3 on threads (cull_in_parallel) against the serial rule (cull_and_choose_bits): the same
+// pixels, active set, mu and bits for sizes around the parallel threshold, with and without flags
+// and culling, and scaled counts.
+TEST(CullInParallel, EqualsTheSerialRule) {
+  detail::CullScratch scratch;
+  for (std::size_t n : {0u, 1u, 4095u, 4096u, 4097u, 100003u}) {
+    std::mt19937_64 rng(n);
+    std::vector<std::uint32_t> counts(n);
+    std::vector<std::uint8_t> flags(n);
+    for (std::size_t k = 0; k < n; ++k) {
+      counts[k] = static_cast<std::uint32_t>(rng() % 3 == 0 ? rng() % 1000 : 0);
+      flags[k] = rng() % 50 == 0;
+    }
+    for (const bool culling : {true, false})
+      for (const bool with_flags : {false, true})
+        for (const double scale : {1.0, 2.25, 0.3})
+          for (int threads : {1, 2, 3}) {
+            Config c;
+            c.culling = culling;
+            const std::span<const std::uint8_t> always =
+                with_flags ? std::span<const std::uint8_t>(flags) : std::span<const std::uint8_t>();
+            std::vector<float> pa, pb;
+            std::vector<std::uint32_t> aa{7, 7}, ab;
+            FrameStats sa, sb;
+            const int ba = detail::cull_and_choose_bits(counts, scale, c, always, pa, aa, sa);
+            const int bb = detail::cull_in_parallel(counts, scale, c, always, threads, pb, ab, scratch, sb);
+            const std::string what = std::to_string(n) + " objects, culling " + (culling ? "on" : "off") +
+                                     (with_flags ? ", flags" : "") + ", scale " + std::to_string(scale) + ", " +
+                                     std::to_string(threads) + " threads";
+            ASSERT_EQ(pa, pb) << what;
+            ASSERT_EQ(aa, ab) << what;
+            EXPECT_EQ(ba, bb) << what;
+            EXPECT_EQ(sa.mean_pixels, sb.mean_pixels) << what;
+            EXPECT_EQ(sa.active, sb.active) << what;
+            // The oracle: the rule written out here.
+            std::vector<std::uint32_t> want;
+            double sum = 0;
+            for (std::size_t k = 0; k < n; ++k) {
+              sum += counts[k];
+              if (!culling || counts[k] * scale >= c.lambda || (with_flags && flags[k]))
+                want.push_back(static_cast<std::uint32_t>(k));
+            }
+            ASSERT_EQ(ab, want) << what;
+            EXPECT_DOUBLE_EQ(sb.mean_pixels, n ? sum * scale / static_cast<double>(n) : 0.0) << what;
+          }
   }
 }
 

@@ -2,6 +2,7 @@
 // sizes, and a pair cap that is enforced before the pairs' memory is taken.
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <string>
 #include <thread>
 #include <vector>
@@ -50,6 +51,50 @@ TEST(Threads, NegativeIsAnError) {
     const Status s = det.value()->detect(coincident(3), nullptr, f);
     ASSERT_FALSE(s.ok()) << backend;
     EXPECT_NE(s.error().find("Config::threads"), std::string::npos) << s.error();
+  }
+}
+
+// The cpu backend checks the objects in ranges on its threads: with more objects than the
+// parallel threshold, a bad sphere or box anywhere gives validate_spheres()'s or
+// validate_boxes()'s error, naming the first bad one.
+TEST(Validation, InRangesTheFirstBadObjectIsNamed) {
+  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  for (int threads : {1, 2, 3}) {
+    Config c;
+    c.threads = threads;
+    auto d = make_cpu_detector(c);
+    FrameResult f;
+    constexpr std::size_t n = 100003;
+    std::vector<Sphere> s(n);
+    std::vector<Box> b(n);
+    for (std::size_t k = 0; k < n; ++k) {  // apart: no pairs
+      const float x = 3.0f * static_cast<float>(k);
+      s[k] = {x, 2, 3, 0.5f};
+      b[k] = {{x, 0, 0}, {x + 1, 1, 1}};
+    }
+    ASSERT_TRUE(d->detect(s, nullptr, f).ok());
+    for (std::size_t at : {std::size_t{0}, std::size_t{4095}, n / 2, n - 1}) {
+      for (const Sphere bad :
+           {Sphere{nan, 0, 0, 1}, Sphere{0, 0, inf, 1}, Sphere{0, 0, 0, -0.5f}, Sphere{0, 2e18f, 0, 1}}) {
+        std::vector<Sphere> t = s;
+        t[at] = bad;
+        t[n - 1 - at / 2] = Sphere{0, 0, 0, -1};  // a second bad one, later unless at is the last
+        const Status st = d->detect(t, nullptr, f);
+        ASSERT_FALSE(st.ok()) << at;
+        EXPECT_EQ(st.error(), validate_spheres(t).error()) << at;
+        EXPECT_NE(st.error().find("sphere " + std::to_string(std::min(at, n - 1 - at / 2))), std::string::npos)
+            << st.error();
+      }
+      std::vector<Box> t = b;
+      t[at].max[1] = -1;  // min > max
+      FrameInput in;
+      in.boxes = t;
+      const Status st = d->detect(in, f);
+      ASSERT_FALSE(st.ok()) << at;
+      EXPECT_EQ(st.error(), validate_boxes(t).error()) << at;
+      EXPECT_NE(st.error().find("box " + std::to_string(at)), std::string::npos) << st.error();
+    }
+    ASSERT_TRUE(d->detect(s, nullptr, f).ok()) << "recovers";
   }
 }
 
