@@ -2,9 +2,11 @@
 #include <chrono>
 #include <cinttypes>
 #include <filesystem>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
+#include <string>
 
 #include "commands.hpp"
 #include "detector_choice.hpp"
@@ -19,6 +21,26 @@
 
 namespace viscd::app {
 namespace {
+
+// A "Key:   123 kB" line of /proc/self/status, in bytes; nothing where there is no such file.
+std::optional<std::uint64_t> proc_status_bytes(const std::string& key) {
+  std::ifstream in("/proc/self/status");
+  for (std::string line; std::getline(in, line);)
+    if (line.rfind(key, 0) == 0) {
+      std::istringstream fields(line.substr(key.size()));
+      std::uint64_t kb = 0;
+      if (fields >> kb) return kb * 1024;
+    }
+  return std::nullopt;
+}
+
+// Resets the kernel's high-water mark of this process's resident set (VmHWM) to its present size.
+bool reset_peak_rss() {
+  std::ofstream out("/proc/self/clear_refs");
+  out << "5";
+  out.flush();
+  return static_cast<bool>(out);
+}
 
 struct RunArgs {
   PipelineOptions pipeline;
@@ -144,9 +166,16 @@ int run_run(RunArgs a) {
   RecentValues sim_ms, frame_ms;
   std::array<RecentValues, kStageCount> stage_ms;
   FrameResult frame;
+  // The memory the frames add to the scene's: the peak resident set during the frames (the
+  // kernel's high-water mark, reset here) above the resident set now.
+  const bool peak_reset = reset_peak_rss();
+  const std::optional<std::uint64_t> rss_before = proc_status_bytes("VmRSS:");
+  std::optional<std::uint64_t> rss_peak;
   Progress progress("frames", static_cast<std::size_t>(a.frames), a.quiet);
   for (int f = 0; f < a.frames; ++f) {
     const bool last = f == a.frames - 1;
+    // The last frame also renders and shades the screenshot: the peak is taken before it.
+    if (last && f > 0 && peak_reset) rss_peak = proc_status_bytes("VmHWM:");
     if (last) {  // shade only the screenshot frame
       Config c = det->config();
       c.shade = true;
@@ -254,6 +283,16 @@ int run_run(RunArgs a) {
   summary["median_frame_ms"] = med_frame;
   summary["fps"] = med_frame > 0 ? 1000.0 / med_frame : 0.0;
   summary["last_frame"] = nlohmann::ordered_json::parse(stats_json(st, det->name()));
+  if (peak_reset && a.frames == 1) rss_peak = proc_status_bytes("VmHWM:");
+  const std::uint64_t tally = det->memory_bytes();
+  summary["memory"]["detector_bytes"] = tally;
+  if (rss_before && rss_peak) {
+    const std::uint64_t added = *rss_peak > *rss_before ? *rss_peak - *rss_before : 0;
+    summary["memory"]["rss_before_frames_bytes"] = *rss_before;
+    summary["memory"]["peak_rss_bytes"] = *rss_peak;
+    summary["memory"]["added_bytes_per_object"] =
+        a.world.objects ? static_cast<double>(added) / static_cast<double>(a.world.objects) : 0.0;
+  }
 
   if (!a.quiet) {
     std::printf("\n  %-12s %10s\n", "stage", "median ms");
@@ -265,6 +304,17 @@ int run_run(RunArgs a) {
     std::printf("  %-12s %10.3f   (%.0f frames per second)\n", "frame", med_frame,
                 med_frame > 0 ? 1000.0 / med_frame : 0.0);
     std::printf("  (shading ran on the screenshot frame only: %.3f ms)\n\n", st.ms(Stage::shade));
+    if (rss_before && rss_peak) {
+      const std::uint64_t added = *rss_peak > *rss_before ? *rss_peak - *rss_before : 0;
+      std::printf(
+          "memory: peak resident %.1f MB during the frames%s, %.1f MB above the %.1f MB before them (%.0f "
+          "bytes per object); the detector's buffers %.1f MB\n",
+          static_cast<double>(*rss_peak) / 1e6, a.frames > 1 ? " before the screenshot's" : "",
+          static_cast<double>(added) / 1e6, static_cast<double>(*rss_before) / 1e6,
+          a.world.objects ? static_cast<double>(added) / a.world.objects : 0.0, static_cast<double>(tally) / 1e6);
+    } else {
+      std::printf("memory: the detector's buffers %.1f MB\n", static_cast<double>(tally) / 1e6);
+    }
     std::printf("last frame: %u of %u objects active (%.1f %%)%s, mu = %.1f px, m = %d bits %s, %" PRIu64 " pairs\n",
                 st.active, st.objects, st.objects ? 100.0 * st.active / st.objects : 0.0,
                 field.empty() ? "" : (", " + std::to_string(st.static_objects) + " static").c_str(), st.mean_pixels,

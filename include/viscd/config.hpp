@@ -33,7 +33,8 @@ struct Config {
   float lambda = 200.0f;
   /// Adaptive Morton width (the paper's Eq. (1), its thresholds a and b): with mu the mean screen
   /// pixels per object, m = 16 if mu < pixels_for_32_bits, 32 if mu < pixels_for_64_bits, else 64.
-  /// Defaults 100 (a) and 400 (b).
+  /// Defaults 100 (a) and 400 (b). Beyond the paper, 16 becomes 32 when more than 131 072 objects
+  /// are active: 16-bit codes have too few cells for them (docs/architecture.md, "Morton width").
   float pixels_for_32_bits = 100.0f;
   float pixels_for_64_bits = 400.0f;
   /// Morton width: adaptive (default) or fixed 16/32/64. Pairs are exact for every choice.
@@ -53,7 +54,10 @@ struct Config {
   /// camera the detector renders and counts a visibility map of its own only when something uses
   /// it: culling, adaptive bits (mu picks m), shading, or this. Off (default), a frame with a
   /// camera, culling off and a fixed bit count renders no map: the paper's baseline, which pays
-  /// for the broadphase alone. The caller's id map is always counted (the count also checks it).
+  /// for the broadphase alone. Nor does one with adaptive bits whose m no map can change: culling
+  /// off, more than 131 072 objects and fewer screen pixels than pixels_for_32_bits per object
+  /// (mu is then below a, and m is 32). The caller's id map is always counted (the count also
+  /// checks it).
   bool report_pixels = false;
   /// Report contact events: FrameResult::began and ::ended, the pairs that began and ended since
   /// the previous detect() of this detector (Detector::reset_events() forgets that frame). Objects

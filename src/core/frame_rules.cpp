@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <limits>
 
+#include "core/morton.hpp"
 #include "core/visibility.hpp"
 #include "viscd/detector.hpp"
 
@@ -25,8 +26,21 @@ Status validate_frame(const Shapes& objects, const Camera* camera, const Config&
   return {};
 }
 
+bool adaptive_bits_need_pixels(const FrameInput& in, const Config& config) {
+  if (config.bits != Bits::adaptive) return false;
+  if (config.culling || in.camera == nullptr) return true;
+  // Without culling every object is active. mu <= (screen pixels) / N, since a pixel holds one
+  // object at most: below a, Eq. (1) gives 16, which more than kMostObjectsFor16Bits objects
+  // raise to 32 (choose_bits()), the width of a frame without pixels.
+  const std::size_t n = Shapes::of(in).size();
+  const double screen = static_cast<double>(in.camera->width) * static_cast<double>(in.camera->height);
+  const bool m_is_32 =
+      n > kMostObjectsFor16Bits && screen < static_cast<double>(config.pixels_for_32_bits) * static_cast<double>(n);
+  return !m_is_32;
+}
+
 bool renders_own_map(const FrameInput& in, const Config& config) {
-  const bool map_used = config.culling || config.bits == Bits::adaptive || config.shade || config.report_pixels;
+  const bool map_used = config.culling || adaptive_bits_need_pixels(in, config) || config.shade || config.report_pixels;
   return in.camera != nullptr && !has_callers_map(in) && map_used;
 }
 

@@ -45,8 +45,14 @@ std::uint64_t bytes_of(const std::vector<T>& v) {
 [[nodiscard]] inline bool has_callers_map(const FrameInput& input) {
   return !input.id_map.empty() || input.gl_id_texture != 0;
 }
+/// Whether adaptive bits need this frame's pixels to choose m: adaptive, with a camera, and
+/// either culling, or too few objects to know m without mu. Without culling, with more than
+/// kMostObjectsFor16Bits objects and fewer screen pixels than pixels_for_32_bits per object, m is
+/// 32 whatever the map shows (choose_bits()), so the map is not needed for it.
+[[nodiscard]] bool adaptive_bits_need_pixels(const FrameInput& input, const Config& config);
 /// Whether this frame renders a visibility map of its own (stage 1): a camera, no caller's map,
-/// and something that uses the map (culling, adaptive bits, shading, Config::report_pixels).
+/// and something that uses the map (culling, adaptive bits that need pixels, shading,
+/// Config::report_pixels).
 [[nodiscard]] bool renders_own_map(const FrameInput& input, const Config& config);
 /// Whether this frame counts pixels (stage 2): its own map, or the caller's.
 [[nodiscard]] bool counts_pixels(const FrameInput& input, const Config& config);

@@ -103,9 +103,11 @@ MortonGrid morton_grid(const MortonLayout& layout, const Aabb& bounds) {
   return g;
 }
 
-int choose_bits(const Config& config, bool has_camera, double mu) {
+int choose_bits(const Config& config, bool has_camera, double mu, std::size_t objects) {
   if (config.bits != Bits::adaptive) return static_cast<int>(config.bits);
-  return has_camera ? bits_for_mean_pixels(mu, config.pixels_for_32_bits, config.pixels_for_64_bits) : 32;
+  if (!has_camera) return 32;
+  const int m = bits_for_mean_pixels(mu, config.pixels_for_32_bits, config.pixels_for_64_bits);
+  return m == 16 && objects > kMostObjectsFor16Bits ? 32 : m;
 }
 
 MortonEncoder::MortonEncoder(const MortonLayout& layout, const Aabb& bounds) {

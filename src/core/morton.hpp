@@ -51,9 +51,18 @@ struct MortonLayout {
 /// Eq. (1): m from mu and the thresholds.
 [[nodiscard]] int bits_for_mean_pixels(double mu, float a, float b);
 
+/// Above this many objects in the tree, adaptive m is at least 32: 16-bit codes leave 65 536
+/// cells, and with more than two objects per cell on average the tree's leaves group objects
+/// that share a cell in no spatial order, so the query grows faster than N (measured on the ring
+/// scene without culling: 1.3x slower than 32 bits at 3 x 10^5 objects, 4.2x at 10^7;
+/// docs/benchmarks.md, "Ten million objects").
+inline constexpr std::size_t kMostObjectsFor16Bits = std::size_t{1} << 17;
+
 /// The frame's m, the one rule every backend applies: Config::bits when fixed; else Eq. (1)
-/// from mu; a frame without a camera has no mu, and adaptive falls back to the paper's 32 bits.
-[[nodiscard]] int choose_bits(const Config& config, bool has_camera, double mu);
+/// from mu, raised from 16 to 32 when more than kMostObjectsFor16Bits objects enter the tree
+/// (`objects`: the active moving ones); a frame without a camera has no mu, and adaptive falls
+/// back to the paper's 32 bits.
+[[nodiscard]] int choose_bits(const Config& config, bool has_camera, double mu, std::size_t objects);
 
 /// The quantisation grid of a layout over given bounds, per axis: a centre coordinate v goes to
 /// cell q = (v - lo) * scale (in double), clamped to [0, max_cell] (NaN and q <= 0 to 0). Every

@@ -110,7 +110,7 @@ int finish_cull(const Config& config, std::size_t objects, std::uint64_t counted
                 std::size_t active, FrameStats& stats) {
   stats.mean_pixels = objects ? static_cast<double>(counted) * pixel_scale / static_cast<double>(objects) : 0.0;
   stats.active = static_cast<std::uint32_t>(active);
-  return choose_bits(config, true, stats.mean_pixels);
+  return choose_bits(config, true, stats.mean_pixels, active);
 }
 
 }  // namespace viscd::detail

@@ -123,7 +123,7 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     active_.resize(n);
     parallel_for(n, threads, [&](std::size_t k) { active_[k] = static_cast<std::uint32_t>(k); });
     stats.active = static_cast<std::uint32_t>(n);
-    bits = choose_bits(config_, false, 0.0);
+    bits = choose_bits(config_, false, 0.0, n);
   }
   // Static objects are never culled (and stats.active counts the moving ones).
   if (total > n) {

@@ -53,11 +53,13 @@ LayoutChoice LayoutChooser::choose(std::uint32_t objects, std::uint32_t moving, 
     ++mid_frame_waits_;
     choice.n_bound = info.active_count;
     // mu over all N moving objects, culled ones included (docs/architecture.md, "Contracts");
-    // static objects are not counted. The cpu backend sums count * scale in double; with scale 1
-    // (map = screen) both sums are exact and equal, otherwise they may differ in the last ulp.
+    // static objects are not counted. The exact pixel total times the scale over N, as the cpu
+    // backend computes it (finish_cull()): the same mu.
     if (has_pixels) mu = moving ? static_cast<double>(info.total_pixels) * frame_.pixel_scale / moving : 0.0;
   }
-  const int bits = detail::choose_bits(config_, has_pixels, mu);
+  // The active moving objects (this frame's, or the previous frame's in the default mode) raise
+  // m from 16 to 32 past detail::kMostObjectsFor16Bits, as on the cpu.
+  const int bits = detail::choose_bits(config_, has_pixels, mu, info.visible_count);
   choice.bounds.lo = {info.lo.x, info.lo.y, info.lo.z};
   choice.bounds.hi = {info.hi.x, info.hi.y, info.hi.z};
   const std::uint32_t n = info.active_count;

@@ -4,7 +4,9 @@
 #include <bit>
 #include <cmath>
 #include <random>
+#include <vector>
 
+#include "core/frame_rules.hpp"
 #include "core/morton.hpp"
 
 namespace viscd::detail {
@@ -129,6 +131,61 @@ TEST(AdaptiveBits, Equation1Boundaries) {
   EXPECT_EQ(bits_for_mean_pixels(399.99, 100, 400), 32);
   EXPECT_EQ(bits_for_mean_pixels(400.0, 100, 400), 64);
   EXPECT_EQ(bits_for_mean_pixels(1e9, 100, 400), 64);
+}
+
+// Beyond Eq. (1): 16 bits become 32 past 2^17 active objects; fixed widths and frames without a
+// camera are untouched.
+TEST(AdaptiveBits, SixteenBitsBecome32ForManyObjects) {
+  const Config c;  // adaptive, a = 100, b = 400
+  EXPECT_EQ(choose_bits(c, true, 5.0, 0), 16);
+  EXPECT_EQ(choose_bits(c, true, 5.0, std::size_t{1} << 17), 16);
+  EXPECT_EQ(choose_bits(c, true, 5.0, (std::size_t{1} << 17) + 1), 32);
+  EXPECT_EQ(choose_bits(c, true, 150.0, std::size_t{1} << 20), 32);
+  EXPECT_EQ(choose_bits(c, true, 500.0, std::size_t{1} << 20), 64);
+  EXPECT_EQ(choose_bits(c, false, 0.0, std::size_t{1} << 20), 32);
+  Config fixed = c;
+  fixed.bits = Bits::b16;
+  EXPECT_EQ(choose_bits(fixed, true, 5.0, std::size_t{1} << 20), 16);
+}
+
+// The map is left out for adaptive bits only where no map can change m: culling off, more than
+// 2^17 objects, and fewer screen pixels than a per object (mu <= screen pixels / N < a).
+TEST(AdaptiveBits, WhenTheMapCannotChangeM) {
+  Camera cam;
+  cam.width = 1000, cam.height = 1000;  // 10^6 screen pixels
+  const std::size_t many = (std::size_t{1} << 17) + 1;
+  std::vector<Sphere> spheres(many);
+  FrameInput in;
+  in.camera = &cam;
+  Config c;
+  c.culling = false;
+  c.pixels_for_32_bits = 100;
+  in.spheres = spheres;  // 131 073 objects: 10^6 < 100 x N
+  EXPECT_FALSE(adaptive_bits_need_pixels(in, c));
+  EXPECT_FALSE(renders_own_map(in, c));
+  std::vector<Box> boxes(many);
+  FrameInput box_in = in;
+  box_in.spheres = {};
+  box_in.boxes = boxes;
+  EXPECT_FALSE(renders_own_map(box_in, c)) << "boxes count alike";
+  in.spheres = std::span<const Sphere>(spheres).first(many - 1);  // 2^17: 16 bits stay possible
+  EXPECT_TRUE(adaptive_bits_need_pixels(in, c));
+  in.spheres = spheres;
+  cam.width = 100 * static_cast<int>(many) / 1000 + 1;  // screen pixels >= a N: mu may reach a
+  EXPECT_TRUE(adaptive_bits_need_pixels(in, c));
+  cam.width = 1000;
+  Config culling = c;
+  culling.culling = true;
+  EXPECT_TRUE(renders_own_map(in, culling));
+  Config shade = c;
+  shade.shade = true;
+  EXPECT_TRUE(renders_own_map(in, shade));
+  Config report = c;
+  report.report_pixels = true;
+  EXPECT_TRUE(renders_own_map(in, report));
+  Config lower_a = c;
+  lower_a.pixels_for_32_bits = 1;  // 10^6 screen pixels >= 1 x N
+  EXPECT_TRUE(renders_own_map(in, lower_a));
 }
 
 }  // namespace

@@ -186,6 +186,33 @@ TEST(Visibility, AllCulledAndNoneCulled) {
   EXPECT_TRUE(same_pairs(none.pairs, oracle_pairs(s)));
 }
 
+// Culling off, adaptive bits, 2^17 + 1 objects on a 640x360 screen (fewer pixels than a = 100
+// per object): m is 32 whatever a map would show, so none is rendered; the pairs are a 32-bit
+// frame's. With 2^17 objects 16 bits stay possible and the map is rendered.
+TEST(Visibility, NoMapWhereItCannotChangeTheBits) {
+  const std::size_t many = (std::size_t{1} << 17) + 1;
+  const auto s = random_spheres_by_half_extent(many, 5, 60.0f, 0.05f, 0.2f);
+  const Camera cam = camera_at(0, 0, 150, 0, 0, 0, 640, 360);
+  Config c;
+  c.culling = false;
+  auto d = make_cpu_detector(c);
+  const FrameResult f = test::run_frame(*d, s, &cam);
+  EXPECT_FALSE(f.stats.has_pixels);
+  EXPECT_TRUE(f.pixels.empty());
+  EXPECT_EQ(f.stats.bits, 32);
+  EXPECT_EQ(f.stats.ms(Stage::visibility), 0.0);
+  EXPECT_EQ(f.stats.active, many);
+  Config fixed = c;
+  fixed.bits = Bits::b32;
+  const FrameResult g = test::run_frame(*make_cpu_detector(fixed), s, nullptr);
+  EXPECT_TRUE(same_pairs(f.pairs, g.pairs));
+  const std::span<const Sphere> fewer = std::span<const Sphere>(s).first(many - 1);
+  const FrameResult h = test::run_frame(*d, std::vector<Sphere>(fewer.begin(), fewer.end()), &cam);
+  EXPECT_TRUE(h.stats.has_pixels);
+  EXPECT_EQ(h.pixels.size(), many - 1);
+  EXPECT_EQ(h.stats.bits, 16);
+}
+
 TEST(Visibility, InvalidCameraAndMapAreErrors) {
   const auto s = random_spheres_by_half_extent(10, 1);
   Camera cam = camera_at(0, 0, 10, 0, 0, 10, 64, 48);  // eye == target
