@@ -25,8 +25,8 @@ ActiveExtent active_extent(const Shapes& spheres, std::span<const std::uint32_t>
 }
 
 std::uint64_t MortonOrder::memory_bytes() const {
-  std::uint64_t b = bytes_of(sorted_ids_) + bytes_of(previous_ids_) + bytes_of(rank_) + bytes_of(gathered_) +
-                    bytes_of(entries_) + nearly_sorted_.memory_bytes();
+  std::uint64_t b = bytes_of(sorted_ids_) + bytes_of(at_) + bytes_of(rank_) + bytes_of(gathered_) + bytes_of(entries_) +
+                    nearly_sorted_.memory_bytes();
   keys_.for_each([&](const auto& v) { b += bytes_of(v); });
   scratch_.for_each([&](const auto& s) { b += bytes_of(s.keys) + bytes_of(s.values); });
   return b;
@@ -48,7 +48,7 @@ void MortonOrder::sort(std::span<const Sphere> spheres, std::span<const std::uin
                        int threads, FrameStats& stats) {
   ActiveExtent extent;
   layout_ = layout_stage(spheres, active, bits, layout, threads, extent, stats);
-  if (bits != bits_) previous_ids_.clear();  // the last order was by codes of another width
+  if (bits != bits_) last_count_ = 0;  // the last order was by codes of another width
   bits_ = bits;
   switch (bits) {
     case 16:
@@ -60,22 +60,23 @@ void MortonOrder::sort(std::span<const Sphere> spheres, std::span<const std::uin
   }
 }
 
-// When every object is active and the last frame had the same ones (the steady state without
-// culling), the last order as it stands.
+// The last order is sorted_ids_[0, last_count_), rewritten here in place (an id is written at
+// or before the place it is read from). When every object is active and the last frame had the
+// same ones (the steady state without culling), it stays as it stands.
 void MortonOrder::last_order(std::size_t objects, std::span<const std::uint32_t> active) {
-  const std::size_t n = active.size();
-  if (n == objects && previous_ids_.size() == n) {
+  const std::size_t n = active.size(), last = last_count_;
+  if (n == objects && last == n) {
     // active is 0..n-1 (ascending, distinct), and the last order holds n distinct ids: when all
     // are below n it is a permutation of them.
-    if (std::all_of(previous_ids_.begin(), previous_ids_.end(), [n](std::uint32_t id) { return id < n; })) {
-      std::copy(previous_ids_.begin(), previous_ids_.end(), sorted_ids_.begin());
+    if (std::all_of(sorted_ids_.begin(), sorted_ids_.begin() + static_cast<std::ptrdiff_t>(n),
+                    [n](std::uint32_t id) { return id < n; }))
       return;
-    }
   }
   rank_.assign(objects, 0);  // 1: active and not yet placed
   for (const std::uint32_t id : active) rank_[id] = 1;
   std::size_t p = 0;
-  for (const std::uint32_t id : previous_ids_) {
+  for (std::size_t k = 0; k < last; ++k) {
+    const std::uint32_t id = sorted_ids_[k];
     if (id >= objects || rank_[id] == 0) continue;
     sorted_ids_[p++] = id;
     rank_[id] = 0;
@@ -92,7 +93,8 @@ void MortonOrder::sort_keys(std::span<const Sphere> spheres, std::span<const std
   const std::size_t n = active.size();
   std::vector<K>& key = keys_.get<K>();
   if (key.size() < n) resize_with_headroom(key, n);
-  resize_with_headroom(sorted_ids_, n);
+  // Grown, never shrunk here: its first last_count_ ids are the last order (last_order()).
+  if (sorted_ids_.size() < n) resize_with_headroom(sorted_ids_, n);
   const MortonEncoder encoder(layout_, bounds);
   auto code_of = [&](const Sphere& s) { return static_cast<K>(encoder.encode(s.x, s.y, s.z)); };
   // (code, id) in one entry: packed into `key` when the code has at most 32 bits, so that one
@@ -116,12 +118,13 @@ void MortonOrder::sort_keys(std::span<const Sphere> spheres, std::span<const std
   // the way; the sort moves (code, id, place) entries; and the lanes of stage 7 read gathered_
   // in nearly the order it was written.
   report_ = {};
-  const bool from_last = n > 1 && !previous_ids_.empty();
+  const bool from_last = n > 1 && last_count_ != 0;
   bool reused = false;
   // Sized on every sorted frame, also from scratch: the next sorted frame may come after kept
   // frames, and should not be the one that allocates.
   resize_with_headroom(gathered_, n);
   resize_with_headroom(entries_, n);
+  resize_with_headroom(at_, n);
   if (!from_last) {
     nearly_sorted_.reserve(n, threads);
     if (rank_.capacity() < spheres.size()) rank_.reserve(spheres.size() + spheres.size() / 2);
@@ -137,17 +140,16 @@ void MortonOrder::sort_keys(std::span<const Sphere> spheres, std::span<const std
       }
     });
     stats.ms(Stage::codes) = sw.lap();
-    reused = nearly_sorted_.sort(entries_, n, threads, less);
+    // The sorted entries go straight to the codes, the ids and each one's place in gathered_.
+    reused = nearly_sorted_.sort(entries_.data(), n, threads, less, [&](std::size_t k, const SortEntry& e) {
+      key[k] = code_in(e);
+      sorted_ids_[k] = e.id;
+      at_[k] = e.at;
+    });
     const NearlySortedReport& r = nearly_sorted_.report();
     report_.reused = reused;
     report_.moves = r.moves;
     report_.far = r.far;
-    if (reused) {
-      parallel_for(n, threads, [&](std::size_t k) {
-        key[k] = code_in(entries_[k]);
-        sorted_ids_[k] = entries_[k].id;
-      });
-    }
   }
   if (!reused) {
     // From scratch: codes in active order, then the radix sort. Values start as the active ids in
@@ -158,8 +160,7 @@ void MortonOrder::sort_keys(std::span<const Sphere> spheres, std::span<const std
     radix_sort<K>(std::span<K>(key.data(), n), std::span<std::uint32_t>(sorted_ids_.data(), n), 8 * sizeof(K), threads,
                   scratch_.get<K>());
   }
-  resize_with_headroom(previous_ids_, n);
-  std::copy(sorted_ids_.begin(), sorted_ids_.end(), previous_ids_.begin());
+  last_count_ = sorted_count_ = n;
   stats.ms(Stage::sort) = sw.lap();
 }
 

@@ -50,21 +50,23 @@ class MortonOrder {
             int threads, FrameStats& stats);
 
   /// The objects in order (the last sorted frame's, also on frames that keep it).
-  [[nodiscard]] std::span<const std::uint32_t> sorted_ids() const { return sorted_ids_; }
+  [[nodiscard]] std::span<const std::uint32_t> sorted_ids() const {
+    return std::span<const std::uint32_t>(sorted_ids_).first(sorted_count_);
+  }
   /// Objects in the last order (0 when there is none: the next sort starts from scratch).
-  [[nodiscard]] std::size_t last_count() const { return previous_ids_.size(); }
+  [[nodiscard]] std::size_t last_count() const { return last_count_; }
   /// m and the layout of the last sort.
   [[nodiscard]] int bits() const { return bits_; }
   [[nodiscard]] const MortonLayout& layout() const { return layout_; }
   /// Whether the last sort gathered the spheres in order (then gathered_sphere(k) is the k-th
   /// object's sphere, read from memory written in nearly that order).
   [[nodiscard]] bool gathered() const { return report_.reused; }
-  [[nodiscard]] const Sphere& gathered_sphere(std::size_t k) const { return gathered_[entries_[k].at]; }
+  [[nodiscard]] const Sphere& gathered_sphere(std::size_t k) const { return gathered_[at_[k]]; }
   [[nodiscard]] const SortReport& report() const { return report_; }
   /// The sorted codes of the last sort, widened to 64 bits (tests).
-  [[nodiscard]] std::vector<std::uint64_t> sorted_codes() const { return keys_.widened(bits_, sorted_ids_.size()); }
+  [[nodiscard]] std::vector<std::uint64_t> sorted_codes() const { return keys_.widened(bits_, sorted_count_); }
   /// Forget the last order: the next sort starts from scratch.
-  void forget() { previous_ids_.clear(); }
+  void forget() { last_count_ = 0; }
 
   [[nodiscard]] std::uint64_t memory_bytes() const;
 
@@ -80,7 +82,11 @@ class MortonOrder {
   int bits_ = 32;
   PerWidth<KeyVector> keys_;  // each object's code
   PerWidth<RadixScratch> scratch_;
-  std::vector<std::uint32_t> sorted_ids_, previous_ids_;
+  // The objects in order; the first last_count_ are also the last order, which the next sort
+  // starts from (there is no copy of it: last_order() rewrites it in place).
+  std::vector<std::uint32_t> sorted_ids_;
+  std::size_t sorted_count_ = 0, last_count_ = 0;
+  std::vector<std::uint32_t> at_;   // per place of the order, its sphere's place in gathered_
   std::vector<std::uint8_t> rank_;  // per object: active and not yet placed (last_order)
   std::vector<Sphere> gathered_;    // the active spheres in the last frame's order
   std::vector<SortEntry> entries_;

@@ -6,7 +6,9 @@
 // insertion within kReach places; an entry that belongs farther back, or sits above the entry
 // kReach ahead of it (it moved far forward: kept, everything after it would be shifted past it),
 // is set aside instead. The set-aside entries are sorted apart (they are few), and the runs and
-// them are merged, in parallel over parts of the output cut at the first key of each run. When a
+// them are merged, in parallel over parts of the output cut at the first key of each run, into
+// the caller's arrays (emit(k, entry) for each place k of the result: no buffer of entries is
+// kept here for the output). When a
 // run would set aside more than a quarter of its entries the last order says little, and the
 // sort gives up (an LSD radix sort over all entries is then cheaper).
 //
@@ -19,7 +21,6 @@
 #include <cstdint>
 #include <vector>
 
-#include "cpu/grow.hpp"
 #include "cpu/parallel.hpp"
 
 namespace viscd::detail {
@@ -50,26 +51,27 @@ class NearlySortedSort {
   }
 
   /// Room for what the runs over n entries may set aside (a quarter of a run and 64 each, and all
-  /// of it together), so that the sort allocates nothing in a steady state.
+  /// of it together), so that the sort allocates nothing in a steady state. Set-aside entries are
+  /// reserved, not written: memory that is never written takes no pages.
   void reserve(std::size_t n, int threads) {
     const std::size_t runs = runs_for(n, threads);
     const std::size_t limit = (n + runs - 1) / runs / 4 + 64;
     for (std::size_t r = 0; r < runs; ++r)
       if (far_[r].capacity() < limit) far_[r].reserve(limit + limit / 2);
     if (far_[kMaxSortRuns].capacity() < runs * limit) far_[kMaxSortRuns].reserve(runs * limit + runs * limit / 2);
-    resize_with_headroom(merged_, n);
   }
 
-  /// Sorts entries[0..n) by `less` with up to `threads` threads; `entries` may be swapped with a
-  /// buffer of the same size held here (both keep their capacity). Returns false when it gave up
-  /// (entries[0..n) are then no longer a permutation of the input).
-  template <class Less>
-  bool sort(std::vector<SortEntry>& entries, std::size_t n, int threads, Less less);
+  /// Sorts entries[0..n) by `less` with up to `threads` threads, and hands the result over as
+  /// emit(k, entry) for every place k in [0, n), once each, from several threads at once (distinct
+  /// k). `entries` is sorted run by run in place and read by the merge. Returns false when it gave
+  /// up (then nothing is emitted, and entries[0..n) are no longer a permutation of the input).
+  template <class Less, class Emit>
+  bool sort(SortEntry* entries, std::size_t n, int threads, Less less, Emit&& emit);
 
   [[nodiscard]] const NearlySortedReport& report() const { return report_; }
   /// Bytes of the buffers held (capacities).
   [[nodiscard]] std::uint64_t memory_bytes() const {
-    std::uint64_t b = merged_.capacity() * sizeof(SortEntry);
+    std::uint64_t b = 0;
     for (const auto& f : far_) b += f.capacity() * sizeof(SortEntry);
     return b;
   }
@@ -80,7 +82,6 @@ class NearlySortedSort {
                                   std::size_t& kept, std::uint64_t& moved, Less less);
 
   std::array<std::vector<SortEntry>, kMaxSortRuns + 1> far_;  // set aside per run; then all, sorted
-  std::vector<SortEntry> merged_;
   NearlySortedReport report_;
 };
 
@@ -121,8 +122,8 @@ bool NearlySortedSort::insert_within_reach(SortEntry* e, std::size_t len, std::s
   return true;
 }
 
-template <class Less>
-bool NearlySortedSort::sort(std::vector<SortEntry>& entries, std::size_t n, int threads, Less less) {
+template <class Less, class Emit>
+bool NearlySortedSort::sort(SortEntry* entries, std::size_t n, int threads, Less less, Emit&& emit) {
   const std::size_t runs = runs_for(n, threads);
   std::array<std::size_t, kMaxSortRuns> begin{}, kept{};
   std::array<std::uint64_t, kMaxSortRuns> moved{};
@@ -134,7 +135,7 @@ bool NearlySortedSort::sort(std::vector<SortEntry>& entries, std::size_t n, int 
     const std::size_t far_limit = (e - b) / 4 + 64;
     far.clear();
     begin[r] = b;
-    ok[r] = insert_within_reach(entries.data() + b, e - b, far_limit, far, kept[r], moved[r], less);
+    ok[r] = insert_within_reach(entries + b, e - b, far_limit, far, kept[r], moved[r], less);
   });
   std::uint64_t moves = 0, set_aside = 0;
   for (std::size_t r = 0; r < runs; ++r) moves += moved[r], set_aside += far_[r].size();
@@ -143,7 +144,10 @@ bool NearlySortedSort::sort(std::vector<SortEntry>& entries, std::size_t n, int 
   report_.moves = moves;
   report_.far = set_aside;
   if (!report_.sorted) return false;
-  if (runs == 1 && set_aside == 0) return true;
+  if (runs == 1 && set_aside == 0) {  // sorted in place
+    for (std::size_t k = 0; k < n; ++k) emit(k, entries[k]);
+    return true;
+  }
 
   // The inputs of the merge: each run, and all set-aside entries in one sorted list.
   std::vector<SortEntry>& far = far_[kMaxSortRuns];
@@ -156,7 +160,7 @@ bool NearlySortedSort::sort(std::vector<SortEntry>& entries, std::size_t n, int 
     std::size_t size;
   };
   std::array<Input, kMaxSortRuns + 1> in{};
-  for (std::size_t r = 0; r < runs; ++r) in[r] = {entries.data() + begin[r], kept[r]};
+  for (std::size_t r = 0; r < runs; ++r) in[r] = {entries + begin[r], kept[r]};
   in[runs] = {far.data(), far.size()};
   const std::size_t inputs = runs + 1;
   // Part p of the output holds the entries from the first key of run p (raised to the previous
@@ -184,10 +188,9 @@ bool NearlySortedSort::sort(std::vector<SortEntry>& entries, std::size_t n, int 
       std::size_t best = inputs;
       for (std::size_t k = 0; k < inputs; ++k)
         if (at[k] < cut[p + 1][k] && (best == inputs || less(in[k].data[at[k]], in[best].data[at[best]]))) best = k;
-      merged_[o] = in[best].data[at[best]++];
+      emit(o, in[best].data[at[best]++]);
     }
   });
-  std::swap(entries, merged_);
   return true;
 }
 
