@@ -163,21 +163,39 @@ std::size_t block_runs_scalar(const std::uint32_t* p, std::size_t b, std::size_t
 }
 
 #if VISCD_HAVE_AVX512
-// The same, 16 pixels a step: the lanes that start a run are compressed into the front of a
-// register, which is stored whole (the tail past the runs is overwritten by the next step).
+// 16 pixels from `at` (`cur`), `m` the lanes where a run starts: their ids and positions are
+// compressed into the front of a register each, stored whole at run r (the tail past the runs
+// is overwritten by the next step). Returns the runs so far.
+VISCD_AVX512_TARGET inline std::size_t runs_step(std::size_t at, __m512i cur, __mmask16 m, __m512i lane,
+                                                 std::uint32_t* id, std::uint32_t* start, std::size_t r) {
+  const __m512i pos = _mm512_add_epi32(lane, _mm512_set1_epi32(static_cast<int>(at)));
+  _mm512_storeu_si512(id + r, _mm512_maskz_compress_epi32(m, cur));
+  _mm512_storeu_si512(start + r, _mm512_maskz_compress_epi32(m, pos));
+  return r + static_cast<std::size_t>(std::popcount(static_cast<unsigned>(m)));
+}
+
+// The same, 16 pixels a step (runs_step()).
 VISCD_AVX512_TARGET std::size_t block_runs_avx512(const std::uint32_t* p, std::size_t b, std::size_t e,
                                                   std::uint32_t* id, std::uint32_t* start) {
   id[0] = p[b];
   start[0] = static_cast<std::uint32_t>(b);
   std::size_t r = 1, i = b + 1;
   const __m512i lane = _mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0);
+  // 64 pixels a step where no run starts (most of the background, and large objects) cost
+  // loads and compares only.
+  for (; i + 64 <= e; i += 64) {
+    __m512i cur[4];
+    __mmask16 m[4];
+    for (int q = 0; q < 4; ++q) {
+      cur[q] = _mm512_loadu_si512(p + i + 16 * q);
+      m[q] = _mm512_cmpneq_epi32_mask(cur[q], _mm512_loadu_si512(p + i + 16 * q - 1));
+    }
+    if ((m[0] | m[1] | m[2] | m[3]) == 0) continue;
+    for (int q = 0; q < 4; ++q) r = runs_step(i + 16 * static_cast<std::size_t>(q), cur[q], m[q], lane, id, start, r);
+  }
   for (; i + 16 <= e; i += 16) {
     const __m512i cur = _mm512_loadu_si512(p + i), left = _mm512_loadu_si512(p + i - 1);
-    const __mmask16 m = _mm512_cmpneq_epi32_mask(cur, left);
-    const __m512i at = _mm512_add_epi32(lane, _mm512_set1_epi32(static_cast<int>(i)));
-    _mm512_storeu_si512(id + r, _mm512_maskz_compress_epi32(m, cur));
-    _mm512_storeu_si512(start + r, _mm512_maskz_compress_epi32(m, at));
-    r += static_cast<std::size_t>(std::popcount(static_cast<unsigned>(m)));
+    r = runs_step(i, cur, _mm512_cmpneq_epi32_mask(cur, left), lane, id, start, r);
   }
   for (; i < e; ++i) {
     id[r] = p[i];
@@ -189,12 +207,16 @@ VISCD_AVX512_TARGET std::size_t block_runs_avx512(const std::uint32_t* p, std::s
 }
 #endif
 
-// The runs of ids[b, e), a block at a time: add(id, length, count) over the block's run arrays.
+// The runs of ids[b, e), a block at a time: add(id, start, len, count) over the block's run arrays
+// (ids and start pixels filled, start[count] the block's end; `len` room for a length per run,
+// and all three the add's to overwrite).
 template <class Add>
 void for_runs(std::span<const std::uint32_t> ids, std::size_t b, std::size_t e, bool avx512, CountScratch::Runs& buf,
               Add&& add) {
   buf.id.resize(kBlock + 17);
   buf.start.resize(kBlock + 17);
+  buf.len.resize(kBlock + 17);
+  buf.entry.resize(kBlock + 17);
   for (std::size_t at = b; at < e; at += kBlock) {
     const std::size_t end = std::min(e, at + kBlock);
 #if VISCD_HAVE_AVX512
@@ -204,7 +226,7 @@ void for_runs(std::span<const std::uint32_t> ids, std::size_t b, std::size_t e, 
     (void)avx512;
     const std::size_t runs = block_runs_scalar(ids.data(), at, end, buf.id.data(), buf.start.data());
 #endif
-    add(buf.id.data(), buf.start.data(), runs);
+    add(buf.id.data(), buf.start.data(), buf.len.data(), runs);
   }
 }
 
@@ -237,13 +259,18 @@ bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int thre
       // is what the other runs leave.
       std::uint64_t foreground = 0;
       for_runs(ids, b, e, avx512, scratch.runs[c],
-               [&](const std::uint32_t* id, const std::uint32_t* start, std::size_t r) {
+               [&](std::uint32_t* id, const std::uint32_t* start, std::uint32_t* len, std::size_t r) {
+                 // First, without a store to the histogram (so it vectorises): each run's counter
+                 // and length, in place of its id and in `len`; then the adds alone.
+                 std::uint32_t* slot = id;
                  for (std::size_t k = 0; k < r; ++k) {
-                   const std::uint32_t v = std::min(id[k], bad), len = start[k + 1] - start[k];
+                   const std::uint32_t v = std::min(id[k], bad), l = start[k + 1] - start[k];
                    const std::uint32_t background = 0u - static_cast<std::uint32_t>(v == 0);  // all ones or 0
-                   h[v + (background & static_cast<std::uint32_t>(slots + (k & 7)))] += len;
-                   foreground += len & ~background;
+                   slot[k] = v + (background & static_cast<std::uint32_t>(slots + (k & 7)));
+                   len[k] = l;
+                   foreground += l & ~background;
                  }
+                 for (std::size_t k = 0; k < r; ++k) h[slot[k]] += len[k];
                });
       scratch.foreground[c] = foreground;
     });
@@ -283,7 +310,7 @@ bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int thre
     for (std::size_t s = 0; s < per_chunk; ++s) end[s] = bucket[s].data();
     std::uint64_t foreground = 0;
     for_runs(ids, b, e, avx512, scratch.runs[c],
-             [&](const std::uint32_t* id, const std::uint32_t* start, std::size_t r) {
+             [&](std::uint32_t* id, const std::uint32_t* start, std::uint32_t* keep, std::size_t r) {
                for (std::size_t s = 0; s < per_chunk; ++s) {  // room for every run of the block in any bucket
                  const auto filled = static_cast<std::size_t>(end[s] - bucket[s].data());
                  if (bucket[s].size() < filled + r) {
@@ -291,16 +318,25 @@ bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int thre
                    end[s] = bucket[s].data() + filled;
                  }
                }
-               // Background runs are written but not kept (the end stays): the background's count is what
-               // the others leave.
+               // First, without a store to a bucket (so it vectorises): each run's bucket (in
+               // place of its id), its entry, and whether it is kept (in `keep`). Background runs
+               // are written but not kept (the end stays): the background's count is what the
+               // others leave. Then the writes alone.
+               std::uint64_t* entry = scratch.runs[c].entry.data();
                for (std::size_t k = 0; k < r; ++k) {
                  const std::uint32_t v = std::min(id[k], bad), len = start[k + 1] - start[k];
-                 const std::uint64_t keep = (std::uint64_t{v} + 0xFFFFFFFFu) >> 32;  // v != 0, as arithmetic: no branch
-                 std::uint64_t*& to = end[v / CountScratch::kSegment * kWays + (k & (kWays - 1))];
+                 const std::uint32_t kept =
+                     static_cast<std::uint32_t>((std::uint64_t{v} + 0xFFFFFFFFu) >> 32);  // v != 0
+                 id[k] = static_cast<std::uint32_t>(v / CountScratch::kSegment * kWays + (k & (kWays - 1)));
+                 entry[k] = std::uint64_t{v} << 32 | len;
+                 keep[k] = kept;
+                 foreground += len & (0u - kept);
+               }
+               for (std::size_t k = 0; k < r; ++k) {
+                 std::uint64_t*& to = end[id[k]];
                  std::uint64_t* at = to;
-                 *at = std::uint64_t{v} << 32 | len;
-                 to = at + keep;
-                 foreground += len & (0 - keep);
+                 *at = entry[k];
+                 to = at + keep[k];
                }
              });
     scratch.foreground[c] = foreground;

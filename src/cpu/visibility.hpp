@@ -86,9 +86,10 @@ class BoxRasterizer {
 struct CountScratch {
   /// Ids per histogram segment: a segment (256 KiB) stays in a core's cache while it is counted.
   static constexpr std::size_t kSegment = std::size_t{1} << 17;
-  /// One block's runs (ids and start pixels), per range of pixels.
+  /// One block's runs (ids, start pixels, lengths; bucket entries), per range of pixels.
   struct Runs {
-    std::vector<std::uint32_t> id, start;
+    std::vector<std::uint32_t> id, start, len;
+    std::vector<std::uint64_t> entry;
   };
   std::vector<Runs> runs;
   /// Few objects: per range of pixels but the first, a histogram of its own.
@@ -100,7 +101,9 @@ struct CountScratch {
   std::vector<std::uint64_t> foreground;
   [[nodiscard]] std::uint64_t memory_bytes() const {
     std::uint64_t b = ends.capacity() * sizeof(std::uint64_t*) + foreground.capacity() * sizeof(std::uint64_t);
-    for (const auto& r : runs) b += (r.id.capacity() + r.start.capacity()) * sizeof(std::uint32_t);
+    for (const auto& r : runs)
+      b += (r.id.capacity() + r.start.capacity() + r.len.capacity()) * sizeof(std::uint32_t) +
+           r.entry.capacity() * sizeof(std::uint64_t);
     for (const auto& v : hist) b += v.capacity() * sizeof(std::uint32_t);
     for (const auto& v : buckets) b += v.capacity() * sizeof(std::uint64_t);
     return b;
