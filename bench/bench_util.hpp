@@ -67,9 +67,20 @@ class CsvWriter {
     row(std::vector<std::string>(header.begin(), header.end()));
   }
   [[nodiscard]] bool ok() const { return !file_.is_open() || file_.good(); }
+  /// Cells holding a comma, a quote or a line break are quoted (RFC 4180: quotes doubled).
   void row(const std::vector<std::string>& cells) {
     if (!file_.is_open()) return;
-    for (std::size_t c = 0; c < cells.size(); ++c) file_ << (c ? "," : "") << cells[c];
+    for (std::size_t c = 0; c < cells.size(); ++c) {
+      const std::string& v = cells[c];
+      file_ << (c ? "," : "");
+      if (v.find_first_of(",\"\r\n") == std::string::npos) {
+        file_ << v;
+        continue;
+      }
+      file_ << '"';
+      for (const char ch : v) file_ << (ch == '"' ? "\"\"" : std::string(1, ch));
+      file_ << '"';
+    }
     file_ << '\n';
     file_.flush();
   }

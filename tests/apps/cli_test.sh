@@ -171,7 +171,15 @@ head -n1 "$W/run/frames.csv" | grep -q '^frame,' || fail "run/frames.csv header 
 if command -v python3 >/dev/null 2>&1; then
   python3 -c 'import json,sys; d=json.load(open(sys.argv[1])); assert d["objects"]==2000 and d["frames"]==3, d' \
     "$W/run/summary.json" || fail "run/summary.json is not valid JSON with objects 2000 and frames 3"
+  # The memory: the detector's tally, and (where /proc has them) the frames' peak above the memory
+  # before them.
+  python3 -c 'import json,sys; m=json.load(open(sys.argv[1]))["memory"]; assert m["detector_bytes"] > 0, m
+if "peak_rss_bytes" in m:
+    assert m["peak_rss_bytes"] >= m["rss_before_frames_bytes"] > 0, m
+    assert m["added_bytes_per_object"] == (m["peak_rss_bytes"] - m["rss_before_frames_bytes"]) / 2000, m' \
+    "$W/run/summary.json" || fail "run/summary.json has no consistent memory figures"
 fi
+expect_in "$W/out" "memory: " "run prints its memory"
 pass
 
 step "run --camera zoom-in --frames 2 --map-size 320x180 works"
