@@ -5,6 +5,7 @@
 #include <bit>
 #include <cmath>
 #include <limits>
+#include <new>
 
 #include "cpu/parallel.hpp"
 #include "viscd/assert.hpp"
@@ -210,13 +211,21 @@ VISCD_AVX512_TARGET std::size_t block_runs_avx512(const std::uint32_t* p, std::s
 // The runs of ids[b, e), a block at a time: add(id, start, len, count) over the block's run arrays
 // (ids and start pixels filled, start[count] the block's end; `len` room for a length per run,
 // and all three the add's to overwrite).
+// The buffers are sized by size_runs() beforehand (outside the tasks: it may allocate).
+void size_runs(CountScratch& scratch, std::size_t chunks) {
+  if (scratch.runs.size() < chunks) scratch.runs.resize(chunks);
+  for (std::size_t c = 0; c < chunks; ++c) {
+    CountScratch::Runs& buf = scratch.runs[c];
+    buf.id.resize(kBlock + 17);
+    buf.start.resize(kBlock + 17);
+    buf.len.resize(kBlock + 17);
+    buf.entry.resize(kBlock + 17);
+  }
+}
+
 template <class Add>
 void for_runs(std::span<const std::uint32_t> ids, std::size_t b, std::size_t e, bool avx512, CountScratch::Runs& buf,
               Add&& add) {
-  buf.id.resize(kBlock + 17);
-  buf.start.resize(kBlock + 17);
-  buf.len.resize(kBlock + 17);
-  buf.entry.resize(kBlock + 17);
   for (std::size_t at = b; at < e; at += kBlock) {
     const std::size_t end = std::min(e, at + kBlock);
 #if VISCD_HAVE_AVX512
@@ -228,6 +237,53 @@ void for_runs(std::span<const std::uint32_t> ids, std::size_t b, std::size_t e, 
 #endif
     add(buf.id.data(), buf.start.data(), buf.len.data(), runs);
   }
+}
+
+// Ways per range and segment (count_ids(), many objects): four buckets taken by consecutive runs in
+// turn. A run's write waits for its bucket's end from the run before; four buckets keep four such
+// chains apart.
+constexpr std::size_t kWays = 4;
+
+// Range c of the map, ids[b, e), sorted into its buckets (kWays per segment of kSegment ids): each
+// run but the background's as (id << 32 | length). The range's foreground pixels go to
+// scratch.foreground[c]. Buckets grow as needed (may throw std::bad_alloc).
+void bucket_runs(std::span<const std::uint32_t> ids, std::size_t b, std::size_t e, std::size_t c, std::size_t per_chunk,
+                 std::uint32_t bad, bool avx512, CountScratch& scratch) {
+  std::vector<std::uint64_t>* bucket = &scratch.buckets[c * per_chunk];
+  // Each bucket's end, as a pointer (a run's write, a std::uint64_t, cannot alias it).
+  std::uint64_t** end = &scratch.ends[c * per_chunk];
+  for (std::size_t s = 0; s < per_chunk; ++s) end[s] = bucket[s].data();
+  std::uint64_t foreground = 0;
+  for_runs(ids, b, e, avx512, scratch.runs[c],
+           [&](std::uint32_t* id, const std::uint32_t* start, std::uint32_t* keep, std::size_t r) {
+             for (std::size_t s = 0; s < per_chunk; ++s) {  // room for every run of the block in any bucket
+               const auto filled = static_cast<std::size_t>(end[s] - bucket[s].data());
+               if (bucket[s].size() < filled + r) {
+                 bucket[s].resize(std::max(filled + r, 2 * bucket[s].size()));
+                 end[s] = bucket[s].data() + filled;
+               }
+             }
+             // First, without a store to a bucket (so it vectorises): each run's bucket (in
+             // place of its id), its entry, and whether it is kept (in `keep`). Background runs
+             // are written but not kept (the end stays): the background's count is what the
+             // others leave. Then the writes alone.
+             std::uint64_t* entry = scratch.runs[c].entry.data();
+             for (std::size_t k = 0; k < r; ++k) {
+               const std::uint32_t v = std::min(id[k], bad), len = start[k + 1] - start[k];
+               const std::uint32_t kept = static_cast<std::uint32_t>((std::uint64_t{v} + 0xFFFFFFFFu) >> 32);  // v != 0
+               id[k] = static_cast<std::uint32_t>(v / CountScratch::kSegment * kWays + (k & (kWays - 1)));
+               entry[k] = std::uint64_t{v} << 32 | len;
+               keep[k] = kept;
+               foreground += len & (0u - kept);
+             }
+             for (std::size_t k = 0; k < r; ++k) {
+               std::uint64_t*& to = end[id[k]];
+               std::uint64_t* at = to;
+               *at = entry[k];
+               to = at + keep[k];
+             }
+           });
+  scratch.foreground[c] = foreground;
 }
 
 }  // namespace
@@ -242,7 +298,10 @@ bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int thre
   // Ranges of pixels, two per thread: a thread that gets no core then holds up half its share,
   // which the others take over.
   const std::size_t chunks = n < kParallelThreshold ? 1 : 2 * static_cast<std::size_t>(std::max(1, threads));
-  if (scratch.runs.size() < chunks) scratch.runs.resize(chunks);
+  // The ranges that get pixels (none of an empty map: nothing is read from the buffers then).
+  const std::size_t used = std::min(chunks, n);
+  size_runs(scratch, chunks);
+  scratch.foreground.assign(chunks, 0);
 
   if (slots <= CountScratch::kSegment) {
     // Few objects: each range of pixels adds its runs into a histogram of its own (the first
@@ -250,7 +309,6 @@ bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int thre
     hist.assign(slots + 8, 0u);  // 8 spare counters, cut off at the end
     if (scratch.hist.size() < chunks - 1) scratch.hist.resize(chunks - 1);
     for (std::size_t c = 1; c < chunks; ++c) scratch.hist[c - 1].assign(slots + 8, 0u);
-    if (scratch.foreground.size() < chunks) scratch.foreground.resize(chunks);
     for_chunks(n, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
       std::uint32_t* h = c == 0 ? hist.data() : scratch.hist[c - 1].data();
       // Every other run is the background's: adding them all into h[0] would make each wait for
@@ -274,7 +332,6 @@ bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int thre
                });
       scratch.foreground[c] = foreground;
     });
-    const std::size_t used = std::min(chunks, std::max<std::size_t>(n, 1));
     if (used > 1)
       for_chunks(slots, slots >= kParallelThreshold ? static_cast<std::size_t>(threads) : 1,
                  [&](std::size_t b, std::size_t e, std::size_t) {
@@ -295,53 +352,21 @@ bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int thre
   // of kSegment ids (a bucket per range of pixels and segment, written in order), then each
   // segment of `hist` is counted from its buckets while it stays in cache.
   const std::size_t segments = (slots + CountScratch::kSegment - 1) / CountScratch::kSegment;
-  // Four buckets per range and segment, taken by consecutive runs in turn: a run's write waits
-  // for its bucket's end from the run before, and four buckets keep four such chains apart.
-  constexpr std::size_t kWays = 4;
   const std::size_t per_chunk = segments * kWays;
   hist.resize(slots);
   if (scratch.buckets.size() < chunks * per_chunk) scratch.buckets.resize(chunks * per_chunk);
   if (scratch.ends.size() < chunks * per_chunk) scratch.ends.resize(chunks * per_chunk);
-  if (scratch.foreground.size() < chunks) scratch.foreground.resize(chunks);
+  // A bucket that must grow does so inside a task; std::bad_alloc there is carried out to the
+  // caller (detect() reports it), not left to end a worker thread.
+  std::atomic<bool> out_of_memory{false};
   for_chunks(n, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
-    std::vector<std::uint64_t>* bucket = &scratch.buckets[c * per_chunk];
-    // Each bucket's end, as a pointer (a run's write, a std::uint64_t, cannot alias it).
-    std::uint64_t** end = &scratch.ends[c * per_chunk];
-    for (std::size_t s = 0; s < per_chunk; ++s) end[s] = bucket[s].data();
-    std::uint64_t foreground = 0;
-    for_runs(ids, b, e, avx512, scratch.runs[c],
-             [&](std::uint32_t* id, const std::uint32_t* start, std::uint32_t* keep, std::size_t r) {
-               for (std::size_t s = 0; s < per_chunk; ++s) {  // room for every run of the block in any bucket
-                 const auto filled = static_cast<std::size_t>(end[s] - bucket[s].data());
-                 if (bucket[s].size() < filled + r) {
-                   bucket[s].resize(std::max(filled + r, 2 * bucket[s].size()));
-                   end[s] = bucket[s].data() + filled;
-                 }
-               }
-               // First, without a store to a bucket (so it vectorises): each run's bucket (in
-               // place of its id), its entry, and whether it is kept (in `keep`). Background runs
-               // are written but not kept (the end stays): the background's count is what the
-               // others leave. Then the writes alone.
-               std::uint64_t* entry = scratch.runs[c].entry.data();
-               for (std::size_t k = 0; k < r; ++k) {
-                 const std::uint32_t v = std::min(id[k], bad), len = start[k + 1] - start[k];
-                 const std::uint32_t kept =
-                     static_cast<std::uint32_t>((std::uint64_t{v} + 0xFFFFFFFFu) >> 32);  // v != 0
-                 id[k] = static_cast<std::uint32_t>(v / CountScratch::kSegment * kWays + (k & (kWays - 1)));
-                 entry[k] = std::uint64_t{v} << 32 | len;
-                 keep[k] = kept;
-                 foreground += len & (0u - kept);
-               }
-               for (std::size_t k = 0; k < r; ++k) {
-                 std::uint64_t*& to = end[id[k]];
-                 std::uint64_t* at = to;
-                 *at = entry[k];
-                 to = at + keep[k];
-               }
-             });
-    scratch.foreground[c] = foreground;
+    try {
+      bucket_runs(ids, b, e, c, per_chunk, bad, avx512, scratch);
+    } catch (const std::bad_alloc&) {
+      out_of_memory.store(true, std::memory_order_relaxed);
+    }
   });
-  const std::size_t used = std::min(chunks, std::max<std::size_t>(n, 1));
+  if (out_of_memory.load(std::memory_order_relaxed)) throw std::bad_alloc();
   for_chunks(segments, std::min<std::size_t>(segments, static_cast<std::size_t>(std::max(1, threads))) * 2,
              [&](std::size_t sb, std::size_t se, std::size_t) {
                for (std::size_t s = sb; s < se; ++s) {

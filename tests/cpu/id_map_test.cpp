@@ -90,6 +90,25 @@ TEST(CountIds, AroundTheSegments) {
   }
 }
 
+// The buffers are kept between calls: a call on a smaller map (one range of pixels), on an empty
+// one, and on fewer or more objects leaves nothing of the one before in the counts.
+TEST(CountIds, BuffersKeptBetweenCallsLeaveNothingBehind) {
+  std::vector<std::uint32_t> hist;
+  detail::CountScratch scratch;
+  const std::size_t many = 3 * detail::CountScratch::kSegment + 11;
+  const std::vector<std::pair<std::size_t, std::size_t>> calls = {
+      {200003, many}, {0, many}, {100, many}, {200003, many}, {5000, 1000}, {0, 1000}, {7, 3}, {300000, many}};
+  for (int threads : {1, 2, 3}) {
+    std::uint64_t seed = 1;
+    for (const auto& [pixels, objects] : calls) {
+      const auto ids = random_map(pixels, static_cast<std::uint32_t>(objects), 9, seed++);
+      ASSERT_TRUE(detail::count_ids(ids, objects, threads, hist, scratch));
+      ASSERT_EQ(hist, histogram(ids, objects))
+          << pixels << " pixels, " << objects << " objects, " << threads << " threads";
+    }
+  }
+}
+
 // Stage 3 on threads (cull_in_parallel) against the serial rule (cull_and_choose_bits): the same
 // pixels, active set, mu and bits for sizes around the parallel threshold, with and without flags
 // and culling, and scaled counts.

@@ -209,6 +209,30 @@ TEST(GlFrame, CulledFramePairsEqualCpuWithCullingOff) {
   EXPECT_EQ(a.stats.layout, b.stats.layout);
 }
 
+// Culling off, adaptive bits, 2^17 + 1 objects on a 256x144 screen (fewer pixels than a = 100
+// per object): m is 32 whatever a map would show, so none is rendered, as on the cpu.
+TEST(GlFrame, NoMapWhereItCannotChangeTheBits) {
+  Config cfg;
+  cfg.culling = false;
+  VISCD_GL_OR_SKIP(gl, cfg, GlOptions{.sync_layout = true});
+  const std::uint32_t many = (1u << 17) + 1;
+  Scene scene = ring_scene(many, 4);
+  const Camera cam = small_camera(scene, "zoom-out");
+  auto cpu = make_cpu_detector(cfg);
+  FrameResult a, b;
+  ASSERT_TRUE(gl->detect(scene.spheres(), &cam, a).ok());
+  ASSERT_TRUE(cpu->detect(scene.spheres(), &cam, b).ok());
+  EXPECT_FALSE(a.stats.has_pixels);
+  EXPECT_TRUE(a.pixels.empty());
+  EXPECT_EQ(a.stats.bits, 32);
+  EXPECT_EQ(a.stats.active, many);
+  gl->wait_for_stage_times(a.stats);
+  EXPECT_EQ(a.stats.ms(Stage::visibility), 0.0) << "a map was rendered";
+  EXPECT_TRUE(a.pairs == b.pairs);
+  EXPECT_EQ(a.stats.bits, b.stats.bits);
+  EXPECT_EQ(a.stats.layout, b.stats.layout);
+}
+
 TEST(GlFrame, ScreenshotHasThePapersColours) {
   Config cfg;
   cfg.shade = true;
