@@ -285,13 +285,15 @@ int run_run(RunArgs a) {
   summary["last_frame"] = nlohmann::ordered_json::parse(stats_json(st, det->name()));
   if (peak_reset && a.frames == 1) rss_peak = proc_status_bytes("VmHWM:");
   const std::uint64_t tally = det->memory_bytes();
+  const bool have_rss = rss_before && rss_peak;
+  const std::uint64_t added = have_rss && *rss_peak > *rss_before ? *rss_peak - *rss_before : 0;
+  const double added_per_object =
+      a.world.objects ? static_cast<double>(added) / static_cast<double>(a.world.objects) : 0.0;
   summary["memory"]["detector_bytes"] = tally;
-  if (rss_before && rss_peak) {
-    const std::uint64_t added = *rss_peak > *rss_before ? *rss_peak - *rss_before : 0;
+  if (have_rss) {
     summary["memory"]["rss_before_frames_bytes"] = *rss_before;
     summary["memory"]["peak_rss_bytes"] = *rss_peak;
-    summary["memory"]["added_bytes_per_object"] =
-        a.world.objects ? static_cast<double>(added) / static_cast<double>(a.world.objects) : 0.0;
+    summary["memory"]["added_bytes_per_object"] = added_per_object;
   }
 
   if (!a.quiet) {
@@ -304,14 +306,13 @@ int run_run(RunArgs a) {
     std::printf("  %-12s %10.3f   (%.0f frames per second)\n", "frame", med_frame,
                 med_frame > 0 ? 1000.0 / med_frame : 0.0);
     std::printf("  (shading ran on the screenshot frame only: %.3f ms)\n\n", st.ms(Stage::shade));
-    if (rss_before && rss_peak) {
-      const std::uint64_t added = *rss_peak > *rss_before ? *rss_peak - *rss_before : 0;
+    if (have_rss) {
       std::printf(
           "memory: peak resident %.1f MB during the frames%s, %.1f MB above the %.1f MB before them (%.0f "
           "bytes per object); the detector's buffers %.1f MB\n",
           static_cast<double>(*rss_peak) / 1e6, a.frames > 1 ? " before the screenshot's" : "",
-          static_cast<double>(added) / 1e6, static_cast<double>(*rss_before) / 1e6,
-          a.world.objects ? static_cast<double>(added) / a.world.objects : 0.0, static_cast<double>(tally) / 1e6);
+          static_cast<double>(added) / 1e6, static_cast<double>(*rss_before) / 1e6, added_per_object,
+          static_cast<double>(tally) / 1e6);
     } else {
       std::printf("memory: the detector's buffers %.1f MB\n", static_cast<double>(tally) / 1e6);
     }

@@ -23,6 +23,11 @@ inline constexpr std::size_t kParallelThreshold = 4096;
 
 /// Threads for a loop of n elements: 1 below the threshold.
 inline int threads_for(std::size_t n, int threads) { return n < kParallelThreshold ? 1 : threads; }
+/// Ranges for a loop of n elements: two per thread (a thread that gets no core then holds up half
+/// its share, which the others take over), one below the threshold.
+inline std::size_t ranges_for(std::size_t n, int threads) {
+  return n < kParallelThreshold ? 1 : 2 * static_cast<std::size_t>(std::max(1, threads));
+}
 
 /// [begin, end) of chunk t of T over n elements, contiguous and balanced.
 struct Chunk {

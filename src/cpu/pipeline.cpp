@@ -50,12 +50,11 @@ Status PipelineDetector::validate_objects(const Shapes& objects) {
   const ExecutorScope scope(config_.executor);
   const int threads = resolve_threads(config_.threads, config_.executor ? config_.executor->concurrency() : 0);
   std::atomic<bool> all_valid{true};
-  for_chunks(n, n < kParallelThreshold ? 1 : 2 * static_cast<std::size_t>(threads),
-             [&](std::size_t b, std::size_t e, std::size_t) {
-               const bool ok = objects.is_box() ? boxes_all_valid(objects.boxes.subspan(b, e - b))
-                                                : spheres_all_valid(objects.spheres.subspan(b, e - b));
-               if (!ok) all_valid.store(false, std::memory_order_relaxed);
-             });
+  for_chunks(n, ranges_for(n, threads), [&](std::size_t b, std::size_t e, std::size_t) {
+    const bool ok = objects.is_box() ? boxes_all_valid(objects.boxes.subspan(b, e - b))
+                                     : spheres_all_valid(objects.spheres.subspan(b, e - b));
+    if (!ok) all_valid.store(false, std::memory_order_relaxed);
+  });
   if (all_valid.load(std::memory_order_relaxed) &&
       n <= static_cast<std::size_t>(std::numeric_limits<std::int32_t>::max()))
     return {};

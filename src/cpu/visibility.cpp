@@ -286,6 +286,48 @@ void bucket_runs(std::span<const std::uint32_t> ids, std::size_t b, std::size_t 
   scratch.foreground[c] = foreground;
 }
 
+// count_ids() with more than CountScratch::kSegment slots: a histogram of all of them is larger
+// than a core's cache, and adding runs into it at random would wait on memory at every run. So
+// the runs are first sorted into segments of kSegment ids (kWays buckets per range of pixels and
+// segment, written in order), then each segment of `hist` is counted from its buckets while it
+// stays in cache. hist[0] is left to the caller (from scratch.foreground).
+void count_many(std::span<const std::uint32_t> ids, std::size_t slots, std::size_t chunks, std::size_t used,
+                int threads, bool avx512, std::vector<std::uint32_t>& hist, CountScratch& scratch) {
+  const std::size_t n = ids.size();
+  const auto bad = static_cast<std::uint32_t>(slots - 1);
+  const std::size_t segments = (slots + CountScratch::kSegment - 1) / CountScratch::kSegment;
+  const std::size_t per_chunk = segments * kWays;
+  hist.resize(slots);
+  if (scratch.buckets.size() < chunks * per_chunk) scratch.buckets.resize(chunks * per_chunk);
+  if (scratch.ends.size() < chunks * per_chunk) scratch.ends.resize(chunks * per_chunk);
+  // A bucket that must grow does so inside a task; std::bad_alloc there is carried out to the
+  // caller (detect() reports it), not left to end a worker thread.
+  std::atomic<bool> out_of_memory{false};
+  for_chunks(n, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
+    try {
+      bucket_runs(ids, b, e, c, per_chunk, bad, avx512, scratch);
+    } catch (const std::bad_alloc&) {
+      out_of_memory.store(true, std::memory_order_relaxed);
+    }
+  });
+  if (out_of_memory.load(std::memory_order_relaxed)) throw std::bad_alloc();
+  for_chunks(segments, 2 * static_cast<std::size_t>(std::max(1, threads)),
+             [&](std::size_t sb, std::size_t se, std::size_t) {
+               for (std::size_t s = sb; s < se; ++s) {
+                 const std::size_t lo = s * CountScratch::kSegment, hi = std::min(slots, lo + CountScratch::kSegment);
+                 std::uint32_t* h = hist.data() + lo;
+                 std::fill(h, hist.data() + hi, 0u);
+                 for (std::size_t c = 0; c < used; ++c)
+                   for (std::size_t w = 0; w < kWays; ++w) {
+                     const std::size_t at = c * per_chunk + s * kWays + w;
+                     const std::uint64_t* run = scratch.buckets[at].data();
+                     for (const std::uint64_t* run_end = scratch.ends[at]; run != run_end; ++run)
+                       h[static_cast<std::uint32_t>(*run >> 32) - lo] += static_cast<std::uint32_t>(*run);
+                   }
+               }
+             });
+}
+
 }  // namespace
 
 bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int threads, std::vector<std::uint32_t>& hist,
@@ -295,9 +337,7 @@ bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int thre
   const std::size_t slots = objects + 2, n = ids.size();
   const auto bad = static_cast<std::uint32_t>(objects + 1);
   const bool avx512 = usable_simd_level(simd) == SimdLevel::avx512;
-  // Ranges of pixels, two per thread: a thread that gets no core then holds up half its share,
-  // which the others take over.
-  const std::size_t chunks = n < kParallelThreshold ? 1 : 2 * static_cast<std::size_t>(std::max(1, threads));
+  const std::size_t chunks = ranges_for(n, threads);  // ranges of pixels
   // The ranges that get pixels (none of an empty map: nothing is read from the buffers then).
   const std::size_t used = std::min(chunks, n);
   size_runs(scratch, chunks);
@@ -340,48 +380,11 @@ bool count_ids(std::span<const std::uint32_t> ids, std::size_t objects, int thre
                      for (std::size_t k = b; k < e; ++k) hist[k] += h[k];
                    }
                  });
-    std::uint64_t foreground = 0;
-    for (std::size_t c = 0; c < used; ++c) foreground += scratch.foreground[c];
     hist.resize(slots);
-    hist[0] = static_cast<std::uint32_t>(n - foreground);
-    return hist[bad] == 0;
+  } else {
+    count_many(ids, slots, chunks, used, threads, avx512, hist, scratch);
   }
-
-  // Many objects: a histogram of all of them is larger than a core's cache, and adding runs into
-  // it at random would wait on memory at every run. So the runs are first sorted into segments
-  // of kSegment ids (a bucket per range of pixels and segment, written in order), then each
-  // segment of `hist` is counted from its buckets while it stays in cache.
-  const std::size_t segments = (slots + CountScratch::kSegment - 1) / CountScratch::kSegment;
-  const std::size_t per_chunk = segments * kWays;
-  hist.resize(slots);
-  if (scratch.buckets.size() < chunks * per_chunk) scratch.buckets.resize(chunks * per_chunk);
-  if (scratch.ends.size() < chunks * per_chunk) scratch.ends.resize(chunks * per_chunk);
-  // A bucket that must grow does so inside a task; std::bad_alloc there is carried out to the
-  // caller (detect() reports it), not left to end a worker thread.
-  std::atomic<bool> out_of_memory{false};
-  for_chunks(n, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
-    try {
-      bucket_runs(ids, b, e, c, per_chunk, bad, avx512, scratch);
-    } catch (const std::bad_alloc&) {
-      out_of_memory.store(true, std::memory_order_relaxed);
-    }
-  });
-  if (out_of_memory.load(std::memory_order_relaxed)) throw std::bad_alloc();
-  for_chunks(segments, std::min<std::size_t>(segments, static_cast<std::size_t>(std::max(1, threads))) * 2,
-             [&](std::size_t sb, std::size_t se, std::size_t) {
-               for (std::size_t s = sb; s < se; ++s) {
-                 const std::size_t lo = s * CountScratch::kSegment, hi = std::min(slots, lo + CountScratch::kSegment);
-                 std::uint32_t* h = hist.data() + lo;
-                 std::fill(h, hist.data() + hi, 0u);
-                 for (std::size_t c = 0; c < used; ++c)
-                   for (std::size_t w = 0; w < kWays; ++w) {
-                     const std::size_t at = c * per_chunk + s * kWays + w;
-                     const std::uint64_t* run = scratch.buckets[at].data();
-                     for (const std::uint64_t* run_end = scratch.ends[at]; run != run_end; ++run)
-                       h[static_cast<std::uint32_t>(*run >> 32) - lo] += static_cast<std::uint32_t>(*run);
-                   }
-               }
-             });
+  // The background: the pixels that the other runs leave.
   std::uint64_t foreground = 0;
   for (std::size_t c = 0; c < used; ++c) foreground += scratch.foreground[c];
   hist[0] = static_cast<std::uint32_t>(n - foreground);
@@ -392,7 +395,7 @@ int cull_in_parallel(std::span<const std::uint32_t> counts, double pixel_scale, 
                      std::span<const std::uint8_t> always_active, int threads, std::vector<float>& pixels,
                      std::vector<std::uint32_t>& active, CullScratch& scratch, FrameStats& stats) {
   const std::size_t n = counts.size();
-  const std::size_t chunks = n < kParallelThreshold ? 1 : 2 * static_cast<std::size_t>(std::max(1, threads));
+  const std::size_t chunks = ranges_for(n, threads);
   if (chunks == 1) return cull_and_choose_bits(counts, pixel_scale, config, always_active, pixels, active, stats);
   pixels.resize(n);
   if (scratch.active.size() < chunks) scratch.active.resize(chunks);
