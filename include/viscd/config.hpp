@@ -83,6 +83,24 @@ struct Config {
   bool keep_order = true;
   /// cpu backend: the widest SIMD kernels allowed. Default Simd::best.
   Simd simd = Simd::best;
+  /// cpu backend: cost follows change (docs/architecture.md, "Resting objects"). When most
+  /// objects keep their bounds from frame to frame, the detector keeps them in trees across
+  /// frames with their candidate pairs, and a frame costs what the objects that moved and their
+  /// neighbours cost (plus a pass comparing bounds, unless FrameInput::moved names the movers).
+  /// Results are those of a frame that rebuilt everything. Off, every frame rebuilds. Default on.
+  bool follow_change = true;
+  /// cpu backend, with follow_change: how far an object may move and stay resting, in world
+  /// units. An object rests while its box (a sphere's conservative box) stays inside the box it
+  /// was last placed with, grown by this margin on every side; its candidate pairs (fat boxes
+  /// that overlap) are carried over and re-tested exactly each frame it changes. 0 (default):
+  /// an object rests only while its bounds stay bit for bit the same, and no candidate is ever
+  /// re-tested. A margin pays where objects jiggle in place (a settled granular pile): about the
+  /// distance they drift in a few frames. Must be finite and >= 0.
+  float rest_margin = 0.0f;
+  /// Check FrameInput::moved: every object the list leaves out is compared with the previous
+  /// frame, and a frame where one of them changed fails with ErrorKind::invalid_input naming it
+  /// (a pass over every object: for tests and debug builds of an engine). Default off.
+  bool verify_moved = false;
 };
 
 }  // namespace viscd

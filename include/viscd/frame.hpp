@@ -71,6 +71,17 @@ struct FrameInput {
   /// shares the caller's context, where the texture lives; its size in id_map_width x
   /// id_map_height); 0 = none. The other backends refuse a frame that sets it.
   unsigned gl_id_texture = 0;
+  /// The objects whose bounds changed since this detector's previous frame, when the caller knows
+  /// them (PhysX's updated handles, Jolt's NotifyBodiesAABBChanged): sorted ascending, no repeats,
+  /// each below the frame's object count; read only when `moved_listed` is true. With the list the
+  /// cpu backend (Config::follow_change) compares no bounds of unlisted objects and checks only the
+  /// listed ones for NaN and range: an object left out that did change makes that frame's results
+  /// unspecified (docs/embedding.md, "Telling the detector what moved"; Config::verify_moved checks
+  /// the list). Listing an object that did not change costs a compare. Objects beyond the last
+  /// frame's count are new and need no listing. Other backends check the list and then compare
+  /// nothing: they rebuild every frame.
+  std::span<const std::uint32_t> moved;
+  bool moved_listed = false;
 };
 
 /// The Morton layout a frame used (stage 4), as data: which axis supplies the code's bits first,
@@ -98,6 +109,9 @@ struct FrameStats {
   MortonLayoutInfo layout;                     ///< the Morton layout used; format_layout() prints it
   std::uint64_t pairs = 0;                     ///< number of colliding pairs
   bool order_kept = false;                     ///< cpu: the last frame's object order was kept (no stages 4-6)
+  bool followed_change = false;                ///< cpu: the frame updated the resting objects' trees, not a rebuild
+  std::uint32_t moved = 0;                     ///< with followed_change: objects whose bounds changed this frame
+  std::uint32_t replaced = 0;                  ///< with followed_change: of those, the ones that left their fat bounds
   std::array<double, kStageCount> stage_ms{};  ///< wall (cpu) or GPU (gl) milliseconds per stage, by Stage
   /// Milliseconds of one stage.
   [[nodiscard]] double& ms(Stage s) { return stage_ms[static_cast<std::size_t>(s)]; }

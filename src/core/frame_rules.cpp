@@ -1,6 +1,7 @@
 #include "core/frame_rules.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 
 #include "core/morton.hpp"
@@ -13,6 +14,9 @@ Status validate_frame(const Shapes& objects, const Camera* camera, const Config&
   if (config.threads < 0)
     return Status::failure(ErrorKind::invalid_input, "Config::threads = " + std::to_string(config.threads) +
                                                          ": expected 0 (all cores) or a positive count");
+  if (!(config.rest_margin >= 0) || !std::isfinite(config.rest_margin))
+    return Status::failure(ErrorKind::invalid_input, "Config::rest_margin = " + std::to_string(config.rest_margin) +
+                                                         ": expected a finite distance >= 0");
   if (check_objects)
     if (Status s = objects.is_box() ? validate_boxes(objects.boxes) : validate_spheres(objects.spheres); !s) return s;
   if (camera) {
@@ -102,6 +106,28 @@ Status validate_frame_input(const FrameInput& in, const Config& config, bool che
     return Status::failure(ErrorKind::invalid_input, "FrameInput: " + std::to_string(in.filters.size()) +
                                                          " filters for " + std::to_string(n) + noun +
                                                          "; give none or one per object");
+  if (in.moved_listed) return validate_moved(in.moved, n);
+  if (!in.moved.empty())
+    return Status::failure(ErrorKind::invalid_input,
+                           "FrameInput: moved holds " + std::to_string(in.moved.size()) +
+                               " indices but moved_listed is false; set it to say the list is complete");
+  return {};
+}
+
+Status validate_moved(std::span<const std::uint32_t> moved, std::size_t objects) {
+  for (std::size_t k = 0; k < moved.size(); ++k) {
+    const std::uint32_t v = moved[k];
+    const std::string at = "FrameInput: moved[" + std::to_string(k) + "] = " + std::to_string(v);
+    if (v >= objects)
+      return Status::failure(ErrorKind::invalid_input,
+                             at + " is not an object of this frame (it has " + std::to_string(objects) + ")");
+    if (k > 0 && v == moved[k - 1])
+      return Status::failure(ErrorKind::invalid_input, at + " repeats moved[" + std::to_string(k - 1) + "]");
+    if (k > 0 && v < moved[k - 1])
+      return Status::failure(ErrorKind::invalid_input, at + " is below moved[" + std::to_string(k - 1) + "] = " +
+                                                           std::to_string(moved[k - 1]) +
+                                                           "; the list must be sorted ascending");
+  }
   return {};
 }
 

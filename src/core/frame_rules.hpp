@@ -30,9 +30,12 @@ std::uint64_t bytes_of(const std::vector<T>& v) {
                                     bool check_objects = true);
 /// A frame's objects and a non-empty static set must be of one kind.
 [[nodiscard]] Status validate_static_kind(const FrameInput& input, const StaticSet& set);
+/// FrameInput::moved: ascending, no repeats, every entry below `objects`; the error names the
+/// first bad entry.
+[[nodiscard]] Status validate_moved(std::span<const std::uint32_t> moved, std::size_t objects);
 /// validate_frame() for a whole FrameInput (Detector::detect() runs it before run_frame()): also
 /// the filter count, and the id map's size (which then replaces Config's map size); an id map
-/// and a gl texture together are an error. The ids themselves are checked where they are
+/// and a gl texture together are an error; so is FrameInput::moved out of order. The ids themselves are checked where they are
 /// counted (id_map_error()).
 [[nodiscard]] Status validate_frame_input(const FrameInput& input, const Config& config, bool check_objects = true);
 

@@ -1,5 +1,7 @@
 #include "cpu/cpu_detector.hpp"
 
+#include "core/brute_queries.hpp"
+
 #include "core/stopwatch.hpp"
 #include "cpu/parallel.hpp"
 #include "viscd/assert.hpp"
@@ -49,10 +51,88 @@ void CpuDetector::draw_frame(const CameraRig& cam, const Camera& camera, const F
   });
 }
 
+Status CpuDetector::follow_change(const FrameInput& in, const Shapes& objects, std::span<const std::uint32_t> active,
+                                  std::span<const Filter> filters, int bits, int threads, std::vector<Pair>& pairs,
+                                  FrameStats& stats, bool& done) {
+  done = false;
+  followed_ = false;
+  if (!config_.follow_change) {
+    rest_.reset();
+    return {};
+  }
+  static_tree_.update(static_set_, config_.layout, threads);
+  RestSet::Input ri;
+  ri.objects = objects;
+  ri.active = active;
+  ri.filters = filters;
+  ri.moved = in.moved;
+  ri.moved_listed = in.moved_listed;
+  ri.verify_moved = config_.verify_moved;
+  ri.margin = config_.rest_margin;
+  ri.layout = config_.layout;
+  ri.bits = bits;
+  ri.pair_memory_cap = config_.pair_memory_cap;
+  if (Status s = rest_.run(ri, static_set_, static_tree_, threads, pairs, stats, done); !s || !done) return s;
+  // Queries after the frame: its objects are the rest set's copy; trees and lists come on demand.
+  followed_ = true;
+  query_tree_built_ = query_objects_built_ = false;
+  q_bits_ = bits;
+  box_queries_ = objects.is_box() || (!static_set_.empty() && static_set_.kind() == ShapeKind::box);
+  unpaired_ids_.clear();
+  unpaired_spheres_.clear();
+  unpaired_filters_.clear();
+  unpaired_built_ = false;
+  q_filters_.assign(filters.begin(), filters.end());
+  return {};
+}
+
+void CpuDetector::prepare_queries() {
+  if (!followed_ || query_tree_built_) return;
+  const ExecutorScope scope(config_.executor);
+  const int threads = resolve_threads(config_.threads, config_.executor ? config_.executor->concurrency() : 0);
+  FrameStats unused;
+  broadphase_.build(rest_.objects().spheres, last_active(), q_bits_, config_.layout, threads, unused);
+  query_tree_built_ = true;
+}
+
+QueryObjects CpuDetector::query_objects() {
+  if (!followed_) return PipelineDetector::query_objects();
+  if (!query_objects_built_) {
+    const Shapes objects = rest_.objects();
+    const StaticSet::Compact& stat = static_set_.compact();
+    const std::span<const std::uint32_t> active = last_active();
+    const bool boxes = objects.is_box() || (objects.empty() && stat.shapes.is_box());
+    const bool filtered = !q_filters_.empty() || stat.filtered;
+    q_spheres_.clear();
+    q_boxes_.clear();
+    q_ids_.assign(active.begin(), active.end());
+    q_filter_list_.clear();
+    for (const std::uint32_t k : active) {
+      if (boxes)
+        q_boxes_.push_back(objects.boxes[k]);
+      else
+        q_spheres_.push_back(objects.spheres[k]);
+      if (filtered) q_filter_list_.push_back(q_filters_.empty() ? Filter{} : q_filters_[k]);
+    }
+    for (std::size_t k = 0; k < stat.shapes.size(); ++k) {
+      if (boxes)
+        q_boxes_.push_back(stat.shapes.boxes[k]);
+      else
+        q_spheres_.push_back(stat.shapes.spheres[k]);
+      q_ids_.push_back(static_index(stat.slots[k]));
+      if (filtered) q_filter_list_.push_back(stat.filters[k]);
+    }
+    query_objects_built_ = true;
+  }
+  const bool boxes = !q_boxes_.empty() || rest_.objects().is_box();
+  return {boxes ? Shapes(q_boxes_) : Shapes(q_spheres_), q_ids_, q_filter_list_};
+}
+
 Status CpuDetector::broadphase(const Shapes& objects, std::span<const std::uint32_t> pairable,
                                std::span<const std::uint32_t> unpaired, std::span<const Filter> filters,
                                std::uint32_t static_from, int bits, int threads, std::vector<Pair>& pairs,
                                FrameStats& stats) {
+  followed_ = false;
   // The static set is static_tree_'s (handles_static()): `objects` are the frame's alone.
   VISCD_ASSERT(static_from == ~0u, "the cpu backend's frames hold no static objects");
   (void)static_from;
@@ -97,7 +177,7 @@ Status CpuDetector::static_pairs(int threads, std::vector<Pair>& pairs, FrameSta
   if (static_tree_.size() == 0) return {};
   const std::size_t allowed = pairs_within_cap(config_.pair_memory_cap);
   const std::size_t room = allowed > pairs.size() ? allowed - pairs.size() : 0;
-  if (!static_tree_.pairs(broadphase_, broadphase_.sorted_filters(), threads, room, cross_))
+  if (!static_tree_.pairs(broadphase_, broadphase_.sorted_filters(), true, threads, room, cross_))
     return check_pair_cap(pairs.size() + room + 1, config_.pair_memory_cap, true);
   // Merge: for each i the moving pairs come first (every static index is above every moving one).
   if (!cross_.empty()) {
@@ -142,7 +222,8 @@ const BucketBroadphase& CpuDetector::unpaired_tree() {
 
 bool CpuDetector::query_ray_first(const Ray& ray, const Filter* filter, RayHit& hit) {
   if (box_queries_) return PipelineDetector::query_ray_first(ray, filter, hit);
-  bool found = broadphase_.ray_first(ray, {}, filter, hit, false);
+  prepare_queries();
+  bool found = broadphase_.ray_first(ray, main_objects(), filter, hit, false);
   if (!unpaired_ids_.empty()) found = unpaired_tree().ray_first(ray, unpaired_objects(), filter, hit, found);
   StaticTree::Part parts[2];
   for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)
@@ -152,7 +233,8 @@ bool CpuDetector::query_ray_first(const Ray& ray, const Filter* filter, RayHit& 
 
 void CpuDetector::query_ray_all(const Ray& ray, const Filter* filter, std::vector<RayHit>& hits) {
   if (box_queries_) return PipelineDetector::query_ray_all(ray, filter, hits);
-  broadphase_.ray_all(ray, {}, filter, hits);
+  prepare_queries();
+  broadphase_.ray_all(ray, main_objects(), filter, hits);
   if (!unpaired_ids_.empty()) unpaired_tree().ray_all(ray, unpaired_objects(), filter, hits);
   StaticTree::Part parts[2];
   for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)
@@ -161,8 +243,9 @@ void CpuDetector::query_ray_all(const Ray& ray, const Filter* filter, std::vecto
 
 void CpuDetector::query_ray_visit(const Ray& ray, const Filter* filter, RayVisitor& visitor) {
   if (box_queries_) return PipelineDetector::query_ray_visit(ray, filter, visitor);
+  prepare_queries();
   float max_t = ray.max_t;  // lowered by the visitor in the first tree, it prunes the second
-  if (!broadphase_.ray_visit(ray, {}, filter, max_t, visitor)) return;
+  if (!broadphase_.ray_visit(ray, main_objects(), filter, max_t, visitor)) return;
   if (!unpaired_ids_.empty() && !unpaired_tree().ray_visit(ray, unpaired_objects(), filter, max_t, visitor)) return;
   StaticTree::Part parts[2];
   for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)
@@ -171,7 +254,8 @@ void CpuDetector::query_ray_visit(const Ray& ray, const Filter* filter, RayVisit
 
 void CpuDetector::query_sphere(const Sphere& sphere, const Filter* filter, std::vector<std::uint32_t>& indices) {
   if (box_queries_) return PipelineDetector::query_sphere(sphere, filter, indices);
-  broadphase_.overlap(sphere, {}, filter, indices);
+  prepare_queries();
+  broadphase_.overlap(sphere, main_objects(), filter, indices);
   if (!unpaired_ids_.empty()) unpaired_tree().overlap(sphere, unpaired_objects(), filter, indices);
   StaticTree::Part parts[2];
   for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)
@@ -180,7 +264,8 @@ void CpuDetector::query_sphere(const Sphere& sphere, const Filter* filter, std::
 
 void CpuDetector::query_box(const Box& box, const Filter* filter, std::vector<std::uint32_t>& indices) {
   if (box_queries_) return PipelineDetector::query_box(box, filter, indices);
-  broadphase_.overlap_box(box, {}, filter, indices);
+  prepare_queries();
+  broadphase_.overlap_box(box, main_objects(), filter, indices);
   if (!unpaired_ids_.empty()) unpaired_tree().overlap_box(box, unpaired_objects(), filter, indices);
   StaticTree::Part parts[2];
   for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)
@@ -189,7 +274,8 @@ void CpuDetector::query_box(const Box& box, const Filter* filter, std::vector<st
 
 void CpuDetector::query_sphere_visit(const Sphere& sphere, const Filter* filter, OverlapVisitor& visitor) {
   if (box_queries_) return PipelineDetector::query_sphere_visit(sphere, filter, visitor);
-  if (!broadphase_.overlap_visit(sphere, {}, filter, visitor)) return;
+  prepare_queries();
+  if (!broadphase_.overlap_visit(sphere, main_objects(), filter, visitor)) return;
   if (!unpaired_ids_.empty() && !unpaired_tree().overlap_visit(sphere, unpaired_objects(), filter, visitor)) return;
   StaticTree::Part parts[2];
   for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)
@@ -198,7 +284,8 @@ void CpuDetector::query_sphere_visit(const Sphere& sphere, const Filter* filter,
 
 void CpuDetector::query_box_visit(const Box& box, const Filter* filter, OverlapVisitor& visitor) {
   if (box_queries_) return PipelineDetector::query_box_visit(box, filter, visitor);
-  if (!broadphase_.overlap_box_visit(box, {}, filter, visitor)) return;
+  prepare_queries();
+  if (!broadphase_.overlap_box_visit(box, main_objects(), filter, visitor)) return;
   if (!unpaired_ids_.empty() && !unpaired_tree().overlap_box_visit(box, unpaired_objects(), filter, visitor)) return;
   StaticTree::Part parts[2];
   for (std::size_t k = 0, n = static_tree_.parts(parts); k < n; ++k)

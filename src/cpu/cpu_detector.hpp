@@ -6,6 +6,7 @@
 #include "cpu/grow.hpp"
 #include "cpu/pipeline.hpp"
 #include "cpu/raster.hpp"
+#include "cpu/rest_set.hpp"
 #include "cpu/static_tree.hpp"
 
 namespace viscd::detail {
@@ -25,16 +26,22 @@ class CpuDetector final : public PipelineDetector {
            unpaired_tree_.memory_bytes() + bytes_of(unpaired_spheres_) + bytes_of(unpaired_ids_) +
            bytes_of(unpaired_filters_) + bytes_of(iota_) + bytes_of(proxies_) + static_tree_.memory_bytes() +
            bytes_of(cross_) + bytes_of(merged_) + static_layer_.memory_bytes() + static_raster_.memory_bytes() +
-           static_box_raster_.memory_bytes();
+           static_box_raster_.memory_bytes() + rest_.memory_bytes() + bytes_of(q_filters_) + bytes_of(q_spheres_) +
+           bytes_of(q_boxes_) + bytes_of(q_ids_) + bytes_of(q_filter_list_);
   }
+  /// The resting objects' trees and candidates (Config::follow_change), for tests.
+  [[nodiscard]] const RestSet& rest_set() const { return rest_; }
   /// The broadphase of the last frame (its 16-wide tree over buckets, the sorted objects and codes),
   /// for tests.
   [[nodiscard]] const BucketBroadphase& bucket_broadphase() const { return broadphase_; }
 
  protected:
   /// Sphere frames: from the trees. Frames whose objects or static set are boxes: by brute force
-  /// over the copy detect() keeps (the trees' ray and overlap walks test sphere lanes).
-  [[nodiscard]] bool answers_queries() const override { return !box_queries_; }
+  /// over the copy detect() keeps (the trees' ray and overlap walks test sphere lanes), or after a
+  /// followed frame over the objects the rest set keeps (query_objects()).
+  [[nodiscard]] bool answers_queries() const override { return followed_ || !box_queries_; }
+  /// After a followed frame: its active objects and the static set's, gathered on the first query.
+  [[nodiscard]] QueryObjects query_objects() override;
   /// The static set lives in static_tree_ (cpu/static_tree.hpp).
   [[nodiscard]] bool handles_static() const override { return true; }
   [[nodiscard]] bool query_ray_first(const Ray& ray, const Filter* filter, RayHit& hit) override;
@@ -59,6 +66,16 @@ class CpuDetector final : public PipelineDetector {
   /// the nearer wins, a tie goes to the moving object (its id is the smaller), so the map is the
   /// one a single pass over both would draw, bit for bit.
   void draw_frame(const CameraRig& cam, const Camera& camera, const FrameInput& in, int threads) override;
+  Status follow_change(const FrameInput& in, const Shapes& objects, std::span<const std::uint32_t> active,
+                       std::span<const Filter> filters, int bits, int threads, std::vector<Pair>& pairs,
+                       FrameStats& stats, bool& done) override;
+  /// After a followed frame, before a tree query: the tree over its active objects (built on the
+  /// first query after the frame).
+  void prepare_queries();
+  /// What the main tree's queries report: after a followed frame, the frame's filters by object.
+  [[nodiscard]] BucketBroadphase::Objects main_objects() const {
+    return followed_ ? BucketBroadphase::Objects{{}, q_filters_} : BucketBroadphase::Objects{};
+  }
   Status broadphase(const Shapes& objects, std::span<const std::uint32_t> pairable,
                     std::span<const std::uint32_t> unpaired, std::span<const Filter> filters, std::uint32_t static_from,
                     int bits, int threads, std::vector<Pair>& pairs, FrameStats& stats) override;
@@ -94,6 +111,16 @@ class CpuDetector final : public PipelineDetector {
   BucketBroadphase unpaired_tree_;
   FrameStats unpaired_stats_;  // the lazy build's stats, unused
   bool unpaired_built_ = false;
+  // Cost follows change: the resting objects, whether the last frame was followed, its filters (by
+  // object; empty without), and what its queries built.
+  RestSet rest_;
+  bool followed_ = false, query_tree_built_ = false, query_objects_built_ = false;
+  std::vector<Filter> q_filters_;
+  std::vector<Sphere> q_spheres_;
+  std::vector<Box> q_boxes_;
+  std::vector<std::uint32_t> q_ids_;
+  std::vector<Filter> q_filter_list_;
+  int q_bits_ = 32;
 };
 
 }  // namespace viscd::detail

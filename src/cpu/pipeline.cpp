@@ -131,21 +131,28 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
   }
   const std::span<const Filter> filters = all_.filters;
 
-  // Objects whose filters pair them with nothing active stay out of the tree.
-  std::span<const std::uint32_t> pairable = active_, unpaired;
-  if (!filters.empty()) {
-    const FilterSplit split =
-        own_static ? split_by_filters(active_, filters, pairable_, unpaired_, static_set_.groups(), static_set_.masks())
-                   : split_by_filters(active_, filters, pairable_, unpaired_);
-    pairable = split.pairable;
-    unpaired = split.unpaired;
-    stats.ms(Stage::cull) += sw.lap();
-  }
+  bool followed = false;
+  if (own_static)
+    if (Status s = follow_change(in, all_.objects, active_, filters, bits, threads, out.pairs, stats, followed); !s)
+      return s;
+  if (followed) (void)sw.lap();  // its stages timed themselves
+  if (!followed) {
+    // Objects whose filters pair them with nothing active stay out of the tree.
+    std::span<const std::uint32_t> pairable = active_, unpaired;
+    if (!filters.empty()) {
+      const FilterSplit split = own_static ? split_by_filters(active_, filters, pairable_, unpaired_,
+                                                              static_set_.groups(), static_set_.masks())
+                                           : split_by_filters(active_, filters, pairable_, unpaired_);
+      pairable = split.pairable;
+      unpaired = split.unpaired;
+      stats.ms(Stage::cull) += sw.lap();
+    }
 
-  const std::uint32_t static_from = own_static ? ~0u : static_cast<std::uint32_t>(n);
-  if (Status s = broadphase(all_.objects, pairable, unpaired, filters, static_from, bits, threads, out.pairs, stats);
-      !s)
-    return s;
+    const std::uint32_t static_from = own_static ? ~0u : static_cast<std::uint32_t>(n);
+    if (Status s = broadphase(all_.objects, pairable, unpaired, filters, static_from, bits, threads, out.pairs, stats);
+        !s)
+      return s;
+  }
   stats.pairs = out.pairs.size();
 
   sw.lap();

@@ -45,6 +45,21 @@ class PipelineDetector : public Backend {
                                           std::uint32_t static_from, int bits, int threads, std::vector<Pair>& pairs,
                                           FrameStats& stats) = 0;
 
+  /// Stages 4-8 by following change (cpu: Config::follow_change, cpu/rest_set.hpp), before the
+  /// filters' pre-pass: sets `done` when it wrote the frame's pairs (filters and the active set
+  /// applied, static pairs as static_index(slot), sorted) and stats; else the frame runs
+  /// broadphase(). `active` ascending, the moving objects only (handles_static()).
+  [[nodiscard]] virtual Status follow_change(const FrameInput& in, const Shapes& objects,
+                                             std::span<const std::uint32_t> active, std::span<const Filter> filters,
+                                             int bits, int threads, std::vector<Pair>& pairs, FrameStats& stats,
+                                             bool& done) {
+    (void)in, (void)objects, (void)active, (void)filters, (void)bits, (void)threads, (void)pairs, (void)stats;
+    done = false;
+    return {};
+  }
+  /// The last frame's active objects, ascending (the static set's after them unless handles_static()).
+  [[nodiscard]] std::span<const std::uint32_t> last_active() const { return active_; }
+
   /// Whether the backend keeps the static set in a structure of its own (cpu): then broadphase()
   /// gets the moving objects only and adds their pairs with the static set itself (reported as
   /// static_index(slot), the pairs sorted). Otherwise the static objects are appended to the

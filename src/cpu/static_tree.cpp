@@ -6,6 +6,7 @@
 #include <type_traits>
 
 #include "cpu/bucket_search.hpp"
+#include "cpu/cross_pairs.hpp"
 #include "cpu/parallel.hpp"
 #include "cpu/wide_tree.hpp"
 
@@ -13,15 +14,6 @@ namespace viscd::detail {
 namespace {
 
 constexpr std::size_t kRebuildFloor = 4096;
-
-// A tree's lanes of the kind K tests (stage 8's tests, cpu/bucket_search.hpp).
-template <class K>
-std::span<const typename K::Lanes> lanes_of(const BucketBroadphase& t) {
-  if constexpr (std::is_same_v<typename K::Lanes, BoxLanes>)
-    return t.box_lanes();
-  else
-    return t.lanes();
-}
 
 }  // namespace
 
@@ -126,67 +118,8 @@ std::size_t StaticTree::parts(Part out[2]) const {
   return n;
 }
 
-namespace {
-
-// The pairs of the moving buckets of group g (the 16 under node g of the moving tree's lowest
-// level) with one static tree: one walk of the static tree with the group's box collects the
-// static buckets that can meet any of them, then each moving bucket tests its box against those
-// candidates 16 at a time (as the moving search does, cpu/bucket_search.cpp); per static bucket
-// met, the moving lanes that reach it against all 16 static lanes. Past kMaxCandidates (a huge
-// object), each moving bucket walks the tree itself.
-template <class K>
-void cross_pairs(const BucketBroadphase& moving, std::span<const Filter> moving_filters, const BucketBroadphase& st,
-                 std::span<const std::uint32_t> st_reported, std::span<const Filter> st_filters, std::size_t g,
-                 std::vector<std::uint64_t>& out) {
-  constexpr std::uint32_t kMaxCandidates = 512;
-  const auto ml = lanes_of<K>(moving);
-  const auto sl = lanes_of<K>(st);
-  const std::span<const Aabb> mboxes = moving.leaf_boxes();
-  const std::span<const Aabb> sboxes = st.leaf_boxes();
-  const std::span<const std::uint32_t> mids = moving.sorted_objects();
-  const std::span<const std::uint32_t> sids = st.sorted_objects();
-  const std::size_t buckets = buckets_for(mids.size());
-  const std::size_t b0 = g * kWide, b1 = std::min(buckets, b0 + kWide);
-  auto bucket_pair = [&](std::size_t b, std::uint32_t sb) {
-    const std::size_t m_first = b * kBucket, s_first = std::size_t{sb} * kBucket;
-    for (std::uint32_t near = K::near(ml[b], sboxes[sb]); near; near &= near - 1) {
-      const auto i = static_cast<std::uint32_t>(std::countr_zero(near));
-      const std::size_t p = m_first + i;
-      const Filter mf = moving_filters.empty() ? Filter{} : moving_filters[p];
-      for (std::uint32_t m = K::exact(sl[sb], ml[b], i); m; m &= m - 1) {
-        const std::uint32_t id = sids[s_first + static_cast<std::size_t>(std::countr_zero(m))];
-        if (pair_passes_filter(mf, st_filters[id])) out.push_back(std::uint64_t{mids[p]} << 32 | st_reported[id]);
-      }
-    }
-  };
-  WideNode box[kMaxCandidates / kWide];
-  std::uint32_t index[kMaxCandidates];
-  std::uint32_t count = 0;
-  bool overflow = false;
-  for_each_wide_overlap(st.tree(), moving.tree().level[0][g].box(), [&](std::uint32_t sb) {
-    if (count == kMaxCandidates) {
-      overflow = true;
-      return;
-    }
-    box[count / kWide].set_child(count % kWide, sboxes[sb]);
-    index[count++] = sb;
-  });
-  if (overflow) {
-    for (std::size_t b = b0; b < b1; ++b)
-      for_each_wide_overlap(st.tree(), mboxes[b], [&](std::uint32_t sb) { bucket_pair(b, sb); });
-    return;
-  }
-  for (std::uint32_t l = count % kWide; l != 0 && l < kWide; ++l) box[count / kWide].set_child(l, Aabb{});
-  for (std::size_t b = b0; b < b1; ++b)
-    for (std::uint32_t k = 0; k * kWide < count; ++k)
-      for (std::uint32_t m = SimdBaseline::node_children(box[k], mboxes[b]); m; m &= m - 1)
-        bucket_pair(b, index[k * kWide + static_cast<std::uint32_t>(std::countr_zero(m))]);
-}
-
-}  // namespace
-
-bool StaticTree::pairs(const BucketBroadphase& moving, std::span<const Filter> moving_filters, int threads,
-                       std::size_t max_pairs, std::vector<std::uint64_t>& out) {
+bool StaticTree::pairs(const BucketBroadphase& moving, std::span<const Filter> moving_filters, bool filtered,
+                       int threads, std::size_t max_pairs, std::vector<std::uint64_t>& out) {
   out.clear();
   const std::size_t n = moving.sorted_objects().size();
   if (n == 0 || live_ == 0) return true;
@@ -200,10 +133,16 @@ bool StaticTree::pairs(const BucketBroadphase& moving, std::span<const Filter> m
     for (std::size_t b = begin; b < end && !over.load(std::memory_order_relaxed); ++b) {
       for (const Side* s : {&main_, &delta_}) {
         if (s->count == 0) continue;
+        const std::span<const std::uint32_t> mids = moving.sorted_objects();
+        auto emit = [&](std::size_t p, std::uint32_t id) {
+          const Filter mf = moving_filters.empty() ? Filter{} : moving_filters[p];
+          if (!filtered || pair_passes_filter(mf, s->filters[id]))
+            list.push_back(std::uint64_t{mids[p]} << 32 | s->reported[id]);
+        };
         if (boxes_)
-          cross_pairs<BoxTests<SimdBaseline>>(moving, moving_filters, s->tree, s->reported, s->filters, b, list);
+          cross_pairs<BoxTests<SimdBaseline>>(moving, s->tree, b, emit);
         else
-          cross_pairs<SphereTests<SimdBaseline>>(moving, moving_filters, s->tree, s->reported, s->filters, b, list);
+          cross_pairs<SphereTests<SimdBaseline>>(moving, s->tree, b, emit);
       }
       if (list.size() > max_pairs) over.store(true, std::memory_order_relaxed);
     }

@@ -31,11 +31,16 @@ class StaticTree {
   /// Brings the trees up to date with the set's changes since the last call.
   void update(StaticSet& set, Layout layout, int threads);
   /// Appends to `out` every pair of an object of `moving` (its last tree) with a static object
-  /// that overlaps it and whose filters accept each other (`moving_filters`: the moving objects'
-  /// filters in the moving tree's sorted order, or empty: Filter{} each), as keys
-  /// i << 32 | static_index(slot); `out` is then sorted. Fails when they exceed `max_pairs`.
-  [[nodiscard]] bool pairs(const BucketBroadphase& moving, std::span<const Filter> moving_filters, int threads,
-                           std::size_t max_pairs, std::vector<std::uint64_t>& out);
+  /// that overlaps it and, when `filtered`, whose filters accept each other (`moving_filters`: the
+  /// moving objects' filters in the moving tree's sorted order, or empty: Filter{} each), as keys
+  /// i << 32 | static_index(slot), i the moving tree's id; `out` is then sorted. Fails when they
+  /// exceed `max_pairs`.
+  [[nodiscard]] bool pairs(const BucketBroadphase& moving, std::span<const Filter> moving_filters, bool filtered,
+                           int threads, std::size_t max_pairs, std::vector<std::uint64_t>& out);
+  /// The static filter of a reported static index's slot (for pairs found unfiltered).
+  [[nodiscard]] static const Filter& filter_of(const StaticSet& set, std::uint32_t reported) {
+    return set.filter(static_slot(reported));
+  }
   /// The trees, for queries: each tree's objects are reported as static_index(slot), with the
   /// slot's filter. None for an empty set or a set of boxes (queries on boxes are brute force).
   struct Part {

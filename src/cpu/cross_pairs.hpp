@@ -1,0 +1,77 @@
+#pragma once
+// The pairs of one tree's objects with another tree's, both of the bucket broadphase's kind, kept
+// across frames or built for the frame: the static set against the moving objects
+// (cpu/static_tree.hpp), and the objects that moved against the resting ones
+// (cpu/rest_set.hpp).
+
+#include <algorithm>
+#include <bit>
+#include <cstdint>
+#include <span>
+#include <type_traits>
+
+#include "cpu/bucket_broadphase.hpp"
+#include "cpu/bucket_search.hpp"
+#include "cpu/wide_tree.hpp"
+
+namespace viscd::detail {
+
+/// A tree's lanes of the kind K tests (stage 8's tests, cpu/bucket_search.hpp).
+template <class K>
+std::span<const typename K::Lanes> lanes_of(const BucketBroadphase& t) {
+  if constexpr (std::is_same_v<typename K::Lanes, BoxLanes>)
+    return t.box_lanes();
+  else
+    return t.lanes();
+}
+
+/// The pairs of the buckets of group g of `moving` (the 16 under node g of its lowest level) with
+/// the tree `other`: one walk of `other` with the group's box collects the buckets that can meet
+/// any of them, then each moving bucket tests its box against those candidates 16 at a time (as
+/// the moving search does, cpu/bucket_search.cpp); per bucket met, the moving lanes that reach it
+/// against all 16 of its lanes by K's exact test. Past kMaxCandidates (a huge object), each moving
+/// bucket walks the tree itself. Calls emit(p, id) for each pair: p the moving object's sorted
+/// position in `moving`, id the other's id (an index into the shapes `other` was built from).
+template <class K, class Emit>
+void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, std::size_t g, Emit&& emit) {
+  constexpr std::uint32_t kMaxCandidates = 512;
+  const auto ml = lanes_of<K>(moving);
+  const auto sl = lanes_of<K>(other);
+  const std::span<const Aabb> mboxes = moving.leaf_boxes();
+  const std::span<const Aabb> sboxes = other.leaf_boxes();
+  const std::span<const std::uint32_t> sids = other.sorted_objects();
+  const std::size_t buckets = buckets_for(moving.sorted_objects().size());
+  const std::size_t b0 = g * kWide, b1 = std::min(buckets, b0 + kWide);
+  auto bucket_pair = [&](std::size_t b, std::uint32_t sb) {
+    const std::size_t m_first = b * kBucket, s_first = std::size_t{sb} * kBucket;
+    for (std::uint32_t near = K::near(ml[b], sboxes[sb]); near; near &= near - 1) {
+      const auto i = static_cast<std::uint32_t>(std::countr_zero(near));
+      for (std::uint32_t m = K::exact(sl[sb], ml[b], i); m; m &= m - 1)
+        emit(m_first + i, sids[s_first + static_cast<std::size_t>(std::countr_zero(m))]);
+    }
+  };
+  WideNode box[kMaxCandidates / kWide];
+  std::uint32_t index[kMaxCandidates];
+  std::uint32_t count = 0;
+  bool overflow = false;
+  for_each_wide_overlap(other.tree(), moving.tree().level[0][g].box(), [&](std::uint32_t sb) {
+    if (count == kMaxCandidates) {
+      overflow = true;
+      return;
+    }
+    box[count / kWide].set_child(count % kWide, sboxes[sb]);
+    index[count++] = sb;
+  });
+  if (overflow) {
+    for (std::size_t b = b0; b < b1; ++b)
+      for_each_wide_overlap(other.tree(), mboxes[b], [&](std::uint32_t sb) { bucket_pair(b, sb); });
+    return;
+  }
+  for (std::uint32_t l = count % kWide; l != 0 && l < kWide; ++l) box[count / kWide].set_child(l, Aabb{});
+  for (std::size_t b = b0; b < b1; ++b)
+    for (std::uint32_t k = 0; k * kWide < count; ++k)
+      for (std::uint32_t m = SimdBaseline::node_children(box[k], mboxes[b]); m; m &= m - 1)
+        bucket_pair(b, index[k * kWide + static_cast<std::uint32_t>(std::countr_zero(m))]);
+}
+
+}  // namespace viscd::detail

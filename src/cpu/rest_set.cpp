@@ -1,0 +1,569 @@
+#include "cpu/rest_set.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "core/frame_rules.hpp"
+#include "core/stopwatch.hpp"
+#include "cpu/bucket_search.hpp"
+#include "cpu/cross_pairs.hpp"
+#include "cpu/grow.hpp"
+#include "cpu/parallel.hpp"
+
+namespace viscd::detail {
+namespace {
+
+/// Main is rebuilt when the objects out of it pass an eighth of all, and at least this many.
+constexpr std::size_t kRebuildFloor = 4096;
+/// Objects watched while the set is out of use, and how many of them must rest to take over.
+constexpr std::size_t kSample = 64;
+
+[[nodiscard]] std::uint64_t key(std::uint32_t i, std::uint32_t j) { return std::uint64_t{i} << 32 | j; }
+[[nodiscard]] std::uint32_t key_i(std::uint64_t k) { return static_cast<std::uint32_t>(k >> 32); }
+[[nodiscard]] std::uint32_t key_j(std::uint64_t k) { return static_cast<std::uint32_t>(k); }
+
+[[nodiscard]] bool same_bits(const Sphere& a, const Sphere& b) { return std::memcmp(&a, &b, sizeof(Sphere)) == 0; }
+[[nodiscard]] bool same_bits(const Box& a, const Box& b) { return std::memcmp(&a, &b, sizeof(Box)) == 0; }
+
+/// The chunks of a loop over sorted keys: chunk c covers the keys of `a` from a_at[c] and of `b`
+/// from b_at[c], cut at the same key, so that each chunk merges on its own.
+struct KeyChunks {
+  std::vector<std::size_t> a_at, b_at;
+  [[nodiscard]] std::size_t count() const { return a_at.size() - 1; }
+};
+KeyChunks cut_by_first_key(std::span<const std::uint64_t> a, std::span<const std::uint64_t> b,
+                           const std::vector<std::uint64_t>& cuts) {
+  KeyChunks c;
+  c.a_at.push_back(0);
+  c.b_at.push_back(0);
+  for (const std::uint64_t k : cuts) {
+    c.a_at.push_back(static_cast<std::size_t>(std::lower_bound(a.begin(), a.end(), k) - a.begin()));
+    c.b_at.push_back(static_cast<std::size_t>(std::lower_bound(b.begin(), b.end(), k) - b.begin()));
+  }
+  c.a_at.push_back(a.size());
+  c.b_at.push_back(b.size());
+  return c;
+}
+
+/// Cut keys that split `a` (or `b`, when `a` is empty) into `chunks` runs of about equal length.
+std::vector<std::uint64_t> cuts_for(std::span<const std::uint64_t> a, std::span<const std::uint64_t> b,
+                                    std::size_t chunks) {
+  std::vector<std::uint64_t> cuts;
+  const std::span<const std::uint64_t> s = a.size() >= b.size() ? a : b;
+  for (std::size_t c = 1; c < chunks && !s.empty(); ++c) {
+    const std::uint64_t k = s[c * s.size() / chunks];
+    if (cuts.empty() || k > cuts.back()) cuts.push_back(k);
+  }
+  return cuts;
+}
+
+}  // namespace
+
+std::uint64_t RestSet::Part::memory_bytes() const {
+  return tree.memory_bytes() + bytes_of(spheres) + bytes_of(boxes) + bytes_of(ids) + bytes_of(iota);
+}
+
+std::uint64_t RestSet::memory_bytes() const {
+  std::uint64_t b = bytes_of(cur_sph_) + bytes_of(cur_box_) + bytes_of(fat_) + bytes_of(part_of_) + bytes_of(mark_) +
+                    bytes_of(local_) + bytes_of(changed_) + bytes_of(left_) + bytes_of(scratch_) + bytes_of(cand_) +
+                    bytes_of(cand_next_) + bytes_of(found_) + bytes_of(stat_) + bytes_of(stat_next_) +
+                    bytes_of(stat_found_) + bytes_of(hit_) + bytes_of(hit_next_) + bytes_of(local_pairs_) +
+                    bytes_of(active_mask_) + bytes_of(offsets_) + bytes_of(sample_index_) + bytes_of(sample_);
+  for (const Part& p : parts_) b += p.memory_bytes();
+  b += exact_.memory_bytes();
+  for (const auto& l : chunk_keys_) b += bytes_of(l);
+  for (const auto& lists : chunk_lists_)
+    for (const auto& l : lists) b += bytes_of(l);
+  return b;
+}
+
+void RestSet::reset() {
+  live_ = false;
+  sample_n_ = 0;
+}
+
+Box RestSet::fat_box(const Shapes& s, std::size_t k) const {
+  // The object's box (a sphere's conservative box, which holds every point its exact test can
+  // accept), grown by the margin and rounded outward, so that the box holds the object's box
+  // grown by exactly the margin.
+  const Aabb a = s.aabb(k);
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  const float m = margin_;
+  Box b;
+  const float lo[3] = {a.lo.x, a.lo.y, a.lo.z}, hi[3] = {a.hi.x, a.hi.y, a.hi.z};
+  for (int c = 0; c < 3; ++c) {
+    b.min[c] = std::nextafter(lo[c] - m, -kInf);
+    b.max[c] = std::nextafter(hi[c] + m, kInf);
+  }
+  return b;
+}
+
+void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::uint8_t which, bool fat, int threads,
+                         std::vector<Pair>* pairs) {
+  const std::size_t count = objs.size();
+  part.count = count;
+  part.erased = 0;
+  part.ids.assign(objs.begin(), objs.end());
+  if (part.iota.size() < count) {
+    const std::size_t old = part.iota.size();
+    part.iota.resize(count);
+    for (std::size_t k = old; k < count; ++k) part.iota[k] = static_cast<std::uint32_t>(k);
+  }
+  const bool boxes = fat ? box_lanes() : kind_ == ShapeKind::box;
+  const bool use_fat = fat && margin_ > 0;
+  resize_with_headroom(part.spheres, count);
+  resize_with_headroom(part.boxes, boxes ? count : 0);
+  parallel_for(count, threads, [&](std::size_t k) {
+    const std::uint32_t o = objs[k];
+    if (boxes) {
+      const Box& b = use_fat ? fat_[o] : cur_box_[o];
+      part.boxes[k] = b;
+      part.spheres[k] = box_proxy(b);
+    } else {
+      part.spheres[k] = cur_sph_[o];
+    }
+    if (which != kNowhere) {
+      part_of_[o] = which;
+      local_[o] = static_cast<std::uint32_t>(k);
+    }
+  });
+  FrameStats built;
+  part.tree.reset_order();
+  part.tree.set_keep_order(false);
+  BucketBroadphase::Extras extras;
+  extras.boxes = std::span<const Box>(part.boxes.data(), boxes ? count : 0);
+  const std::span<const std::uint32_t> ids(part.iota.data(), count);
+  const std::span<const Sphere> spheres(part.spheres.data(), count);
+  if (pairs != nullptr)
+    (void)part.tree.run(spheres, ids, {}, bits_, layout_, threads, 0, *pairs, built, extras);  // no cap: never fails
+  else
+    part.tree.build(spheres, ids, bits_, layout_, threads, built, extras);
+  if (which == kMain) main_layout_ = built.layout;
+}
+
+void RestSet::erase(std::uint32_t o) {
+  const std::uint8_t p = part_of_[o];
+  if (p == kNowhere) return;
+  parts_[p].tree.erase(local_[o]);
+  ++parts_[p].erased;
+  part_of_[o] = kNowhere;
+}
+
+bool RestSet::sample_rests(const Shapes& s, float margin) {
+  const std::size_t n = s.size();
+  bool rests = false;
+  if (sample_n_ == n && sample_kind_ == s.kind && n > 0 && !sample_index_.empty()) {
+    std::size_t still = 0;
+    for (std::size_t k = 0; k < sample_index_.size(); ++k) {
+      const Aabb now = s.aabb(sample_index_[k]);
+      const Box& was = sample_[k];
+      if (margin == 0) {
+        still += now.lo.x == was.min[0] && now.lo.y == was.min[1] && now.lo.z == was.min[2] &&
+                 now.hi.x == was.max[0] && now.hi.y == was.max[1] && now.hi.z == was.max[2];
+      } else {
+        still += now.lo.x >= was.min[0] - margin && now.lo.y >= was.min[1] - margin &&
+                 now.lo.z >= was.min[2] - margin && now.hi.x <= was.max[0] + margin &&
+                 now.hi.y <= was.max[1] + margin && now.hi.z <= was.max[2] + margin;
+      }
+    }
+    rests = still * 8 >= sample_index_.size() * 7;
+  }
+  const std::size_t m = std::min(n, kSample);
+  sample_index_.resize(m);
+  sample_.resize(m);
+  for (std::size_t k = 0; k < m; ++k) {
+    sample_index_[k] = static_cast<std::uint32_t>(k * n / m);
+    const Aabb a = s.aabb(sample_index_[k]);
+    sample_[k] = Box{{a.lo.x, a.lo.y, a.lo.z}, {a.hi.x, a.hi.y, a.hi.z}};
+  }
+  sample_n_ = n;
+  sample_kind_ = s.kind;
+  return rests;
+}
+
+Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int threads, std::vector<Pair>& pairs,
+                    FrameStats& stats, bool& followed) {
+  followed = false;
+  const Shapes& s = in.objects;
+  const std::size_t n = s.size();
+  if (n == 0 || in.active.size() * 2 < n) {
+    reset();
+    return {};
+  }
+  if (live_ && (n != n_ || s.kind != kind_ || in.margin != margin_ || in.layout != layout_ || in.bits != bits_ ||
+                set.version() != static_version_))
+    reset();
+  Status status;
+  if (live_) {
+    Stopwatch sw;
+    bool few = false;
+    status = find_changes(in, threads, std::max<std::size_t>(n / 4, 16), few);
+    stats.ms(Stage::cull) += sw.lap();
+    if (!status) {
+      reset();
+      return status;
+    }
+    if (!few) {
+      reset();
+      (void)sample_rests(s, in.margin);
+      return {};
+    }
+    status = update(in, set, st, threads, stats);
+  } else {
+    if (!sample_rests(s, in.margin)) return {};
+    status = enter(in, set, st, threads, stats);
+  }
+  if (status) {
+    Stopwatch sw;
+    status = emit(in, set, threads, pairs);
+    stats.ms(Stage::query) += sw.lap();
+  }
+  if (!status) {
+    reset();
+    return status;
+  }
+  followed = true;
+  stats.followed_change = true;
+  stats.bits = bits_;
+  stats.layout = main_layout_;
+  stats.pairs = pairs.size();
+  return {};
+}
+
+Status RestSet::enter(const Input& in, const StaticSet& set, StaticTree& st, int threads, FrameStats& stats) {
+  Stopwatch sw;
+  const Shapes& s = in.objects;
+  const std::size_t n = s.size();
+  kind_ = s.kind;
+  n_ = n;
+  margin_ = in.margin;
+  layout_ = in.layout;
+  bits_ = in.bits;
+  static_version_ = set.version();
+  if (s.is_box()) {
+    resize_with_headroom(cur_box_, n);
+    parallel_for(n, threads, [&](std::size_t k) { cur_box_[k] = s.boxes[k]; });
+    cur_sph_.clear();
+  } else {
+    resize_with_headroom(cur_sph_, n);
+    parallel_for(n, threads, [&](std::size_t k) { cur_sph_[k] = s.spheres[k]; });
+    cur_box_.clear();
+  }
+  resize_with_headroom(fat_, margin_ > 0 ? n : 0);
+  if (margin_ > 0) parallel_for(n, threads, [&](std::size_t k) { fat_[k] = fat_box(s, k); });
+  part_of_.assign(n, kNowhere);
+  mark_.assign(n, 0);
+  resize_with_headroom(local_, n);
+  resize_with_headroom(scratch_, n);
+  parallel_for(n, threads, [&](std::size_t k) { scratch_[k] = static_cast<std::uint32_t>(k); });
+  const std::span<const std::uint32_t> all(scratch_.data(), n);
+  local_pairs_.clear();
+  build_part(parts_[kMain], all, kMain, true, threads, &local_pairs_);
+  for (const std::uint8_t p : {kDelta, kRecent}) {
+    parts_[p].count = parts_[p].erased = 0;
+    parts_[p].ids.clear();
+  }
+  stats.ms(Stage::build) += sw.lap();
+  // Main's tree ids are the object indices: its pairs are the candidates.
+  resize_with_headroom(cand_, local_pairs_.size());
+  resize_with_headroom(hit_, local_pairs_.size());
+  parallel_for(local_pairs_.size(), threads, [&](std::size_t k) {
+    const Pair p = local_pairs_[k];
+    cand_[k] = key(p.i, p.j);
+    hit_[k] = margin_ == 0 || s.overlap(p.i, p.j);
+  });
+  stat_.clear();
+  if (!set.empty()) {
+    const BucketBroadphase* exact = &parts_[kMain].tree;
+    if (margin_ > 0) {
+      build_part(exact_, all, kNowhere, false, threads, nullptr);
+      exact = &exact_.tree;
+    }
+    if (!static_pairs_of(*exact, all, st, threads, stat_)) return check_pair_cap(SIZE_MAX, in.pair_memory_cap, true);
+  }
+  stats.ms(Stage::query) += sw.lap();
+  stats.moved = stats.replaced = static_cast<std::uint32_t>(n);  // every object placed
+  live_ = true;
+  return {};
+}
+
+Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bool& few) {
+  const Shapes& s = in.objects;
+  const bool listed = in.moved_listed;
+  // The objects to compare: the listed ones, or all of them.
+  const std::size_t count = listed ? in.moved.size() : n_;
+  const std::size_t chunks = std::max<std::size_t>(1, ranges_for(count, threads));
+  for (auto& lists : chunk_lists_) lists.resize(std::max(lists.size(), chunks));
+  std::atomic<std::size_t> left_total{0};
+  std::atomic<bool> over{false};
+  const bool boxes = s.is_box();
+  for_chunks(count, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
+    std::vector<std::uint32_t>& changed = chunk_lists_[0][c];
+    std::vector<std::uint32_t>& left = chunk_lists_[1][c];
+    changed.clear();
+    left.clear();
+    for (std::size_t t = b; t < e; ++t) {
+      const std::uint32_t k = listed ? in.moved[t] : static_cast<std::uint32_t>(t);
+      const bool same = boxes ? same_bits(s.boxes[k], cur_box_[k]) : same_bits(s.spheres[k], cur_sph_[k]);
+      if (same) continue;
+      changed.push_back(k);
+      bool out = true;
+      if (margin_ > 0) {
+        const Aabb a = s.aabb(k);
+        const Box& f = fat_[k];
+        out = !(a.lo.x >= f.min[0] && a.lo.y >= f.min[1] && a.lo.z >= f.min[2] && a.hi.x <= f.max[0] &&
+                a.hi.y <= f.max[1] && a.hi.z <= f.max[2]);
+      }
+      if (out) {
+        left.push_back(k);
+        if ((left.size() & 63) == 0 && left_total.fetch_add(64, std::memory_order_relaxed) + 64 > limit) {
+          over.store(true, std::memory_order_relaxed);
+          return;
+        }
+      }
+      if (over.load(std::memory_order_relaxed)) return;
+    }
+  });
+  few = !over.load();
+  changed_.clear();
+  left_.clear();
+  const std::size_t used = std::min(chunks, std::max<std::size_t>(1, count));
+  for (std::size_t c = 0; c < used && count > 0; ++c) {
+    changed_.insert(changed_.end(), chunk_lists_[0][c].begin(), chunk_lists_[0][c].end());
+    left_.insert(left_.end(), chunk_lists_[1][c].begin(), chunk_lists_[1][c].end());
+  }
+  if (left_.size() > limit) few = false;
+  if (listed && in.verify_moved) {
+    // Every object the list leaves out must be bit for bit the previous frame's.
+    std::size_t at = 0;
+    for (std::uint32_t k = 0; k < n_; ++k) {
+      while (at < in.moved.size() && in.moved[at] < k) ++at;
+      if (at < in.moved.size() && in.moved[at] == k) continue;
+      const bool same = boxes ? same_bits(s.boxes[k], cur_box_[k]) : same_bits(s.spheres[k], cur_sph_[k]);
+      if (!same)
+        return Status::failure(ErrorKind::invalid_input,
+                               "FrameInput::moved leaves out object " + std::to_string(k) +
+                                   ", whose bounds changed since the previous frame (found by Config::verify_moved)");
+    }
+  }
+  return {};
+}
+
+bool RestSet::static_pairs_of(const BucketBroadphase& tree, std::span<const std::uint32_t> ids, StaticTree& st,
+                              int threads, std::vector<std::uint64_t>& out) {
+  if (!st.pairs(tree, {}, false, threads, std::numeric_limits<std::size_t>::max(), out)) return false;
+  // Tree ids to object indices: `ids` ascend, so the order stays.
+  parallel_for(out.size(), threads,
+               [&](std::size_t k) { out[k] = key(ids[key_i(out[k])], key_j(out[k])); });
+  return true;
+}
+
+Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, int threads, FrameStats& stats) {
+  Stopwatch sw;
+  const Shapes& s = in.objects;
+  stats.moved = static_cast<std::uint32_t>(changed_.size());
+  stats.replaced = static_cast<std::uint32_t>(left_.size());
+  // Nothing changed: every candidate keeps its result.
+  if (changed_.empty()) return {};
+  for (const std::uint32_t k : changed_) {
+    mark_[k] = 1;
+    if (s.is_box())
+      cur_box_[k] = s.boxes[k];
+    else
+      cur_sph_[k] = s.spheres[k];
+  }
+  for (const std::uint32_t k : left_) {
+    mark_[k] |= 2;
+    erase(k);
+    if (margin_ > 0) fat_[k] = fat_box(s, k);
+  }
+  // The old recent objects that did not move again come to rest in delta.
+  Part& delta = parts_[kDelta];
+  Part& recent = parts_[kRecent];
+  scratch_.clear();
+  for (const std::uint32_t o : recent.ids)
+    if (part_of_[o] == kRecent) scratch_.push_back(o);
+  if (!scratch_.empty()) {
+    for (const std::uint32_t o : delta.ids)
+      if (part_of_[o] == kDelta) scratch_.push_back(o);
+    build_part(delta, scratch_, kDelta, true, threads, nullptr);
+  }
+  // The objects that left their fat bounds, placed again: their tree, and its pairs.
+  local_pairs_.clear();
+  build_part(recent, left_, kRecent, true, threads, &local_pairs_);
+  stats.ms(Stage::build) += sw.lap();
+
+  // Their new candidates: among themselves, and with main's and delta's objects.
+  found_.resize(local_pairs_.size());
+  for (std::size_t k = 0; k < local_pairs_.size(); ++k)
+    found_[k] = key(recent.ids[local_pairs_[k].i], recent.ids[local_pairs_[k].j]);  // ids ascend: i < j stays
+  if (!left_.empty()) {
+    const std::size_t groups = (buckets_for(left_.size()) + kWide - 1) / kWide;
+    const std::size_t chunks = threads_for(left_.size() * 8, threads) == 1 ? 1 : std::min<std::size_t>(groups, 4 * threads);
+    if (chunk_keys_.size() < chunks) chunk_keys_.resize(chunks);
+    const std::span<const std::uint32_t> mids = recent.tree.sorted_objects();
+    for_chunks(groups, chunks, [&](std::size_t gb, std::size_t ge, std::size_t c) {
+      std::vector<std::uint64_t>& list = chunk_keys_[c];
+      list.clear();
+      for (const std::uint8_t p : {kMain, kDelta}) {
+        const Part& other = parts_[p];
+        if (other.count == other.erased) continue;
+        auto found = [&](std::size_t pos, std::uint32_t id) {
+          const std::uint32_t a = recent.ids[mids[pos]], b = other.ids[id];
+          list.push_back(a < b ? key(a, b) : key(b, a));
+        };
+        for (std::size_t g = gb; g < ge; ++g) {
+          if (box_lanes())
+            cross_pairs<BoxTests<SimdBaseline>>(recent.tree, other.tree, g, found);
+          else
+            cross_pairs<SphereTests<SimdBaseline>>(recent.tree, other.tree, g, found);
+        }
+      }
+    });
+    for (std::size_t c = 0; c < std::min(chunks, groups); ++c)
+      found_.insert(found_.end(), chunk_keys_[c].begin(), chunk_keys_[c].end());
+  }
+  std::sort(found_.begin(), found_.end());
+
+  // The static pairs of the objects that changed, from a tree of their exact shapes.
+  stat_found_.clear();
+  if (!set.empty()) {
+    const BucketBroadphase* exact = &recent.tree;  // margin 0: the changed objects are the movers
+    std::span<const std::uint32_t> ids = recent.ids;
+    if (margin_ > 0) {
+      build_part(exact_, changed_, kNowhere, false, threads, nullptr);
+      exact = &exact_.tree;
+      ids = exact_.ids;
+    }
+    if (!static_pairs_of(*exact, ids, st, threads, stat_found_))
+      return check_pair_cap(SIZE_MAX, in.pair_memory_cap, true);
+  }
+
+  // The candidates: those of objects that stayed in their fat bounds, tested again where one of
+  // them changed, merged with the new ones (tested here). Chunks cut at the same keys.
+  {
+    const std::size_t chunks = threads_for(cand_.size() + found_.size(), threads) == 1
+                                   ? 1
+                                   : 4 * static_cast<std::size_t>(std::max(1, threads));
+    const KeyChunks kc = cut_by_first_key(cand_, found_, cuts_for(cand_, found_, chunks));
+    const std::size_t nc = kc.count();
+    offsets_.assign(nc + 1, 0);
+    // Pass 1: how many each chunk keeps.
+    for_chunks(nc, nc, [&](std::size_t c, std::size_t, std::size_t) {
+      std::size_t kept = 0;
+      for (std::size_t a = kc.a_at[c]; a < kc.a_at[c + 1]; ++a)
+        kept += ((mark_[key_i(cand_[a])] | mark_[key_j(cand_[a])]) & 2) == 0;
+      offsets_[c + 1] = kept + (kc.b_at[c + 1] - kc.b_at[c]);
+    });
+    for (std::size_t c = 0; c < nc; ++c) offsets_[c + 1] += offsets_[c];
+    resize_with_headroom(cand_next_, offsets_[nc]);
+    resize_with_headroom(hit_next_, offsets_[nc]);
+    const bool retest = margin_ > 0;
+    for_chunks(nc, nc, [&](std::size_t c, std::size_t, std::size_t) {
+      std::size_t a = kc.a_at[c], b = kc.b_at[c], o = offsets_[c];
+      const std::size_t ae = kc.a_at[c + 1], be = kc.b_at[c + 1];
+      while (a < ae || b < be) {
+        if (b == be || (a < ae && cand_[a] < found_[b])) {
+          const std::uint64_t k = cand_[a];
+          const std::uint8_t m = mark_[key_i(k)] | mark_[key_j(k)];
+          if ((m & 2) == 0) {
+            cand_next_[o] = k;
+            hit_next_[o] = m ? static_cast<std::uint8_t>(s.overlap(key_i(k), key_j(k))) : hit_[a];
+            ++o;
+          }
+          ++a;
+        } else {
+          const std::uint64_t k = found_[b++];
+          cand_next_[o] = k;
+          hit_next_[o] = !retest || s.overlap(key_i(k), key_j(k));
+          ++o;
+        }
+      }
+    });
+    cand_.swap(cand_next_);
+    hit_.swap(hit_next_);
+    cand_.resize(offsets_[nc]);
+    hit_.resize(offsets_[nc]);
+  }
+  // The static pairs: those of objects that did not change, merged with the changed ones' new ones.
+  if (!set.empty()) {
+    stat_next_.clear();
+    stat_next_.reserve(stat_.size() + stat_found_.size());
+    std::size_t b = 0;
+    for (const std::uint64_t k : stat_) {
+      if (mark_[key_i(k)] & 1) continue;
+      while (b < stat_found_.size() && stat_found_[b] < k) stat_next_.push_back(stat_found_[b++]);
+      stat_next_.push_back(k);
+    }
+    stat_next_.insert(stat_next_.end(), stat_found_.begin() + static_cast<std::ptrdiff_t>(b), stat_found_.end());
+    stat_.swap(stat_next_);
+  }
+  for (const std::uint32_t k : changed_) mark_[k] = 0;
+  stats.ms(Stage::query) += sw.lap();
+
+  // Main rebuilt when too much lives outside it.
+  if (parts_[kMain].erased + delta.count + recent.count > std::max(kRebuildFloor, n_ / 8)) {
+    scratch_.resize(n_);
+    for (std::size_t k = 0; k < n_; ++k) scratch_[k] = static_cast<std::uint32_t>(k);
+    build_part(parts_[kMain], scratch_, kMain, true, threads, nullptr);
+    for (const std::uint8_t p : {kDelta, kRecent}) {
+      parts_[p].count = parts_[p].erased = 0;
+      parts_[p].ids.clear();
+    }
+    stats.ms(Stage::build) += sw.lap();
+  }
+  return {};
+}
+
+Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::vector<Pair>& pairs) {
+  const bool masked = in.active.size() < n_;
+  if (masked) {
+    active_mask_.assign(n_, 0);
+    for (const std::uint32_t k : in.active) active_mask_[k] = 1;
+  }
+  const std::span<const Filter> filters = in.filters;
+  auto moving_ok = [&](std::uint64_t k, std::uint8_t hit) {
+    const std::uint32_t i = key_i(k), j = key_j(k);
+    if (!hit) return false;
+    if (masked && !(active_mask_[i] & active_mask_[j])) return false;
+    return filters.empty() || pair_passes_filter(filters[i], filters[j]);
+  };
+  auto static_ok = [&](std::uint64_t k) {
+    const std::uint32_t i = key_i(k);
+    if (masked && !active_mask_[i]) return false;
+    return pair_passes_filter(filters.empty() ? Filter{} : filters[i], set.filter(static_slot(key_j(k))));
+  };
+  const std::size_t chunks =
+      threads_for(cand_.size() + stat_.size(), threads) == 1 ? 1 : 4 * static_cast<std::size_t>(std::max(1, threads));
+  const KeyChunks kc = cut_by_first_key(cand_, stat_, cuts_for(cand_, stat_, chunks));
+  const std::size_t nc = kc.count();
+  offsets_.assign(nc + 1, 0);
+  for_chunks(nc, nc, [&](std::size_t c, std::size_t, std::size_t) {
+    std::size_t count = 0;
+    for (std::size_t a = kc.a_at[c]; a < kc.a_at[c + 1]; ++a) count += moving_ok(cand_[a], hit_[a]);
+    for (std::size_t b = kc.b_at[c]; b < kc.b_at[c + 1]; ++b) count += static_ok(stat_[b]);
+    offsets_[c + 1] = count;
+  });
+  for (std::size_t c = 0; c < nc; ++c) offsets_[c + 1] += offsets_[c];
+  if (Status s = check_pair_cap(offsets_[nc], in.pair_memory_cap); !s) return s;
+  pairs.resize(offsets_[nc]);
+  for_chunks(nc, nc, [&](std::size_t c, std::size_t, std::size_t) {
+    std::size_t a = kc.a_at[c], b = kc.b_at[c], o = offsets_[c];
+    const std::size_t ae = kc.a_at[c + 1], be = kc.b_at[c + 1];
+    while (a < ae || b < be) {
+      if (b == be || (a < ae && cand_[a] < stat_[b])) {
+        if (moving_ok(cand_[a], hit_[a])) pairs[o++] = Pair{key_i(cand_[a]), key_j(cand_[a])};
+        ++a;
+      } else {
+        if (static_ok(stat_[b])) pairs[o++] = Pair{key_i(stat_[b]), key_j(stat_[b])};
+        ++b;
+      }
+    }
+  });
+  return {};
+}
+
+}  // namespace viscd::detail

@@ -1,0 +1,152 @@
+#pragma once
+// Cost follows change (Config::follow_change): the cpu backend's broadphase for frames in which
+// most objects keep their bounds. Every object sits in one of three trees of the bucket
+// broadphase's kind, kept across frames: `main` (every object, built at some frame), `delta`
+// (objects that moved since main was built and came to rest) and `recent` (the objects that
+// moved in the last frame). The candidate pairs of every two objects (their fat bounds overlap)
+// are kept, sorted, with the exact result of each, and so are the exact pairs with the static set.
+//
+// A frame finds the objects that changed (FrameInput::moved, or a pass comparing bounds) and of
+// those the ones that left their fat bounds (with Config::rest_margin 0: every one that changed).
+// Those are taken out of their trees (their lanes become padding) and placed again: a tree of
+// their new fat bounds is built, searched against itself and against main and delta for their new
+// candidates, and becomes the next frame's `recent`; the objects of the old `recent` that did not
+// move again join delta. Candidates of objects that changed but stayed inside their fat bounds
+// are tested again; the rest keep their result. The frame's pairs are the candidates that hold,
+// whose objects are both active and whose filters accept each other: exactly the pairs of a frame
+// that rebuilt everything (filters, culling and never-culled flags are applied to the carried
+// candidates each frame, so they may change freely). When delta, recent and the objects taken out
+// of main pass an eighth of the objects, main is rebuilt over all of them.
+//
+// A frame costs the pass over the bounds (none with FrameInput::moved), the movers' tree and its
+// searches, and passes over the candidates and pairs. When too many objects move, when the object
+// count, their kind, the static set, the Morton width or layout or the margin change, or culling leaves
+// fewer than half of the objects active (the candidates of culled objects would cost more than a
+// culled rebuild saves), the set lets the frame rebuild and starts again later: while it is not
+// in use it watches a sample of 64 objects, and takes over when 7 in 8 of them rest.
+// docs/architecture.md, "Resting objects".
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "core/shapes.hpp"
+#include "core/static_set.hpp"
+#include "cpu/bucket_broadphase.hpp"
+#include "cpu/static_tree.hpp"
+#include "viscd/config.hpp"
+#include "viscd/frame.hpp"
+#include "viscd/result.hpp"
+#include "viscd/types.hpp"
+
+namespace viscd::detail {
+
+class RestSet {
+ public:
+  /// What one frame gives.
+  struct Input {
+    Shapes objects;                             ///< the frame's moving objects (N)
+    std::span<const std::uint32_t> active;      ///< ascending, below N
+    std::span<const Filter> filters;            ///< empty or one per object
+    std::span<const std::uint32_t> moved;       ///< FrameInput::moved, checked already
+    bool moved_listed = false;                  ///< FrameInput::moved_listed
+    bool verify_moved = false;                  ///< Config::verify_moved
+    float margin = 0;                           ///< Config::rest_margin
+    Layout layout = Layout::extended;           ///< Config::layout
+    int bits = 32;                              ///< the frame's Morton width (the trees keep the one they were built with)
+    std::size_t pair_memory_cap = 0;            ///< Config::pair_memory_cap
+  };
+
+  /// Runs the frame's broadphase (stages 4-8) by following change, when it can. Returns true with
+  /// `pairs` sorted (moving pairs and, as {i, static_index(k)}, pairs with the static set; filters
+  /// and the active set applied) and stats (moved, replaced, stage times); false when this frame
+  /// must rebuild (nothing written, the set is then out of use until its sample says the objects
+  /// rest). `st` must be up to date with `set`. A failed Status (the pair cap, a moved list that
+  /// Config::verify_moved finds short) leaves the set out of use.
+  [[nodiscard]] Status run(const Input& in, const StaticSet& set, StaticTree& st, int threads,
+                           std::vector<Pair>& pairs, FrameStats& stats, bool& followed);
+  /// Stops following: the next frames rebuild until the sample says the objects rest.
+  void reset();
+  /// Whether the last frame was followed (its objects are in cur_ and the trees).
+  [[nodiscard]] bool in_use() const { return live_; }
+  /// The last followed frame's objects (for the queries after it).
+  [[nodiscard]] Shapes objects() const {
+    return kind_ == ShapeKind::box ? Shapes(std::span<const Box>(cur_box_)) : Shapes(std::span<const Sphere>(cur_sph_));
+  }
+  [[nodiscard]] std::uint64_t memory_bytes() const;
+  /// Inspection for tests: the candidates kept (keys i << 32 | j) and the static pairs.
+  [[nodiscard]] std::span<const std::uint64_t> candidates() const { return cand_; }
+
+ private:
+  // One tree and what its objects are: the shapes its lanes hold (sphere lanes: `spheres`; box
+  // lanes: `boxes`, with their proxies in `spheres` for the Morton order), and per tree id the
+  // object's index.
+  struct Part {
+    BucketBroadphase tree;
+    std::vector<Sphere> spheres;
+    std::vector<Box> boxes;
+    std::vector<std::uint32_t> ids, iota;
+    std::size_t count = 0, erased = 0;
+    [[nodiscard]] std::uint64_t memory_bytes() const;
+  };
+  enum : std::uint8_t { kMain = 0, kDelta = 1, kRecent = 2, kNowhere = 3 };
+
+  [[nodiscard]] bool box_lanes() const { return kind_ == ShapeKind::box || margin_ > 0; }
+  /// The fat box of object k as it is in the trees (margin > 0).
+  [[nodiscard]] Box fat_box(const Shapes& s, std::size_t k) const;
+  /// Builds `part` over `objs` (object indices): their fat bounds (`fat`) or their exact shapes
+  /// (cur_), and the pairs among them when `pairs` is not null. `which` (unless kNowhere) records
+  /// the part as the objects' home.
+  void build_part(Part& part, std::span<const std::uint32_t> objs, std::uint8_t which, bool fat, int threads,
+                  std::vector<Pair>* pairs);
+  /// Takes object o out of its tree.
+  void erase(std::uint32_t o);
+  /// Starts following: every object placed now, every candidate found.
+  [[nodiscard]] Status enter(const Input& in, const StaticSet& set, StaticTree& st, int threads, FrameStats& stats);
+  /// Finds the objects that changed (changed_) and left their fat bounds (left_); false when more
+  /// than `limit` left.
+  [[nodiscard]] Status find_changes(const Input& in, int threads, std::size_t limit, bool& few);
+  /// Follows one frame of changes.
+  [[nodiscard]] Status update(const Input& in, const StaticSet& set, StaticTree& st, int threads, FrameStats& stats);
+  /// The static pairs of the objects in `tree` (ids through `ids`), unfiltered, sorted.
+  [[nodiscard]] bool static_pairs_of(const BucketBroadphase& tree, std::span<const std::uint32_t> ids, StaticTree& st,
+                                     int threads, std::vector<std::uint64_t>& out);
+  /// The frame's pairs from the candidates and static pairs.
+  [[nodiscard]] Status emit(const Input& in, const StaticSet& set, int threads, std::vector<Pair>& pairs);
+  /// Whether the sample says the objects rest; takes a new sample.
+  bool sample_rests(const Shapes& s, float margin);
+
+  bool live_ = false;
+  ShapeKind kind_ = ShapeKind::sphere;
+  std::size_t n_ = 0;
+  float margin_ = 0;
+  Layout layout_ = Layout::extended;
+  int bits_ = 32;
+  MortonLayoutInfo main_layout_;  // the layout main was built with, reported by the frames
+  std::uint64_t static_version_ = 0;
+
+  std::vector<Sphere> cur_sph_;  // the last frame's objects
+  std::vector<Box> cur_box_;
+  std::vector<Box> fat_;  // margin > 0: each object's fat box
+  std::vector<std::uint8_t> part_of_, mark_;
+  std::vector<std::uint32_t> local_;  // the object's id in its tree
+  Part parts_[3];
+  Part exact_;  // margin > 0: the changed objects' exact shapes, for their static pairs
+  std::vector<std::uint32_t> changed_, left_, scratch_;
+  std::vector<std::vector<std::uint32_t>> chunk_lists_[2];
+
+  std::vector<std::uint64_t> cand_, cand_next_, found_, stat_, stat_next_, stat_found_;
+  std::vector<std::uint8_t> hit_, hit_next_;
+  std::vector<std::vector<std::uint64_t>> chunk_keys_;
+  std::vector<Pair> local_pairs_;
+  std::vector<std::uint8_t> active_mask_;
+  std::vector<std::size_t> offsets_;
+
+  // The sample watched while the set is out of use.
+  std::vector<std::uint32_t> sample_index_;
+  std::vector<Box> sample_;  // each sampled object's box (Shapes::aabb) when taken
+  std::size_t sample_n_ = 0;
+  ShapeKind sample_kind_ = ShapeKind::sphere;
+};
+
+}  // namespace viscd::detail
