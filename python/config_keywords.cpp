@@ -110,6 +110,10 @@ const std::vector<Keyword>& keywords() {
        }},
       {"keep_order", false,
        [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.keep_order = bool_value(v, k); }},
+      {"follow_change", false,
+       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.follow_change = bool_value(v, k); }},
+      {"rest_margin", false,
+       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.rest_margin = float_value(v, k); }},
       {"simd", false,
        [](py::handle v, const std::string& k, Config& c, GlOptions&) {
          static constexpr Simd kSimd[] = {Simd::best, Simd::sse2, Simd::scalar};
@@ -184,6 +188,8 @@ py::dict config_dict(const Config& c) {
   d["pair_memory_cap"] = c.pair_memory_cap;
   d["threads"] = c.threads;
   d["keep_order"] = c.keep_order;
+  d["follow_change"] = c.follow_change;
+  d["rest_margin"] = c.rest_margin;
   d["simd"] = c.simd == Simd::best ? "best" : c.simd == Simd::sse2 ? "sse2" : "scalar";
   return d;
 }
@@ -203,6 +209,8 @@ const char* keywords_doc() {
     pair_memory_cap: int = 0      bytes pairs may take (8 per pair); 0 = no cap; beyond: PairCapError
     threads: int = 0              cpu worker threads; 0 = all hardware threads, 1 = serial
     keep_order: bool = True       cpu: keep the last frame's object order while it stays good
+    follow_change: bool = True    cpu: keep resting objects in trees across frames (cost follows change)
+    rest_margin: float = 0.0      cpu: how far an object may stray and still rest (0: bit for bit)
     simd: "best" | "sse2" | "scalar" = "best"      widest SIMD kernels the cpu backend may use
   backend="gl" only (viscd::GlOptions):
     gl_geometry: "impostor" | "mesh" | "splat" = "impostor", gl_counter: "ssbo" | "atomic_uint" = "ssbo",

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The README's second command: install what is missing, build, run every test.
-# Usage: scripts/test.sh [preset]      preset: release (default), debug, asan or fuzz (libFuzzer, Clang)
+# Usage: scripts/test.sh [preset]      preset: release (default), debug, asan, fuzz (libFuzzer, Clang)
+#                                      or tsan (ThreadSanitizer, the cpu tests only)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 preset="${1:-release}"

@@ -77,6 +77,15 @@ void add_cpu_kernel_options(CLI::App& cmd, PipelineOptions& o) {
   cmd.add_option("--keep-order", o.keep_order,
                  "cpu backend: on | off. on keeps the last frame's object order while it stays good, off\n"
                  "sorts every frame. The pairs are the same either way. Default: VISCD_KEEP_ORDER, else on");
+  cmd.add_option("--follow-change", o.follow_change,
+                 "cpu backend: on | off. on keeps objects that keep their bounds in trees across frames, so\n"
+                 "that a frame costs what moved (docs/architecture.md, \"Resting objects\"); off rebuilds\n"
+                 "every frame. The pairs are the same either way. Default: VISCD_FOLLOW_CHANGE, else on");
+  cmd.add_option("--rest-margin", o.rest_margin,
+                 "cpu backend: how far (world units) an object may stray and still rest; 0 = only bit-for-bit\n"
+                 "unchanged bounds rest")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
 }
 
 void add_scene_options(CLI::App& cmd, SceneOptions& o) {
@@ -176,7 +185,7 @@ Result<Config> make_config(const PipelineOptions& o) {
   c.pixels_for_64_bits = o.b;
   c.culling = !o.no_culling;
   c.threads = o.threads;
-  // VISCD_SIMD and VISCD_KEEP_ORDER, for measurements (docs/usage.md); the options, when given,
+  // VISCD_SIMD, VISCD_KEEP_ORDER and VISCD_FOLLOW_CHANGE, for measurements (docs/usage.md); the options, when given,
   // override them: the command line is the more specific request.
   if (Status s = apply_environment(c); !s) return Result<Config>::failure(s);
   if (!o.simd.empty()) {  // empty: not given
@@ -189,6 +198,15 @@ Result<Config> make_config(const PipelineOptions& o) {
     if (!keep) return Result<Config>::failure(keep.status());
     c.keep_order = keep.value();
   }
+  if (!o.follow_change.empty()) {
+    auto follow = choose<bool>("--follow-change", o.follow_change, {{"on", true}, {"off", false}});
+    if (!follow) return Result<Config>::failure(follow.status());
+    c.follow_change = follow.value();
+  }
+  c.rest_margin = o.rest_margin;
+  if (!(std::isfinite(c.rest_margin) && c.rest_margin >= 0))
+    return Result<Config>::failure(ErrorKind::invalid_input,
+                                   "--rest-margin " + std::to_string(c.rest_margin) + ": expected a finite distance >= 0");
   if (!o.map_size.empty()) {
     auto s = parse_size(o.map_size, "--map-size");
     if (!s) return Result<Config>::failure(s.status());

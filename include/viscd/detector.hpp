@@ -52,9 +52,13 @@ class OverlapVisitor {
 /// overlap queries on the last frame. Made by a factory below (make_cpu_detector(), make_detector(),
 /// make_gl_detector()); the backend it runs is fixed for its lifetime.
 ///
-/// Threading: a Detector is not thread-safe; use one per thread. It may use worker threads
-/// internally (Config::threads, Config::executor). Lifetime: the input's spans need only live
-/// for the call.
+/// Threading: detect(), the static set's calls and set_config() must not run at once with any
+/// other call on the same detector. Between frames, the queries (ray_cast, ray_cast_all,
+/// overlap, overlap_box; const) may run from any number of threads at once on the cpu and
+/// reference backends (game AI, audio and gameplay jobs), with the answers one thread gets; on gl
+/// and cuda from one thread at a time (gl: the thread whose context is current). The detector
+/// may use worker threads internally (Config::threads, Config::executor). Lifetime: the input's
+/// spans need only live for the call.
 class Detector {
  public:
   ~Detector();
@@ -131,29 +135,29 @@ class Detector {
   /// active objects would, bit for bit.
   ///
   /// ray_cast: the first hit (smallest t, ties to the smaller index); false when there is none.
-  [[nodiscard]] bool ray_cast(const Ray& ray, RayHit& hit, const Filter* filter = nullptr);
+  [[nodiscard]] bool ray_cast(const Ray& ray, RayHit& hit, const Filter* filter = nullptr) const;
   /// Every hit, sorted by (t, index); `hits` is cleared first (its capacity is reused).
-  void ray_cast_all(const Ray& ray, std::vector<RayHit>& hits, const Filter* filter = nullptr);
+  void ray_cast_all(const Ray& ray, std::vector<RayHit>& hits, const Filter* filter = nullptr) const;
   /// Calls visitor.on_hit() for the hits of `ray` in an unspecified order, with the ray's max t
   /// lowered by what the visitor returns (RayVisitor). Guarantees: each object at most once; only
   /// hits with t <= the max t at the time they are found; every hit with t <= the final max t
   /// (since the max only decreases, a visitor that returns hit.t finds the first hit); no call
   /// after the visitor returned 0. Nothing is called for an invalid ray.
-  void ray_cast(const Ray& ray, RayVisitor& visitor, const Filter* filter = nullptr);
+  void ray_cast(const Ray& ray, RayVisitor& visitor, const Filter* filter = nullptr) const;
   /// The active objects that overlap `sphere` by spheres_overlap(), sorted by index; cleared
   /// first. A sphere that validate_spheres() refuses overlaps nothing.
-  void overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices, const Filter* filter = nullptr);
+  void overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices, const Filter* filter = nullptr) const;
   /// The active objects that overlap `box` (sphere_overlaps_box(), boxes_overlap()), sorted by index;
   /// cleared first. A box with a non-finite bound or min > max on an axis overlaps nothing.
   /// (Named apart from overlap(): a braced list such as overlap({x, y, z, r}, indices) would
   /// otherwise be ambiguous, since it can initialise a Box too.)
-  void overlap_box(const Box& box, std::vector<std::uint32_t>& indices, const Filter* filter = nullptr);
+  void overlap_box(const Box& box, std::vector<std::uint32_t>& indices, const Filter* filter = nullptr) const;
   /// Calls visitor.on_overlap() once for each active object that overlaps `sphere` (as the list
   /// form), in an unspecified order, until it returns false. Nothing for an invalid sphere.
-  void overlap(const Sphere& sphere, OverlapVisitor& visitor, const Filter* filter = nullptr);
+  void overlap(const Sphere& sphere, OverlapVisitor& visitor, const Filter* filter = nullptr) const;
   /// Calls visitor.on_overlap() once for each active object that overlaps `box` (as the list
   /// form), in an unspecified order, until it returns false. Nothing for an invalid box.
-  void overlap_box(const Box& box, OverlapVisitor& visitor, const Filter* filter = nullptr);
+  void overlap_box(const Box& box, OverlapVisitor& visitor, const Filter* filter = nullptr) const;
 
   /// Backend name: "reference", "cpu", "gl", "cuda".
   [[nodiscard]] std::string_view name() const;

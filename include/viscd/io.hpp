@@ -89,7 +89,8 @@ struct ObjectTable {
 [[nodiscard]] Result<ObjectTable> read_object_table(const std::filesystem::path& path);
 
 /// The tools' environment knobs, applied to `config` (the library itself reads no environment):
-/// VISCD_SIMD=best|sse2|scalar sets Config::simd, VISCD_KEEP_ORDER=1|0 sets Config::keep_order.
+/// VISCD_SIMD=best|sse2|scalar sets Config::simd, VISCD_KEEP_ORDER=1|0 sets Config::keep_order,
+/// VISCD_FOLLOW_CHANGE=1|0 sets Config::follow_change.
 /// Unset variables change nothing; any other value is an error naming the variable and value.
 [[nodiscard]] Status apply_environment(Config& config);
 

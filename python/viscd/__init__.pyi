@@ -100,6 +100,8 @@ class Detector:
         pair_memory_cap: int = 0,
         threads: int = 0,
         keep_order: bool = True,
+        follow_change: bool = True,
+        rest_margin: float = 0.0,
         simd: Literal["best", "sse2", "scalar"] = "best",
         gl_geometry: Literal["impostor", "mesh", "splat"] = "impostor",
         gl_counter: Literal["ssbo", "atomic_uint"] = "ssbo",

@@ -159,6 +159,12 @@ struct BulletBroadphase::State {
   // Slots whose occupant changed since the last successful frame (file comment).
   std::vector<std::uint8_t> moving_changed, static_changed;
   std::vector<std::uint32_t> moving_changed_list, static_changed_list;
+  // Moving slots whose box changed since the last successful frame, for FrameInput::moved: a body
+  // at rest then costs the detector nothing, not even a compare. Incomplete (no list given) after
+  // a renumbering or a reset, until the next successful frame.
+  std::vector<std::uint32_t> moved;
+  std::vector<std::uint8_t> moved_flag;
+  bool moved_complete = false;
   bool resync = false;        // compare the whole cache with the next frame's pairs
   bool queries_stale = true;  // the last frame does not describe the proxies as they are now
 
@@ -190,6 +196,18 @@ struct BulletBroadphase::State {
     if (moving_changed[s]) return;
     moving_changed[s] = 1;
     moving_changed_list.push_back(s);
+  }
+  void note_moved(std::uint32_t s) {
+    if (moved_flag.size() <= s) moved_flag.resize(s + 1, 0);
+    if (moved_flag[s]) return;
+    moved_flag[s] = 1;
+    moved.push_back(s);
+  }
+  void clear_moved(bool complete) {
+    for (const std::uint32_t s : moved)
+      if (s < moved_flag.size()) moved_flag[s] = 0;
+    moved.clear();
+    moved_complete = complete;
   }
   void mark_static(std::uint32_t k) {
     if (static_changed.size() <= k) static_changed.resize(k + 1, 0);
@@ -256,6 +274,7 @@ struct BulletBroadphase::State {
     boxes[s] = p->valid ? p->box : Box{};
     filters[s] = p->valid ? filter_of(*p) : kNeverPairs;
     mark_moving(s);
+    note_moved(s);
   }
   void release_moving_slot(Proxy* p) {
     const std::uint32_t s = p->slot;
@@ -266,6 +285,7 @@ struct BulletBroadphase::State {
     always_active[s] = 0;
     free_slots.push_back(s);
     mark_moving(s);
+    note_moved(s);
   }
 
   // Renumbers the moving slots densely when holes outnumber live proxies (their point boxes cost
@@ -293,6 +313,8 @@ struct BulletBroadphase::State {
       if (s < moving_changed.size()) moving_changed[s] = 0;
     moving_changed_list.clear();
     moving_changed.assign(next, 0);
+    clear_moved(false);
+    moved_flag.clear();
     resync = true;
     queries_stale = true;
   }
@@ -463,6 +485,7 @@ void BulletBroadphase::setAabb(btBroadphaseProxy* proxy, const btVector3& aabbMi
   } else {
     st.boxes[p->slot] = valid ? box : point_box(st.boxes[p->slot]);
     st.filters[p->slot] = valid ? filter_of(*p) : kNeverPairs;
+    st.note_moved(p->slot);
   }
 }
 
@@ -488,11 +511,17 @@ void BulletBroadphase::calculateOverlappingPairs(btDispatcher* dispatcher) {
     in.id_map_width = st.id_map_width;
     in.id_map_height = st.id_map_height;
   }
+  if (st.moved_complete) {
+    std::sort(st.moved.begin(), st.moved.end());
+    in.moved = st.moved;
+    in.moved_listed = true;
+  }
   st.status = st.detector->detect(in, st.frame);
   if (!st.status) {
     st.queries_stale = true;
     return;  // the cache stays as it was; the slots' changes wait for the next good frame
   }
+  st.clear_moved(true);
   st.stats = st.frame.stats;
   if (st.resync || st.cache->hasDeferredRemoval()) {
     st.compare_whole_cache(dispatcher);
@@ -609,6 +638,8 @@ void BulletBroadphase::resetPool(btDispatcher* /*dispatcher*/) {
   st.static_proxy = {};
   st.moving_changed = {};
   st.static_changed = {};
+  st.clear_moved(false);
+  st.moved_flag = {};
   st.moving_changed_list.clear();
   st.static_changed_list.clear();
   st.always_count = 0;

@@ -44,6 +44,12 @@ class Backend {
   /// The frame's objects, as validate_spheres() / validate_boxes() check them (the same errors);
   /// Detector::detect() calls it after the other input rules. The cpu backend checks in parallel.
   [[nodiscard]] virtual Status validate_objects(const Shapes& objects);
+  /// The frame's objects as Detector::detect() checks them: validate_objects() of them all, unless
+  /// the backend knows that the objects FrameInput::moved leaves out are the ones it checked
+  /// last frame (cpu, following change): then only the listed ones.
+  [[nodiscard]] virtual Status validate_frame_objects(const FrameInput& input) {
+    return validate_objects(Shapes::of(input));
+  }
 
   /// One frame, after Detector::detect() checked the shared input rules (objects, camera, map
   /// sizes, filter count, id map size, Config::threads, the static set's kind): writes pairs,

@@ -326,7 +326,7 @@ Status Detector::detect(const FrameInput& input, FrameResult& out) {
   b.queries_ready_ = false;
   try {
     if (Status s = detail::validate_frame_input(input, b.config(), false); !s) return s;
-    if (Status s = b.validate_objects(detail::Shapes::of(input)); !s) return s;
+    if (Status s = b.validate_frame_objects(input); !s) return s;
     if (Status s = detail::validate_static_kind(input, b.static_set_); !s) return s;
     if (Status s = b.run_frame(input, out); !s) return s;
     if (b.config().contact_events) {
@@ -351,12 +351,12 @@ Status Detector::detect(const FrameInput& input, FrameResult& out) {
 
 void Detector::reset_events() { backend_->previous_pairs_.clear(); }
 
-bool Detector::ray_cast(const Ray& ray, RayHit& hit, const Filter* filter) {
+bool Detector::ray_cast(const Ray& ray, RayHit& hit, const Filter* filter) const {
   if (!backend_->queries_ready_ || !valid_ray(ray)) return false;
   return backend_->query_ray_first(ray, filter, hit);
 }
 
-void Detector::ray_cast_all(const Ray& ray, std::vector<RayHit>& hits, const Filter* filter) {
+void Detector::ray_cast_all(const Ray& ray, std::vector<RayHit>& hits, const Filter* filter) const {
   hits.clear();
   if (!backend_->queries_ready_ || !valid_ray(ray)) return;
   backend_->query_ray_all(ray, filter, hits);
@@ -364,29 +364,29 @@ void Detector::ray_cast_all(const Ray& ray, std::vector<RayHit>& hits, const Fil
   std::sort(hits.begin(), hits.end(), hit_before);
 }
 
-void Detector::ray_cast(const Ray& ray, RayVisitor& visitor, const Filter* filter) {
+void Detector::ray_cast(const Ray& ray, RayVisitor& visitor, const Filter* filter) const {
   if (backend_->queries_ready_ && valid_ray(ray)) backend_->query_ray_visit(ray, filter, visitor);
 }
 
-void Detector::overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices, const Filter* filter) {
+void Detector::overlap(const Sphere& sphere, std::vector<std::uint32_t>& indices, const Filter* filter) const {
   indices.clear();
   if (!backend_->queries_ready_ || !valid_sphere(sphere)) return;
   backend_->query_sphere(sphere, filter, indices);
   std::sort(indices.begin(), indices.end());
 }
 
-void Detector::overlap_box(const Box& box, std::vector<std::uint32_t>& indices, const Filter* filter) {
+void Detector::overlap_box(const Box& box, std::vector<std::uint32_t>& indices, const Filter* filter) const {
   indices.clear();
   if (!backend_->queries_ready_ || !valid_box(box)) return;
   backend_->query_box(box, filter, indices);
   std::sort(indices.begin(), indices.end());
 }
 
-void Detector::overlap(const Sphere& sphere, OverlapVisitor& visitor, const Filter* filter) {
+void Detector::overlap(const Sphere& sphere, OverlapVisitor& visitor, const Filter* filter) const {
   if (backend_->queries_ready_ && valid_sphere(sphere)) backend_->query_sphere_visit(sphere, filter, visitor);
 }
 
-void Detector::overlap_box(const Box& box, OverlapVisitor& visitor, const Filter* filter) {
+void Detector::overlap_box(const Box& box, OverlapVisitor& visitor, const Filter* filter) const {
   if (backend_->queries_ready_ && valid_box(box)) backend_->query_box_visit(box, filter, visitor);
 }
 

@@ -117,16 +117,17 @@ Status validate_frame_input(const FrameInput& in, const Config& config, bool che
 Status validate_moved(std::span<const std::uint32_t> moved, std::size_t objects) {
   for (std::size_t k = 0; k < moved.size(); ++k) {
     const std::uint32_t v = moved[k];
+    const bool bad = v >= objects || (k > 0 && v <= moved[k - 1]);
+    if (!bad) continue;
     const std::string at = "FrameInput: moved[" + std::to_string(k) + "] = " + std::to_string(v);
     if (v >= objects)
       return Status::failure(ErrorKind::invalid_input,
                              at + " is not an object of this frame (it has " + std::to_string(objects) + ")");
-    if (k > 0 && v == moved[k - 1])
+    if (v == moved[k - 1])
       return Status::failure(ErrorKind::invalid_input, at + " repeats moved[" + std::to_string(k - 1) + "]");
-    if (k > 0 && v < moved[k - 1])
-      return Status::failure(ErrorKind::invalid_input, at + " is below moved[" + std::to_string(k - 1) + "] = " +
-                                                           std::to_string(moved[k - 1]) +
-                                                           "; the list must be sorted ascending");
+    return Status::failure(ErrorKind::invalid_input, at + " is below moved[" + std::to_string(k - 1) + "] = " +
+                                                         std::to_string(moved[k - 1]) +
+                                                         "; the list must be sorted ascending");
   }
   return {};
 }

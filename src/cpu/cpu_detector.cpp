@@ -1,6 +1,7 @@
 #include "cpu/cpu_detector.hpp"
 
 #include "core/brute_queries.hpp"
+#include "core/frame_rules.hpp"
 
 #include "core/stopwatch.hpp"
 #include "cpu/parallel.hpp"
@@ -75,29 +76,46 @@ Status CpuDetector::follow_change(const FrameInput& in, const Shapes& objects, s
   if (Status s = rest_.run(ri, static_set_, static_tree_, threads, pairs, stats, done); !s || !done) return s;
   // Queries after the frame: its objects are the rest set's copy; trees and lists come on demand.
   followed_ = true;
-  query_tree_built_ = query_objects_built_ = false;
+  query_tree_built_.store(false);
+  query_objects_built_.store(false);
   q_bits_ = bits;
   box_queries_ = objects.is_box() || (!static_set_.empty() && static_set_.kind() == ShapeKind::box);
   unpaired_ids_.clear();
   unpaired_spheres_.clear();
   unpaired_filters_.clear();
-  unpaired_built_ = false;
+  unpaired_built_.store(false);
   q_filters_.assign(filters.begin(), filters.end());
   return {};
 }
 
+Status CpuDetector::validate_frame_objects(const FrameInput& in) {
+  const Shapes objects = Shapes::of(in);
+  if (!in.moved_listed || !config_.follow_change || !rest_.follows(objects) || config_.verify_moved)
+    return validate_objects(objects);
+  // The others are the objects the last frame checked, bit for bit (the list's promise).
+  bool ok = true;
+  for (const std::uint32_t k : in.moved) {
+    if (k >= objects.size()) return validate_objects(objects);  // validate_frame_input() names it
+    ok &= objects.is_box() ? boxes_all_valid(objects.boxes.subspan(k, 1)) : spheres_all_valid(objects.spheres.subspan(k, 1));
+  }
+  return ok ? Status{} : validate_objects(objects);  // names the first bad object
+}
+
 void CpuDetector::prepare_queries() {
-  if (!followed_ || query_tree_built_) return;
+  if (!followed_ || query_tree_built_.load(std::memory_order_acquire)) return;
+  const std::lock_guard<std::mutex> lock(lazy_mutex_);
+  if (query_tree_built_.load(std::memory_order_relaxed)) return;
   const ExecutorScope scope(config_.executor);
   const int threads = resolve_threads(config_.threads, config_.executor ? config_.executor->concurrency() : 0);
   FrameStats unused;
   broadphase_.build(rest_.objects().spheres, last_active(), q_bits_, config_.layout, threads, unused);
-  query_tree_built_ = true;
+  query_tree_built_.store(true, std::memory_order_release);
 }
 
 QueryObjects CpuDetector::query_objects() {
   if (!followed_) return PipelineDetector::query_objects();
-  if (!query_objects_built_) {
+  const std::lock_guard<std::mutex> lock(lazy_mutex_);  // rare: box frames' brute-force queries
+  if (!query_objects_built_.load(std::memory_order_relaxed)) {
     const Shapes objects = rest_.objects();
     const StaticSet::Compact& stat = static_set_.compact();
     const std::span<const std::uint32_t> active = last_active();
@@ -122,7 +140,7 @@ QueryObjects CpuDetector::query_objects() {
       q_ids_.push_back(static_index(stat.slots[k]));
       if (filtered) q_filter_list_.push_back(stat.filters[k]);
     }
-    query_objects_built_ = true;
+    query_objects_built_.store(true, std::memory_order_relaxed);
   }
   const bool boxes = !q_boxes_.empty() || rest_.objects().is_box();
   return {boxes ? Shapes(q_boxes_) : Shapes(q_spheres_), q_ids_, q_filter_list_};
@@ -152,7 +170,7 @@ Status CpuDetector::broadphase(const Shapes& objects, std::span<const std::uint3
   // The objects left out of the tree, kept for queries with their filters (the tree's own
   // filters are kept in sorted order by the broadphase); no copy without filters. (Box frames'
   // queries are brute force: nothing to keep.)
-  unpaired_built_ = false;
+  unpaired_built_.store(false);
   const std::size_t kept = objects.is_box() ? 0 : unpaired.size();
   resize_with_headroom(unpaired_ids_, kept);
   resize_with_headroom(unpaired_spheres_, kept);
@@ -200,7 +218,9 @@ Status CpuDetector::static_pairs(int threads, std::vector<Pair>& pairs, FrameSta
 }
 
 const BucketBroadphase& CpuDetector::unpaired_tree() {
-  if (!unpaired_built_) {
+  if (!unpaired_built_.load(std::memory_order_acquire)) {
+    const std::lock_guard<std::mutex> lock(lazy_mutex_);
+    if (unpaired_built_.load(std::memory_order_relaxed)) return unpaired_tree_;
     const ExecutorScope scope(config_.executor);
     const int threads = resolve_threads(config_.threads, config_.executor ? config_.executor->concurrency() : 0);
     const std::size_t n = unpaired_spheres_.size();
@@ -211,7 +231,7 @@ const BucketBroadphase& CpuDetector::unpaired_tree() {
     }
     unpaired_tree_.build(unpaired_spheres_, std::span<const std::uint32_t>(iota_.data(), n), 32, config_.layout,
                          threads, unpaired_stats_);
-    unpaired_built_ = true;
+    unpaired_built_.store(true, std::memory_order_release);
   }
   return unpaired_tree_;
 }

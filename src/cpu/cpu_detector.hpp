@@ -1,5 +1,7 @@
 #pragma once
 #include <algorithm>
+#include <atomic>
+#include <mutex>
 #include <vector>
 
 #include "cpu/bucket_broadphase.hpp"
@@ -29,6 +31,8 @@ class CpuDetector final : public PipelineDetector {
            static_box_raster_.memory_bytes() + rest_.memory_bytes() + bytes_of(q_filters_) + bytes_of(q_spheres_) +
            bytes_of(q_boxes_) + bytes_of(q_ids_) + bytes_of(q_filter_list_);
   }
+  /// With FrameInput::moved while the rest set follows these objects: only the listed ones.
+  [[nodiscard]] Status validate_frame_objects(const FrameInput& input) override;
   /// The resting objects' trees and candidates (Config::follow_change), for tests.
   [[nodiscard]] const RestSet& rest_set() const { return rest_; }
   /// The broadphase of the last frame (its 16-wide tree over buckets, the sorted objects and codes),
@@ -110,11 +114,16 @@ class CpuDetector final : public PipelineDetector {
   std::vector<Filter> unpaired_filters_;
   BucketBroadphase unpaired_tree_;
   FrameStats unpaired_stats_;  // the lazy build's stats, unused
-  bool unpaired_built_ = false;
+  // What the first query after a frame builds (the unpaired objects' tree; after a followed frame
+  // the tree over its active objects, or its brute-force lists): built once, under the mutex, so
+  // that queries may run from many threads at once between frames.
+  std::atomic<bool> unpaired_built_{false};
+  std::mutex lazy_mutex_;
   // Cost follows change: the resting objects, whether the last frame was followed, its filters (by
   // object; empty without), and what its queries built.
   RestSet rest_;
-  bool followed_ = false, query_tree_built_ = false, query_objects_built_ = false;
+  bool followed_ = false;
+  std::atomic<bool> query_tree_built_{false}, query_objects_built_{false};
   std::vector<Filter> q_filters_;
   std::vector<Sphere> q_spheres_;
   std::vector<Box> q_boxes_;

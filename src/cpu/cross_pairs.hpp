@@ -25,15 +25,24 @@ std::span<const typename K::Lanes> lanes_of(const BucketBroadphase& t) {
     return t.lanes();
 }
 
+/// The box of lane l of a bucket: a sphere lane's conservative box, or a box lane's box.
+inline Aabb lane_box(const BucketLanes& ln, std::uint32_t l) {
+  const float h = ln.h[l];
+  return Aabb{{ln.x[l] - h, ln.y[l] - h, ln.z[l] - h}, {ln.x[l] + h, ln.y[l] + h, ln.z[l] + h}};
+}
+inline Aabb lane_box(const BoxLanes& ln, std::uint32_t l) { return ln.box(l); }
+
 /// The pairs of the buckets of group g of `moving` (the 16 under node g of its lowest level) with
 /// the tree `other`: one walk of `other` with the group's box collects the buckets that can meet
 /// any of them, then each moving bucket tests its box against those candidates 16 at a time (as
 /// the moving search does, cpu/bucket_search.cpp); per bucket met, the moving lanes that reach it
-/// against all 16 of its lanes by K's exact test. Past kMaxCandidates (a huge object), each moving
-/// bucket walks the tree itself. Calls emit(p, id) for each pair: p the moving object's sorted
+/// against all 16 of its lanes by K's exact test. Past kMaxCandidates (a huge object, or moving
+/// objects spread far apart, as the few that move in a world at rest), each moving object walks
+/// the tree with its own box. Calls emit(p, id) for each pair: p the moving object's sorted
 /// position in `moving`, id the other's id (an index into the shapes `other` was built from).
 template <class K, class Emit>
-void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, std::size_t g, Emit&& emit) {
+void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, std::size_t g, Emit&& emit,
+                 bool per_object = false) {
   constexpr std::uint32_t kMaxCandidates = 512;
   const auto ml = lanes_of<K>(moving);
   const auto sl = lanes_of<K>(other);
@@ -53,18 +62,48 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
   WideNode box[kMaxCandidates / kWide];
   std::uint32_t index[kMaxCandidates];
   std::uint32_t count = 0;
-  bool overflow = false;
-  for_each_wide_overlap(other.tree(), moving.tree().level[0][g].box(), [&](std::uint32_t sb) {
+  bool overflow = per_object;
+  if (!per_object)
+    for_each_wide_overlap(other.tree(), moving.tree().level[0][g].box(), [&](std::uint32_t sb) {
     if (count == kMaxCandidates) {
       overflow = true;
-      return;
+      return false;
     }
     box[count / kWide].set_child(count % kWide, sboxes[sb]);
     index[count++] = sb;
+    return true;
   });
   if (overflow) {
-    for (std::size_t b = b0; b < b1; ++b)
-      for_each_wide_overlap(other.tree(), mboxes[b], [&](std::uint32_t sb) { bucket_pair(b, sb); });
+    // Each moving object walks the tree with its own box. The buckets met are listed first, their
+    // lanes prefetched, and tested afterwards: the lanes of buckets scattered over the world miss
+    // the cache, and this way the misses of a bucket's 16 walks overlap instead of queueing.
+    constexpr std::uint32_t kMet = 256;
+    std::uint32_t met[kMet];
+    std::uint8_t lane_of[kMet];
+    for (std::size_t b = b0; b < b1; ++b) {
+      const std::size_t m_first = b * kBucket;
+      std::uint32_t count_met = 0;
+      auto test_met = [&] {
+        for (std::uint32_t t = 0; t < count_met; ++t) {
+          const std::uint32_t sb = met[t], i = lane_of[t];
+          for (std::uint32_t m = K::exact(sl[sb], ml[b], i); m; m &= m - 1)
+            emit(m_first + i, sids[std::size_t{sb} * kBucket + static_cast<std::size_t>(std::countr_zero(m))]);
+        }
+        count_met = 0;
+      };
+      for (std::uint32_t i = 0; i < kBucket; ++i) {
+        const Aabb own = lane_box(ml[b], i);
+        if (!(own.lo.x <= own.hi.x)) continue;  // padding (NaN) or an erased lane
+        for_each_wide_overlap(other.tree(), own, [&](std::uint32_t sb) {
+          if (count_met == kMet) test_met();
+          const char* lanes = reinterpret_cast<const char*>(&sl[sb]);
+          for (std::size_t line = 0; line < sizeof(sl[sb]); line += 64) __builtin_prefetch(lanes + line);
+          met[count_met] = sb;
+          lane_of[count_met++] = static_cast<std::uint8_t>(i);
+        });
+      }
+      test_met();
+    }
     return;
   }
   for (std::uint32_t l = count % kWide; l != 0 && l < kWide; ++l) box[count / kWide].set_child(l, Aabb{});

@@ -1,6 +1,7 @@
 #include "cpu/pipeline.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <atomic>
 #include <limits>
 #include <new>
@@ -10,6 +11,7 @@
 #include "core/morton.hpp"
 #include "core/stopwatch.hpp"
 #include "cpu/pair_collector.hpp"
+#include "cpu/grow.hpp"
 #include "cpu/parallel.hpp"
 
 namespace viscd::detail {
@@ -17,6 +19,7 @@ namespace viscd::detail {
 std::uint64_t PipelineDetector::memory_bytes() const {
   return map_.memory_bytes() + all_.memory_bytes() + draw_.memory_bytes() + bytes_of(counts_) + bytes_of(hist_) +
          count_scratch_.memory_bytes() + cull_scratch_.memory_bytes() + bytes_of(active_) + bytes_of(pairable_) +
+         bytes_of(in_pair_) +
          bytes_of(unpaired_) + backend_memory_bytes();
 }
 
@@ -159,19 +162,43 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
   // States: culled, free when active, colliding when in a pair. The pairs' writes may meet at an
   // object from two threads (the same value), so they are relaxed atomic stores.
   out.state.resize(n);
+  all_.report(out.pairs);  // appended static objects as static_index(slot)
+  // The objects in pairs, marked in a bitset per chunk of the pairs (an eighth of a byte per
+  // object: it stays in cache, where marking the states themselves at random would miss it), then
+  // the states written in order from the bitsets.
+  const std::size_t words = (n + 63) / 64;
+  const std::size_t chunks = std::min<std::size_t>(threads_for(out.pairs.size(), threads), out.pairs.size());
+  resize_with_headroom(in_pair_, chunks * words);
+  for_chunks(out.pairs.size(), chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
+    std::uint64_t* mark = in_pair_.data() + c * words;
+    std::fill(mark, mark + words, std::uint64_t{0});
+    for (std::size_t k = b; k < e; ++k) {
+      const Pair& p = out.pairs[k];  // i is moving (no pair of two static objects); j may be static
+      mark[p.i >> 6] |= std::uint64_t{1} << (p.i & 63);
+      if (p.j < n) mark[p.j >> 6] |= std::uint64_t{1} << (p.j & 63);
+    }
+  });
+  auto in_pair = [&](std::size_t w) {
+    std::uint64_t m = 0;
+    for (std::size_t c = 0; c < chunks; ++c) m |= in_pair_[c * words + w];
+    return m;
+  };
   if (active_.size() == total) {
-    parallel_for(n, threads, [&](std::size_t k) { out.state[k] = ObjectState::free; });
+    parallel_for(words, threads, [&](std::size_t w) {
+      const std::uint64_t m = in_pair(w);
+      const std::size_t end = std::min(n, (w + 1) * 64);
+      for (std::size_t k = w * 64; k < end; ++k)
+        out.state[k] = (m >> (k & 63)) & 1 ? ObjectState::colliding : ObjectState::free;
+    });
   } else {
     std::fill(out.state.begin(), out.state.end(), ObjectState::culled);
     for (std::uint32_t k : active_)
       if (k < n) out.state[k] = ObjectState::free;
+    parallel_for(words, threads, [&](std::size_t w) {
+      for (std::uint64_t m = in_pair(w); m; m &= m - 1)
+        out.state[w * 64 + static_cast<std::size_t>(std::countr_zero(m))] = ObjectState::colliding;
+    });
   }
-  all_.report(out.pairs);  // appended static objects as static_index(slot)
-  parallel_for(out.pairs.size(), threads, [&](std::size_t k) {
-    const Pair& p = out.pairs[k];  // i is moving (no pair of two static objects); j may be static
-    std::atomic_ref<ObjectState>(out.state[p.i]).store(ObjectState::colliding, std::memory_order_relaxed);
-    if (p.j < n) std::atomic_ref<ObjectState>(out.state[p.j]).store(ObjectState::colliding, std::memory_order_relaxed);
-  });
   stats.ms(Stage::query) += sw.lap();
 
   if (rig && config_.shade) {

@@ -72,6 +72,7 @@ class PipelineDetector : public Backend {
 
  private:
   std::vector<std::uint32_t> counts_, hist_, active_, pairable_, unpaired_;
+  std::vector<std::uint64_t> in_pair_;  // the states' pass: objects in pairs, a bitset per chunk
   CountScratch count_scratch_;
   CullScratch cull_scratch_;
 };

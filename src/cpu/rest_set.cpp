@@ -4,6 +4,8 @@
 #include <atomic>
 #include <cmath>
 #include <cstring>
+#include <cstdio>
+#include <cstdlib>
 #include <limits>
 
 #include "core/frame_rules.hpp"
@@ -18,56 +20,54 @@ namespace {
 
 /// Main is rebuilt when the objects out of it pass an eighth of all, and at least this many.
 constexpr std::size_t kRebuildFloor = 4096;
-/// Objects watched while the set is out of use, and how many of them must rest to take over.
+/// Objects watched while the set is out of use; it takes over when all but 1 in kTakeOver of them
+/// rest, and gives up when more than 1 in kGiveUp objects leave their fat bounds in a frame. Each
+/// object placed again costs about 15 times what it costs in a rebuild (a walk of the trees
+/// whose buckets lie far apart in memory, and its candidates merged into the list), so that
+/// following pays up to about 6 % (docs/benchmarks.md, "Cost follows change").
 constexpr std::size_t kSample = 64;
+constexpr std::size_t kTakeOver = 16;
+constexpr std::size_t kGiveUp = 16;
 
 [[nodiscard]] std::uint64_t key(std::uint32_t i, std::uint32_t j) { return std::uint64_t{i} << 32 | j; }
 [[nodiscard]] std::uint32_t key_i(std::uint64_t k) { return static_cast<std::uint32_t>(k >> 32); }
 [[nodiscard]] std::uint32_t key_j(std::uint64_t k) { return static_cast<std::uint32_t>(k); }
 
+/// Bit k of a bitset (one bit per object: 125 KB for 10^6 objects, which stays in cache while the
+/// candidates stream past).
+[[nodiscard]] bool bit(const std::vector<std::uint64_t>& b, std::uint32_t k) { return (b[k >> 6] >> (k & 63)) & 1; }
+void clear_bit(std::vector<std::uint64_t>& b, std::uint32_t k) { b[k >> 6] &= ~(std::uint64_t{1} << (k & 63)); }
+
 [[nodiscard]] bool same_bits(const Sphere& a, const Sphere& b) { return std::memcmp(&a, &b, sizeof(Sphere)) == 0; }
 [[nodiscard]] bool same_bits(const Box& a, const Box& b) { return std::memcmp(&a, &b, sizeof(Box)) == 0; }
 
-/// The chunks of a loop over sorted keys: chunk c covers the keys of `a` from a_at[c] and of `b`
-/// from b_at[c], cut at the same key, so that each chunk merges on its own.
-struct KeyChunks {
-  std::vector<std::size_t> a_at, b_at;
-  [[nodiscard]] std::size_t count() const { return a_at.size() - 1; }
-};
-KeyChunks cut_by_first_key(std::span<const std::uint64_t> a, std::span<const std::uint64_t> b,
-                           const std::vector<std::uint64_t>& cuts) {
-  KeyChunks c;
-  c.a_at.push_back(0);
-  c.b_at.push_back(0);
-  for (const std::uint64_t k : cuts) {
-    c.a_at.push_back(static_cast<std::size_t>(std::lower_bound(a.begin(), a.end(), k) - a.begin()));
-    c.b_at.push_back(static_cast<std::size_t>(std::lower_bound(b.begin(), b.end(), k) - b.begin()));
-  }
-  c.a_at.push_back(a.size());
-  c.b_at.push_back(b.size());
-  return c;
-}
+}  // namespace
 
-/// Cut keys that split `a` (or `b`, when `a` is empty) into `chunks` runs of about equal length.
-std::vector<std::uint64_t> cuts_for(std::span<const std::uint64_t> a, std::span<const std::uint64_t> b,
-                                    std::size_t chunks) {
-  std::vector<std::uint64_t> cuts;
+/// The chunks of a loop over two sorted key lists `a` and `b`: chunk c covers the keys of `a` from
+/// a_at[c] and of `b` from b_at[c], cut at the same key, so that each chunk merges on its own.
+/// Cut into `chunks` runs of about equal length of the longer list. Reuses its buffers.
+void RestSet::KeyChunks::cut(std::span<const std::uint64_t> a, std::span<const std::uint64_t> b, std::size_t chunks) {
+  a_at.assign(1, 0);
+  b_at.assign(1, 0);
   const std::span<const std::uint64_t> s = a.size() >= b.size() ? a : b;
+  std::uint64_t last = 0;
   for (std::size_t c = 1; c < chunks && !s.empty(); ++c) {
     const std::uint64_t k = s[c * s.size() / chunks];
-    if (cuts.empty() || k > cuts.back()) cuts.push_back(k);
+    if (c > 1 && k <= last) continue;
+    last = k;
+    a_at.push_back(static_cast<std::size_t>(std::lower_bound(a.begin(), a.end(), k) - a.begin()));
+    b_at.push_back(static_cast<std::size_t>(std::lower_bound(b.begin(), b.end(), k) - b.begin()));
   }
-  return cuts;
+  a_at.push_back(a.size());
+  b_at.push_back(b.size());
 }
-
-}  // namespace
 
 std::uint64_t RestSet::Part::memory_bytes() const {
   return tree.memory_bytes() + bytes_of(spheres) + bytes_of(boxes) + bytes_of(ids) + bytes_of(iota);
 }
 
 std::uint64_t RestSet::memory_bytes() const {
-  std::uint64_t b = bytes_of(cur_sph_) + bytes_of(cur_box_) + bytes_of(fat_) + bytes_of(part_of_) + bytes_of(mark_) +
+  std::uint64_t b = bytes_of(cur_sph_) + bytes_of(cur_box_) + bytes_of(fat_box_) + bytes_of(fat_sph_) + bytes_of(fat_r_) + bytes_of(part_of_) + bytes_of(changed_bits_) + bytes_of(left_bits_) +
                     bytes_of(local_) + bytes_of(changed_) + bytes_of(left_) + bytes_of(scratch_) + bytes_of(cand_) +
                     bytes_of(cand_next_) + bytes_of(found_) + bytes_of(stat_) + bytes_of(stat_next_) +
                     bytes_of(stat_found_) + bytes_of(hit_) + bytes_of(hit_next_) + bytes_of(local_pairs_) +
@@ -83,22 +83,54 @@ std::uint64_t RestSet::memory_bytes() const {
 void RestSet::reset() {
   live_ = false;
   sample_n_ = 0;
+  std::fill(changed_bits_.begin(), changed_bits_.end(), std::uint64_t{0});
+  std::fill(left_bits_.begin(), left_bits_.end(), std::uint64_t{0});
 }
 
-Box RestSet::fat_box(const Shapes& s, std::size_t k) const {
-  // The object's box (a sphere's conservative box, which holds every point its exact test can
-  // accept), grown by the margin and rounded outward, so that the box holds the object's box
-  // grown by exactly the margin.
-  const Aabb a = s.aabb(k);
+void RestSet::clear_bits() {
+  if (changed_.size() * 16 > n_) {
+    std::fill(changed_bits_.begin(), changed_bits_.end(), std::uint64_t{0});
+    std::fill(left_bits_.begin(), left_bits_.end(), std::uint64_t{0});
+    return;
+  }
+  for (const std::uint32_t k : changed_) clear_bit(changed_bits_, k);
+  for (const std::uint32_t k : left_) clear_bit(left_bits_, k);
+}
+
+void RestSet::place(const Shapes& s, std::size_t k) {
   constexpr float kInf = std::numeric_limits<float>::infinity();
   const float m = margin_;
-  Box b;
-  const float lo[3] = {a.lo.x, a.lo.y, a.lo.z}, hi[3] = {a.hi.x, a.hi.y, a.hi.z};
-  for (int c = 0; c < 3; ++c) {
-    b.min[c] = std::nextafter(lo[c] - m, -kInf);
-    b.max[c] = std::nextafter(hi[c] + m, kInf);
+  if (s.is_box()) {
+    // The box grown by the margin, rounded outward: it holds the box grown by exactly the margin.
+    const Box& b = s.boxes[k];
+    for (int c = 0; c < 3; ++c) {
+      fat_box_[k].min[c] = std::nextafter(b.min[c] - m, -kInf);
+      fat_box_[k].max[c] = std::nextafter(b.max[c] + m, kInf);
+    }
+    return;
   }
-  return b;
+  // The sphere's conservative extent (which holds every point its float test can accept) plus
+  // the margin, rounded up; in the trees widened once more, so that the float test between two
+  // fat spheres accepts every two that truly meet (docs/architecture.md, "Resting objects").
+  const Sphere& o = s.spheres[k];
+  const float r = std::nextafter(conservative_half_extent(o) + m, kInf);
+  fat_r_[k] = r;
+  fat_sph_[k] = Sphere{o.x, o.y, o.z, conservative_half_extent(Sphere{o.x, o.y, o.z, r})};
+}
+
+bool RestSet::inside_fat(const Shapes& s, std::size_t k) const {
+  if (s.is_box()) {
+    const Box& b = s.boxes[k];
+    const Box& f = fat_box_[k];
+    return b.min[0] >= f.min[0] && b.min[1] >= f.min[1] && b.min[2] >= f.min[2] && b.max[0] <= f.max[0] &&
+           b.max[1] <= f.max[1] && b.max[2] <= f.max[2];
+  }
+  // |c - c0| + extent <= r in double (the widening in the trees absorbs its rounding).
+  const Sphere& o = s.spheres[k];
+  const Sphere& f = fat_sph_[k];
+  const double dx = double{o.x} - f.x, dy = double{o.y} - f.y, dz = double{o.z} - f.z;
+  const double room = double{fat_r_[k]} - conservative_half_extent(o);
+  return room >= 0 && dx * dx + dy * dy + dz * dz <= room * room;
 }
 
 void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::uint8_t which, bool fat, int threads,
@@ -119,11 +151,11 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
   parallel_for(count, threads, [&](std::size_t k) {
     const std::uint32_t o = objs[k];
     if (boxes) {
-      const Box& b = use_fat ? fat_[o] : cur_box_[o];
+      const Box& b = use_fat ? fat_box_[o] : cur_box_[o];
       part.boxes[k] = b;
       part.spheres[k] = box_proxy(b);
     } else {
-      part.spheres[k] = cur_sph_[o];
+      part.spheres[k] = use_fat ? fat_sph_[o] : cur_sph_[o];
     }
     if (which != kNowhere) {
       part_of_[o] = which;
@@ -169,7 +201,7 @@ bool RestSet::sample_rests(const Shapes& s, float margin) {
                  now.hi.y <= was.max[1] + margin && now.hi.z <= was.max[2] + margin;
       }
     }
-    rests = still * 8 >= sample_index_.size() * 7;
+    rests = still * kTakeOver >= sample_index_.size() * (kTakeOver - 1);
   }
   const std::size_t m = std::min(n, kSample);
   sample_index_.resize(m);
@@ -200,7 +232,7 @@ Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int t
   if (live_) {
     Stopwatch sw;
     bool few = false;
-    status = find_changes(in, threads, std::max<std::size_t>(n / 4, 16), few);
+    status = find_changes(in, threads, std::max<std::size_t>(n / kGiveUp, 16), few);
     stats.ms(Stage::cull) += sw.lap();
     if (!status) {
       reset();
@@ -252,10 +284,14 @@ Status RestSet::enter(const Input& in, const StaticSet& set, StaticTree& st, int
     parallel_for(n, threads, [&](std::size_t k) { cur_sph_[k] = s.spheres[k]; });
     cur_box_.clear();
   }
-  resize_with_headroom(fat_, margin_ > 0 ? n : 0);
-  if (margin_ > 0) parallel_for(n, threads, [&](std::size_t k) { fat_[k] = fat_box(s, k); });
+  const bool fat = margin_ > 0;
+  resize_with_headroom(fat_box_, fat && s.is_box() ? n : 0);
+  resize_with_headroom(fat_sph_, fat && !s.is_box() ? n : 0);
+  resize_with_headroom(fat_r_, fat && !s.is_box() ? n : 0);
+  if (fat) parallel_for(n, threads, [&](std::size_t k) { place(s, k); });
   part_of_.assign(n, kNowhere);
-  mark_.assign(n, 0);
+  changed_bits_.assign((n + 63) / 64, 0);
+  left_bits_.assign((n + 63) / 64, 0);
   resize_with_headroom(local_, n);
   resize_with_headroom(scratch_, n);
   parallel_for(n, threads, [&](std::size_t k) { scratch_[k] = static_cast<std::uint32_t>(k); });
@@ -293,9 +329,10 @@ Status RestSet::enter(const Input& in, const StaticSet& set, StaticTree& st, int
 Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bool& few) {
   const Shapes& s = in.objects;
   const bool listed = in.moved_listed;
-  // The objects to compare: the listed ones, or all of them.
-  const std::size_t count = listed ? in.moved.size() : n_;
-  const std::size_t chunks = std::max<std::size_t>(1, ranges_for(count, threads));
+  // The objects to compare: the listed ones, or all of them (in chunks of whole bitset words, so
+  // that each chunk sets the bits of its own words). A changed object's shape is taken at once.
+  const std::size_t count = listed ? in.moved.size() : (n_ + 63) / 64;
+  const std::size_t chunks = std::max<std::size_t>(1, ranges_for(listed ? count : n_, threads));
   for (auto& lists : chunk_lists_) lists.resize(std::max(lists.size(), chunks));
   std::atomic<std::size_t> left_total{0};
   std::atomic<bool> over{false};
@@ -305,24 +342,31 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
     std::vector<std::uint32_t>& left = chunk_lists_[1][c];
     changed.clear();
     left.clear();
-    for (std::size_t t = b; t < e; ++t) {
+    const std::size_t first = listed ? b : b * 64, last = listed ? e : std::min(n_, e * 64);
+    for (std::size_t t = first; t < last; ++t) {
       const std::uint32_t k = listed ? in.moved[t] : static_cast<std::uint32_t>(t);
-      const bool same = boxes ? same_bits(s.boxes[k], cur_box_[k]) : same_bits(s.spheres[k], cur_sph_[k]);
-      if (same) continue;
-      changed.push_back(k);
-      bool out = true;
-      if (margin_ > 0) {
-        const Aabb a = s.aabb(k);
-        const Box& f = fat_[k];
-        out = !(a.lo.x >= f.min[0] && a.lo.y >= f.min[1] && a.lo.z >= f.min[2] && a.hi.x <= f.max[0] &&
-                a.hi.y <= f.max[1] && a.hi.z <= f.max[2]);
+      if (boxes) {
+        if (same_bits(s.boxes[k], cur_box_[k])) continue;
+        cur_box_[k] = s.boxes[k];
+      } else {
+        if (same_bits(s.spheres[k], cur_sph_[k])) continue;
+        cur_sph_[k] = s.spheres[k];
       }
-      if (out) {
-        left.push_back(k);
-        if ((left.size() & 63) == 0 && left_total.fetch_add(64, std::memory_order_relaxed) + 64 > limit) {
-          over.store(true, std::memory_order_relaxed);
-          return;
-        }
+      changed.push_back(k);
+      const std::uint64_t word_bit = std::uint64_t{1} << (k & 63);
+      if (listed)
+        std::atomic_ref<std::uint64_t>(changed_bits_[k >> 6]).fetch_or(word_bit, std::memory_order_relaxed);
+      else
+        changed_bits_[k >> 6] |= word_bit;
+      if (margin_ > 0 && inside_fat(s, k)) continue;
+      if (listed)
+        std::atomic_ref<std::uint64_t>(left_bits_[k >> 6]).fetch_or(word_bit, std::memory_order_relaxed);
+      else
+        left_bits_[k >> 6] |= word_bit;
+      left.push_back(k);
+      if ((left.size() & 63) == 0 && left_total.fetch_add(64, std::memory_order_relaxed) + 64 > limit) {
+        over.store(true, std::memory_order_relaxed);
+        return;
       }
       if (over.load(std::memory_order_relaxed)) return;
     }
@@ -330,8 +374,8 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
   few = !over.load();
   changed_.clear();
   left_.clear();
-  const std::size_t used = std::min(chunks, std::max<std::size_t>(1, count));
-  for (std::size_t c = 0; c < used && count > 0; ++c) {
+  const std::size_t used = std::min(chunks, count);
+  for (std::size_t c = 0; c < used; ++c) {
     changed_.insert(changed_.end(), chunk_lists_[0][c].begin(), chunk_lists_[0][c].end());
     left_.insert(left_.end(), chunk_lists_[1][c].begin(), chunk_lists_[1][c].end());
   }
@@ -368,17 +412,10 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   stats.replaced = static_cast<std::uint32_t>(left_.size());
   // Nothing changed: every candidate keeps its result.
   if (changed_.empty()) return {};
-  for (const std::uint32_t k : changed_) {
-    mark_[k] = 1;
-    if (s.is_box())
-      cur_box_[k] = s.boxes[k];
-    else
-      cur_sph_[k] = s.spheres[k];
-  }
+  // find_changes() took the changed shapes and set their bits.
   for (const std::uint32_t k : left_) {
-    mark_[k] |= 2;
     erase(k);
-    if (margin_ > 0) fat_[k] = fat_box(s, k);
+    if (margin_ > 0) place(s, k);
   }
   // The old recent objects that did not move again come to rest in delta.
   Part& delta = parts_[kDelta];
@@ -396,6 +433,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   build_part(recent, left_, kRecent, true, threads, &local_pairs_);
   stats.ms(Stage::build) += sw.lap();
 
+  const double t_build = sw.lap();
   // Their new candidates: among themselves, and with main's and delta's objects.
   found_.resize(local_pairs_.size());
   for (std::size_t k = 0; k < local_pairs_.size(); ++k)
@@ -405,6 +443,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
     const std::size_t chunks = threads_for(left_.size() * 8, threads) == 1 ? 1 : std::min<std::size_t>(groups, 4 * threads);
     if (chunk_keys_.size() < chunks) chunk_keys_.resize(chunks);
     const std::span<const std::uint32_t> mids = recent.tree.sorted_objects();
+    const bool per_object = std::getenv("VISCD_PER_OBJECT") != nullptr;
     for_chunks(groups, chunks, [&](std::size_t gb, std::size_t ge, std::size_t c) {
       std::vector<std::uint64_t>& list = chunk_keys_[c];
       list.clear();
@@ -417,9 +456,9 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
         };
         for (std::size_t g = gb; g < ge; ++g) {
           if (box_lanes())
-            cross_pairs<BoxTests<SimdBaseline>>(recent.tree, other.tree, g, found);
+            cross_pairs<BoxTests<SimdBaseline>>(recent.tree, other.tree, g, found, per_object);
           else
-            cross_pairs<SphereTests<SimdBaseline>>(recent.tree, other.tree, g, found);
+            cross_pairs<SphereTests<SimdBaseline>>(recent.tree, other.tree, g, found, per_object);
         }
       }
     });
@@ -427,6 +466,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
       found_.insert(found_.end(), chunk_keys_[c].begin(), chunk_keys_[c].end());
   }
   std::sort(found_.begin(), found_.end());
+  const double t_cross = sw.lap();
 
   // The static pairs of the objects that changed, from a tree of their exact shapes.
   stat_found_.clear();
@@ -443,19 +483,29 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   }
 
   // The candidates: those of objects that stayed in their fat bounds, tested again where one of
-  // them changed, merged with the new ones (tested here). Chunks cut at the same keys.
-  {
+  // them changed, merged with the new ones (tested here). Chunks cut at the same keys. When no
+  // object left its fat bounds (objects jiggling in place), the list stays: tested again in place.
+  if (left_.empty()) {
+    const std::size_t chunks = ranges_for(cand_.size(), threads);
+    for_chunks(cand_.size(), chunks, [&](std::size_t b, std::size_t e, std::size_t) {
+      for (std::size_t a = b; a < e; ++a) {
+        const std::uint32_t i = key_i(cand_[a]), j = key_j(cand_[a]);
+        if (bit(changed_bits_, i) | bit(changed_bits_, j)) hit_[a] = s.overlap(i, j);
+      }
+    });
+  } else {
     const std::size_t chunks = threads_for(cand_.size() + found_.size(), threads) == 1
                                    ? 1
                                    : 4 * static_cast<std::size_t>(std::max(1, threads));
-    const KeyChunks kc = cut_by_first_key(cand_, found_, cuts_for(cand_, found_, chunks));
+    key_chunks_.cut(cand_, found_, chunks);
+    const KeyChunks& kc = key_chunks_;
     const std::size_t nc = kc.count();
     offsets_.assign(nc + 1, 0);
     // Pass 1: how many each chunk keeps.
     for_chunks(nc, nc, [&](std::size_t c, std::size_t, std::size_t) {
       std::size_t kept = 0;
       for (std::size_t a = kc.a_at[c]; a < kc.a_at[c + 1]; ++a)
-        kept += ((mark_[key_i(cand_[a])] | mark_[key_j(cand_[a])]) & 2) == 0;
+        kept += !(bit(left_bits_, key_i(cand_[a])) | bit(left_bits_, key_j(cand_[a])));
       offsets_[c + 1] = kept + (kc.b_at[c + 1] - kc.b_at[c]);
     });
     for (std::size_t c = 0; c < nc; ++c) offsets_[c + 1] += offsets_[c];
@@ -468,10 +518,10 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
       while (a < ae || b < be) {
         if (b == be || (a < ae && cand_[a] < found_[b])) {
           const std::uint64_t k = cand_[a];
-          const std::uint8_t m = mark_[key_i(k)] | mark_[key_j(k)];
-          if ((m & 2) == 0) {
+          if (!(bit(left_bits_, key_i(k)) | bit(left_bits_, key_j(k)))) {
+            const bool changed = bit(changed_bits_, key_i(k)) | bit(changed_bits_, key_j(k));
             cand_next_[o] = k;
-            hit_next_[o] = m ? static_cast<std::uint8_t>(s.overlap(key_i(k), key_j(k))) : hit_[a];
+            hit_next_[o] = changed ? static_cast<std::uint8_t>(s.overlap(key_i(k), key_j(k))) : hit_[a];
             ++o;
           }
           ++a;
@@ -494,15 +544,17 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
     stat_next_.reserve(stat_.size() + stat_found_.size());
     std::size_t b = 0;
     for (const std::uint64_t k : stat_) {
-      if (mark_[key_i(k)] & 1) continue;
+      if (bit(changed_bits_, key_i(k))) continue;
       while (b < stat_found_.size() && stat_found_[b] < k) stat_next_.push_back(stat_found_[b++]);
       stat_next_.push_back(k);
     }
     stat_next_.insert(stat_next_.end(), stat_found_.begin() + static_cast<std::ptrdiff_t>(b), stat_found_.end());
     stat_.swap(stat_next_);
   }
-  for (const std::uint32_t k : changed_) mark_[k] = 0;
-  stats.ms(Stage::query) += sw.lap();
+  clear_bits();
+  const double t_merge = sw.lap();
+  if (std::getenv("VISCD_REST_TRACE")) std::fprintf(stderr, "build %.3f cross %.3f merge %.3f found %zu cand %zu\n", t_build, t_cross, t_merge, found_.size(), cand_.size());
+  stats.ms(Stage::query) += t_cross + t_merge;
 
   // Main rebuilt when too much lives outside it.
   if (parts_[kMain].erased + delta.count + recent.count > std::max(kRebuildFloor, n_ / 8)) {
@@ -538,7 +590,8 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
   };
   const std::size_t chunks =
       threads_for(cand_.size() + stat_.size(), threads) == 1 ? 1 : 4 * static_cast<std::size_t>(std::max(1, threads));
-  const KeyChunks kc = cut_by_first_key(cand_, stat_, cuts_for(cand_, stat_, chunks));
+  key_chunks_.cut(cand_, stat_, chunks);
+  const KeyChunks& kc = key_chunks_;
   const std::size_t nc = kc.count();
   offsets_.assign(nc + 1, 0);
   for_chunks(nc, nc, [&](std::size_t c, std::size_t, std::size_t) {

@@ -19,11 +19,12 @@
 // of main pass an eighth of the objects, main is rebuilt over all of them.
 //
 // A frame costs the pass over the bounds (none with FrameInput::moved), the movers' tree and its
-// searches, and passes over the candidates and pairs. When too many objects move, when the object
-// count, their kind, the static set, the Morton width or layout or the margin change, or culling leaves
-// fewer than half of the objects active (the candidates of culled objects would cost more than a
-// culled rebuild saves), the set lets the frame rebuild and starts again later: while it is not
-// in use it watches a sample of 64 objects, and takes over when 7 in 8 of them rest.
+// searches, and passes over the candidates and pairs. When more than 1 in 16 objects leave their
+// fat bounds in a frame, when the object count, their kind, the static set, the Morton width, the
+// layout or the margin change, or when culling leaves fewer than half of the objects active (the
+// candidates of culled objects would cost more than a culled rebuild saves), the set lets the
+// frame rebuild and starts again later: while it is not in use it watches a sample of 64 objects,
+// and takes over when 15 in 16 of them rest.
 // docs/architecture.md, "Resting objects".
 
 #include <cstdint>
@@ -67,6 +68,9 @@ class RestSet {
                            std::vector<Pair>& pairs, FrameStats& stats, bool& followed);
   /// Stops following: the next frames rebuild until the sample says the objects rest.
   void reset();
+  /// Whether the set follows these objects: the last frame was followed and had as many of this
+  /// kind.
+  [[nodiscard]] bool follows(const Shapes& s) const { return live_ && s.size() == n_ && s.kind == kind_; }
   /// Whether the last frame was followed (its objects are in cur_ and the trees).
   [[nodiscard]] bool in_use() const { return live_; }
   /// The last followed frame's objects (for the queries after it).
@@ -91,9 +95,11 @@ class RestSet {
   };
   enum : std::uint8_t { kMain = 0, kDelta = 1, kRecent = 2, kNowhere = 3 };
 
-  [[nodiscard]] bool box_lanes() const { return kind_ == ShapeKind::box || margin_ > 0; }
-  /// The fat box of object k as it is in the trees (margin > 0).
-  [[nodiscard]] Box fat_box(const Shapes& s, std::size_t k) const;
+  [[nodiscard]] bool box_lanes() const { return kind_ == ShapeKind::box; }
+  /// Places object k (margin > 0): its fat box, or its fat sphere and that sphere's radius.
+  void place(const Shapes& s, std::size_t k);
+  /// Whether object k of `s` lies inside its fat bounds (margin > 0).
+  [[nodiscard]] bool inside_fat(const Shapes& s, std::size_t k) const;
   /// Builds `part` over `objs` (object indices): their fat bounds (`fat`) or their exact shapes
   /// (cur_), and the pairs among them when `pairs` is not null. `which` (unless kNowhere) records
   /// the part as the objects' home.
@@ -106,6 +112,8 @@ class RestSet {
   /// Finds the objects that changed (changed_) and left their fat bounds (left_); false when more
   /// than `limit` left.
   [[nodiscard]] Status find_changes(const Input& in, int threads, std::size_t limit, bool& few);
+  /// Clears this frame's bits of changed_ and left_.
+  void clear_bits();
   /// Follows one frame of changes.
   [[nodiscard]] Status update(const Input& in, const StaticSet& set, StaticTree& st, int threads, FrameStats& stats);
   /// The static pairs of the objects in `tree` (ids through `ids`), unfiltered, sorted.
@@ -127,8 +135,15 @@ class RestSet {
 
   std::vector<Sphere> cur_sph_;  // the last frame's objects
   std::vector<Box> cur_box_;
-  std::vector<Box> fat_;  // margin > 0: each object's fat box
-  std::vector<std::uint8_t> part_of_, mark_;
+  // margin > 0: each object's fat bounds. Boxes: the box grown by the margin. Spheres: the sphere
+  // about the centre it was placed at, of radius fat_r_ (its conservative extent plus the
+  // margin), held in the trees with that radius widened by conservative_half_extent(), so that
+  // the float test between two fat spheres accepts every pair whose fat spheres truly meet.
+  std::vector<Box> fat_box_;
+  std::vector<Sphere> fat_sph_;
+  std::vector<float> fat_r_;
+  std::vector<std::uint8_t> part_of_;
+  std::vector<std::uint64_t> changed_bits_, left_bits_;  // this frame's changed_ and left_, as bitsets
   std::vector<std::uint32_t> local_;  // the object's id in its tree
   Part parts_[3];
   Part exact_;  // margin > 0: the changed objects' exact shapes, for their static pairs
@@ -141,6 +156,11 @@ class RestSet {
   std::vector<Pair> local_pairs_;
   std::vector<std::uint8_t> active_mask_;
   std::vector<std::size_t> offsets_;
+  struct KeyChunks {
+    std::vector<std::size_t> a_at, b_at;
+    void cut(std::span<const std::uint64_t> a, std::span<const std::uint64_t> b, std::size_t chunks);
+    [[nodiscard]] std::size_t count() const { return a_at.size() - 1; }
+  } key_chunks_;
 
   // The sample watched while the set is out of use.
   std::vector<std::uint32_t> sample_index_;

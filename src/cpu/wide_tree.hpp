@@ -13,6 +13,7 @@
 // per branch-free step.
 
 #include <bit>
+#include <type_traits>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -84,7 +85,11 @@ inline void walk(const WideTree& t, const Aabb& box, Keep&& keep, F&& f) {
     const std::uint32_t c = stack[k].node * kWide + static_cast<std::uint32_t>(std::countr_zero(m));
     m &= m - 1;
     if (k == 0) {
-      f(c);
+      if constexpr (std::is_same_v<decltype(f(c)), bool>) {
+        if (!f(c)) return;
+      } else {
+        f(c);
+      }
     } else {
       --k;
       enter(k, c);
@@ -94,7 +99,7 @@ inline void walk(const WideTree& t, const Aabb& box, Keep&& keep, F&& f) {
 
 }  // namespace wide_detail
 
-/// Calls f(q) for every leaf q whose box overlaps `box`.
+/// Calls f(q) for every leaf q whose box overlaps `box` (until f returns false, when it returns bool).
 template <class Simd = SimdBaseline, class F>
 inline void for_each_wide_overlap(const WideTree& t, const Aabb& box, F&& f) {
   const auto keep = [](std::uint32_t, std::uint32_t) -> std::uint32_t { return 0xFFFFu; };

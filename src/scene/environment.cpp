@@ -31,6 +31,16 @@ Status apply_environment(Config& config) {
     else
       return Status::failure(ErrorKind::invalid_input, "VISCD_KEEP_ORDER=" + printable(s) + ": expected 1 or 0");
   }
+  if (const char* v = std::getenv("VISCD_FOLLOW_CHANGE")) {
+    const std::string_view s(v);
+    if (s == "1")
+      config.follow_change = true;
+    else if (s == "0")
+      config.follow_change = false;
+    else
+      return Status::failure(ErrorKind::invalid_input,
+                             "VISCD_FOLLOW_CHANGE=" + printable(s) + ": expected 1 or 0");
+  }
   return {};
 }
 

@@ -170,11 +170,12 @@ Outcome outcome(const BinWorld& w) {
 
 constexpr int kSteps = 300;
 
-Outcome run(BinWorld& w, const viscd::BulletBroadphase* viscd_bp) {
+Outcome run(BinWorld& w, const viscd::BulletBroadphase* viscd_bp, int* followed = nullptr) {
   for (int step = 1; step <= kSteps; ++step) {
     w.step(step);
     if (viscd_bp) {
       EXPECT_TRUE(viscd_bp->last_status().ok()) << viscd_bp->last_status().error();
+      if (followed) *followed += viscd_bp->last_stats().followed_change;
       check_cache(w.world(), *viscd_bp, step);
       if (::testing::Test::HasFatalFailure()) return {};
     }
@@ -192,11 +193,17 @@ Outcome run(BinWorld& w, const viscd::BulletBroadphase* viscd_bp) {
 }
 
 TEST(BulletWorld, CacheExactEveryStepAndEndsLikeDbvt) {
-  auto viscd_bp = std::make_unique<viscd::BulletBroadphase>();
+  // The adapter names the bodies whose boxes changed (FrameInput::moved); verify_moved checks
+  // every list against the boxes, failing the step (last_status()) if one is incomplete.
+  viscd::Config config;
+  config.verify_moved = true;
+  auto viscd_bp = std::make_unique<viscd::BulletBroadphase>(config);
   const viscd::BulletBroadphase* bp = viscd_bp.get();
   BinWorld on_viscd(std::move(viscd_bp));
   EXPECT_EQ(bp->static_proxy_count(), 10u);  // floor, 4 walls, 4 pillars, the kinematic paddle
-  const Outcome v = run(on_viscd, bp);
+  int followed = 0;
+  const Outcome v = run(on_viscd, bp, &followed);
+  std::printf("viscd: %d of %d steps followed change\n", followed, kSteps);
   ASSERT_FALSE(::testing::Test::HasFailure());
 
   BinWorld on_dbvt(std::make_unique<btDbvtBroadphase>());

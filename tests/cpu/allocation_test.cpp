@@ -141,6 +141,53 @@ TEST(Allocation, QueriesAllocateNothingOnceTheirOutputsHaveRoom) {
   EXPECT_GT(hits.size(), 1u);
 }
 
+TEST(Allocation, FollowedFramesAllocateNothing) {
+#ifdef VISCD_VALIDATE
+  GTEST_SKIP() << "VISCD_VALIDATE checks the tree every frame, whose diagnostics may allocate";
+#endif
+  // A world at rest but for 1 % of its objects, which move every frame (Config::follow_change),
+  // spheres and boxes, bounds compared or listed, with and without a margin.
+  for (const bool boxes : {false, true}) {
+    for (const bool listed : {false, true}) {
+      for (const float margin : {0.0f, 0.02f}) {
+        std::vector<Sphere> s = test::random_spheres_by_half_extent(20000, 4, 40, 0.3f, 0.6f);
+        std::vector<Box> b(s.size());
+        std::vector<std::uint32_t> moved;
+        for (std::uint32_t k = 37; k < s.size(); k += 101) moved.push_back(k);
+        Config c;
+        c.rest_margin = margin;
+        auto det = make_cpu_detector(c);
+        FrameResult f;
+        int followed = 0, step = 0;
+        auto frame = [&] {
+          ++step;
+          for (const std::uint32_t k : moved) s[k].x += (step % 2 ? 0.05f : -0.05f);
+          for (std::size_t k = 0; k < s.size(); ++k)
+            b[k] = Box{{s[k].x - s[k].r, s[k].y - s[k].r, s[k].z - s[k].r}, {s[k].x + s[k].r, s[k].y + s[k].r, s[k].z + s[k].r}};
+          FrameInput in;
+          if (boxes)
+            in.boxes = b;
+          else
+            in.spheres = s;
+          in.moved = moved;
+          in.moved_listed = listed;
+          if (!listed) in.moved = {};
+          const Status status = det->detect(in, f);
+          followed += f.stats.followed_change;
+          return status;
+        };
+        // Following warms up over its first frames too: a sample, the frame that places every
+        // object, the first frames that take movers out of each tree.
+        for (int k = 0; k < 4; ++k) ASSERT_TRUE(frame().ok());
+        const auto [n, st] = steady_state_allocations(frame);
+        ASSERT_TRUE(st.ok()) << st.error();
+        EXPECT_EQ(n, 0) << "boxes " << boxes << ", listed " << listed << ", margin " << margin;
+        EXPECT_GE(followed, 5) << "the frames must follow change";
+      }
+    }
+  }
+}
+
 TEST(Allocation, CounterSeesAllocations) {
   // The instrument works: a vector of 1000 ints allocates.
   const long n = allocations_during([] {
