@@ -85,6 +85,10 @@ struct BulletRun {
   double pairs_ms = 0, share_ms = 0, step_ms = 0;
   int cache_pairs = 0;
   double mean_height = 0;
+  // Per quarter of the run (the first 5 steps left out): median step and broadphase share, and the
+  // broadphase share's mean over the whole run.
+  double quarter_step_ms[4] = {}, quarter_share_ms[4] = {};
+  double mean_share_ms = 0;
 };
 
 BulletRun run_bullet(std::unique_ptr<btBroadphaseInterface> inner, int bodies, int steps) {
@@ -144,6 +148,18 @@ BulletRun run_bullet(std::unique_ptr<btBroadphaseInterface> inner, int bodies, i
   r.pairs_ms = tail(broadphase.pairs_ms);
   r.share_ms = tail(broadphase.share_ms);
   r.step_ms = tail(step_ms);
+  const std::size_t first = std::min<std::size_t>(5, step_ms.size()), n = step_ms.size() - first;
+  for (int q = 0; q < 4; ++q) {
+    const std::size_t b = first + n * static_cast<std::size_t>(q) / 4,
+                      e = first + n * static_cast<std::size_t>(q + 1) / 4;
+    r.quarter_step_ms[q] = median(std::vector<double>(step_ms.begin() + static_cast<std::ptrdiff_t>(b),
+                                                      step_ms.begin() + static_cast<std::ptrdiff_t>(e)));
+    if (broadphase.share_ms.size() >= e)
+      r.quarter_share_ms[q] = median(std::vector<double>(broadphase.share_ms.begin() + static_cast<std::ptrdiff_t>(b),
+                                                         broadphase.share_ms.begin() + static_cast<std::ptrdiff_t>(e)));
+  }
+  for (std::size_t k = first; k < broadphase.share_ms.size(); ++k) r.mean_share_ms += broadphase.share_ms[k];
+  if (broadphase.share_ms.size() > first) r.mean_share_ms /= static_cast<double>(broadphase.share_ms.size() - first);
   r.cache_pairs = broadphase.getOverlappingPairCache()->getNumOverlappingPairs();
   for (std::size_t b = 5; b < rigid.size(); ++b) r.mean_height += rigid[b]->getCenterOfMassPosition().y();
   r.mean_height /= static_cast<double>(bodies);
@@ -158,6 +174,12 @@ void bench_bullet(int bodies, int steps) {
   const float extent = 1000;
   const std::vector<std::pair<std::string, std::function<std::unique_ptr<btBroadphaseInterface>()>>> kinds = {
       {"viscd::BulletBroadphase", [] { return std::make_unique<viscd::BulletBroadphase>(); }},
+      {"viscd, rebuilding",
+       [] {
+         viscd::Config c;
+         c.follow_change = false;
+         return std::make_unique<viscd::BulletBroadphase>(c);
+       }},
       {"btDbvtBroadphase", [] { return std::make_unique<btDbvtBroadphase>(); }},
       {"bt32BitAxisSweep3",
        [&] {
@@ -166,12 +188,21 @@ void bench_bullet(int bodies, int steps) {
                                                     static_cast<unsigned>(bodies + 16));
        }},
   };
+  std::vector<std::pair<std::string, BulletRun>> runs;
   for (const auto& [name, make] : kinds) {
     const BulletRun r = run_bullet(make(), bodies, steps);
     std::printf("%-22s %12.3f %18.3f %10.3f %12d %12.3f\n", name.c_str(), r.pairs_ms, r.share_ms, r.step_ms,
                 r.cache_pairs, r.mean_height);
     std::fflush(stdout);
+    runs.emplace_back(name, r);
   }
+  std::printf("\nper quarter of the run: median step ms | median aabbs+pairs ms; mean aabbs+pairs ms over the run\n");
+  std::printf("%-22s %9s %9s %9s %9s | %9s %9s %9s %9s | %9s\n", "broadphase", "step Q1", "Q2", "Q3", "Q4", "bp Q1",
+              "Q2", "Q3", "Q4", "bp mean");
+  for (const auto& [name, r] : runs)
+    std::printf("%-22s %9.3f %9.3f %9.3f %9.3f | %9.3f %9.3f %9.3f %9.3f | %9.3f\n", name.c_str(), r.quarter_step_ms[0],
+                r.quarter_step_ms[1], r.quarter_step_ms[2], r.quarter_step_ms[3], r.quarter_share_ms[0],
+                r.quarter_share_ms[1], r.quarter_share_ms[2], r.quarter_share_ms[3], r.mean_share_ms);
 }
 
 bool count_pair(fcl::CollisionObjectd*, fcl::CollisionObjectd*, void* data) {

@@ -75,8 +75,8 @@ World make_world(std::size_t n, bool is_box, std::mt19937_64& rng) {
 }
 
 void run_fractions(const Options& o, CsvWriter& csv) {
-  std::printf("%-6s %9s %8s %6s | %10s %10s %10s | %9s %9s %9s | %s\n", "shape", "objects", "moving", "mode",
-              "rebuild", "compared", "listed", "rebuild/a", "compared/a", "listed/a", "pairs");
+  std::printf("%-6s %9s %8s %6s | %10s %10s %10s | %9s %9s %9s | %s\n", "shape", "objects", "moving", "mode", "rebuild",
+              "compared", "listed", "rebuild/a", "compared/a", "listed/a", "pairs");
   for (const std::string& shape : o.shapes) {
     for (const std::uint32_t n : o.objects) {
       double all_moving_ms = 0;  // the rebuild of a frame where every object moves
@@ -158,9 +158,8 @@ void run_fractions(const Options& o, CsvWriter& csv) {
         std::printf("%-6s %9u %7.1f%% %6s | %10.3f %10.3f %10.3f | %9.3f %9.3f %9.3f | %zu\n", shape.c_str(), n,
                     100 * fraction, o.redraw ? "redraw" : "fixed", mr, mc, ml, mr / denom, mc / denom, ml / denom,
                     fr.pairs.size());
-        csv.row({shape, std::to_string(n), std::to_string(fraction), o.redraw ? "redraw" : "fixed",
-                 std::to_string(mr), std::to_string(mc), std::to_string(ml), std::to_string(denom),
-                 std::to_string(fr.pairs.size())});
+        csv.row({shape, std::to_string(n), std::to_string(fraction), o.redraw ? "redraw" : "fixed", std::to_string(mr),
+                 std::to_string(mc), std::to_string(ml), std::to_string(denom), std::to_string(fr.pairs.size())});
         std::fflush(stdout);
       }
     }
@@ -168,8 +167,8 @@ void run_fractions(const Options& o, CsvWriter& csv) {
 }
 
 void run_pile(const Options& o, CsvWriter& csv) {
-  std::printf("%9s %7s %7s | %10s %10s %7s | %9s %s\n", "grains", "margin", "jiggle", "rebuild", "follow",
-              "ratio", "followed", "pairs");
+  std::printf("%9s %7s %7s | %10s %10s %7s | %9s %s\n", "grains", "margin", "jiggle", "rebuild", "follow", "ratio",
+              "followed", "pairs");
   for (const std::uint32_t n : o.objects) {
     // A lattice of spacing 1 whose grains (radius 0.5 to 0.52) touch their neighbours a little.
     const auto side = static_cast<std::uint32_t>(std::ceil(std::cbrt(n / 0.25)));

@@ -58,11 +58,13 @@ std::vector<Pair> oracle(const std::vector<Sphere>& s, bool boxes, const std::ve
   for (std::size_t i = 0; i < s.size(); ++i) {
     for (std::size_t j = i + 1; j < s.size(); ++j) {
       const bool hit = boxes ? boxes_overlap(box_of(s[i]), box_of(s[j])) : spheres_overlap(s[i], s[j]);
-      if (hit && pair_passes_filter(f(i), f(j))) out.push_back({static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(j)});
+      if (hit && pair_passes_filter(f(i), f(j)))
+        out.push_back({static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(j)});
     }
     for (std::size_t k = 0; k < st.size(); ++k) {
       const bool hit = boxes ? boxes_overlap(box_of(s[i]), box_of(st[k])) : spheres_overlap(s[i], st[k]);
-      if (hit && pair_passes_filter(f(i), Filter{})) out.push_back({static_cast<std::uint32_t>(i), static_index(static_cast<std::uint32_t>(k))});
+      if (hit && pair_passes_filter(f(i), Filter{}))
+        out.push_back({static_cast<std::uint32_t>(i), static_index(static_cast<std::uint32_t>(k))});
     }
   }
   std::sort(out.begin(), out.end());
@@ -97,7 +99,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   std::vector<Sphere> st;
   if (with_static) {
     for (std::uint32_t k = 0; k < 6; ++k) {
-      st.push_back(grid_sphere(static_cast<std::uint8_t>(k * 5), static_cast<std::uint8_t>(k), static_cast<std::uint8_t>(k * 7 + 64)));
+      st.push_back(grid_sphere(static_cast<std::uint8_t>(k * 5), static_cast<std::uint8_t>(k),
+                               static_cast<std::uint8_t>(k * 7 + 64)));
       const bool ok = boxes ? a->add_static_box(box_of(st.back())).ok() && b->add_static_box(box_of(st.back())).ok()
                             : a->add_static_sphere(st.back()).ok() && b->add_static_sphere(st.back()).ok();
       if (!ok) viscd::fuzz::fail(kTarget, "adding a static object failed");
@@ -163,7 +166,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         const std::size_t n = std::clamp<std::size_t>(s.size() + (op >> 6) * 3 - 4, 1, 48);
         const std::size_t old = s.size();
         s.resize(n);
-        for (std::size_t t = old; t < n; ++t) s[t] = grid_sphere(static_cast<std::uint8_t>(t * 3), 1, static_cast<std::uint8_t>(t * 11));
+        for (std::size_t t = old; t < n; ++t)
+          s[t] = grid_sphere(static_cast<std::uint8_t>(t * 3), 1, static_cast<std::uint8_t>(t * 11));
         if (filtered) filters.resize(n, Filter{});
         if (never) always.resize(n, 0);
         resized = true;
@@ -179,8 +183,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         if (with_static) {
           const std::uint32_t slot = static_cast<std::uint32_t>(k % st.size());
           st[slot].y += 0.25f;
-          const bool ok = boxes ? a->move_static_box(slot, box_of(st[slot])).ok() && b->move_static_box(slot, box_of(st[slot])).ok()
-                                : a->move_static_sphere(slot, st[slot]).ok() && b->move_static_sphere(slot, st[slot]).ok();
+          const bool ok =
+              boxes ? a->move_static_box(slot, box_of(st[slot])).ok() && b->move_static_box(slot, box_of(st[slot])).ok()
+                    : a->move_static_sphere(slot, st[slot]).ok() && b->move_static_sphere(slot, st[slot]).ok();
           if (!ok) viscd::fuzz::fail(kTarget, "moving a static object failed");
         }
         break;

@@ -205,8 +205,8 @@ Result<Config> make_config(const PipelineOptions& o) {
   }
   c.rest_margin = o.rest_margin;
   if (!(std::isfinite(c.rest_margin) && c.rest_margin >= 0))
-    return Result<Config>::failure(ErrorKind::invalid_input,
-                                   "--rest-margin " + std::to_string(c.rest_margin) + ": expected a finite distance >= 0");
+    return Result<Config>::failure(ErrorKind::invalid_input, "--rest-margin " + std::to_string(c.rest_margin) +
+                                                                 ": expected a finite distance >= 0");
   if (!o.map_size.empty()) {
     auto s = parse_size(o.map_size, "--map-size");
     if (!s) return Result<Config>::failure(s.status());

@@ -35,8 +35,8 @@ struct PipelineOptions {
   std::string geometry = "impostor";  ///< gl only
   std::string counter = "ssbo";       ///< gl only
   std::string max_pair_memory = "auto";
-  std::string simd;        ///< best | sse2 | scalar; empty: VISCD_SIMD or best (run and pairs only)
-  std::string keep_order;  ///< on | off; empty: VISCD_KEEP_ORDER or on (run and pairs only)
+  std::string simd;           ///< best | sse2 | scalar; empty: VISCD_SIMD or best (run and pairs only)
+  std::string keep_order;     ///< on | off; empty: VISCD_KEEP_ORDER or on (run and pairs only)
   std::string follow_change;  ///< on | off; empty: on (run and pairs only)
   float rest_margin = 0;      ///< Config::rest_margin (run and pairs only)
 };

@@ -125,8 +125,8 @@ Status validate_moved(std::span<const std::uint32_t> moved, std::size_t objects)
                              at + " is not an object of this frame (it has " + std::to_string(objects) + ")");
     if (v == moved[k - 1])
       return Status::failure(ErrorKind::invalid_input, at + " repeats moved[" + std::to_string(k - 1) + "]");
-    return Status::failure(ErrorKind::invalid_input, at + " is below moved[" + std::to_string(k - 1) + "] = " +
-                                                         std::to_string(moved[k - 1]) +
+    return Status::failure(ErrorKind::invalid_input, at + " is below moved[" + std::to_string(k - 1) +
+                                                         "] = " + std::to_string(moved[k - 1]) +
                                                          "; the list must be sorted ascending");
   }
   return {};

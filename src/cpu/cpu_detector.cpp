@@ -96,7 +96,8 @@ Status CpuDetector::validate_frame_objects(const FrameInput& in) {
   bool ok = true;
   for (const std::uint32_t k : in.moved) {
     if (k >= objects.size()) return validate_objects(objects);  // validate_frame_input() names it
-    ok &= objects.is_box() ? boxes_all_valid(objects.boxes.subspan(k, 1)) : spheres_all_valid(objects.spheres.subspan(k, 1));
+    ok &= objects.is_box() ? boxes_all_valid(objects.boxes.subspan(k, 1))
+                           : spheres_all_valid(objects.spheres.subspan(k, 1));
   }
   return ok ? Status{} : validate_objects(objects);  // names the first bad object
 }

@@ -41,8 +41,7 @@ inline Aabb lane_box(const BoxLanes& ln, std::uint32_t l) { return ln.box(l); }
 /// the tree with its own box. Calls emit(p, id) for each pair: p the moving object's sorted
 /// position in `moving`, id the other's id (an index into the shapes `other` was built from).
 template <class K, class Emit>
-void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, std::size_t g, Emit&& emit,
-                 bool per_object = false) {
+void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, std::size_t g, Emit&& emit) {
   constexpr std::uint32_t kMaxCandidates = 512;
   const auto ml = lanes_of<K>(moving);
   const auto sl = lanes_of<K>(other);
@@ -62,9 +61,8 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
   WideNode box[kMaxCandidates / kWide];
   std::uint32_t index[kMaxCandidates];
   std::uint32_t count = 0;
-  bool overflow = per_object;
-  if (!per_object)
-    for_each_wide_overlap(other.tree(), moving.tree().level[0][g].box(), [&](std::uint32_t sb) {
+  bool overflow = false;
+  for_each_wide_overlap(other.tree(), moving.tree().level[0][g].box(), [&](std::uint32_t sb) {
     if (count == kMaxCandidates) {
       overflow = true;
       return false;

@@ -1,8 +1,8 @@
 #include "cpu/pipeline.hpp"
 
 #include <algorithm>
-#include <bit>
 #include <atomic>
+#include <bit>
 #include <limits>
 #include <new>
 #include <optional>
@@ -10,8 +10,8 @@
 #include "core/frame_rules.hpp"
 #include "core/morton.hpp"
 #include "core/stopwatch.hpp"
-#include "cpu/pair_collector.hpp"
 #include "cpu/grow.hpp"
+#include "cpu/pair_collector.hpp"
 #include "cpu/parallel.hpp"
 
 namespace viscd::detail {
@@ -19,8 +19,7 @@ namespace viscd::detail {
 std::uint64_t PipelineDetector::memory_bytes() const {
   return map_.memory_bytes() + all_.memory_bytes() + draw_.memory_bytes() + bytes_of(counts_) + bytes_of(hist_) +
          count_scratch_.memory_bytes() + cull_scratch_.memory_bytes() + bytes_of(active_) + bytes_of(pairable_) +
-         bytes_of(in_pair_) +
-         bytes_of(unpaired_) + backend_memory_bytes();
+         bytes_of(in_pair_) + bytes_of(unpaired_) + backend_memory_bytes();
 }
 
 FilterSplit split_by_filters(std::span<const std::uint32_t> active, std::span<const Filter> filters,

@@ -4,8 +4,6 @@
 #include <atomic>
 #include <cmath>
 #include <cstring>
-#include <cstdio>
-#include <cstdlib>
 #include <limits>
 
 #include "core/frame_rules.hpp"
@@ -43,23 +41,26 @@ void clear_bit(std::vector<std::uint64_t>& b, std::uint32_t k) { b[k >> 6] &= ~(
 
 }  // namespace
 
-/// The chunks of a loop over two sorted key lists `a` and `b`: chunk c covers the keys of `a` from
-/// a_at[c] and of `b` from b_at[c], cut at the same key, so that each chunk merges on its own.
-/// Cut into `chunks` runs of about equal length of the longer list. Reuses its buffers.
-void RestSet::KeyChunks::cut(std::span<const std::uint64_t> a, std::span<const std::uint64_t> b, std::size_t chunks) {
-  a_at.assign(1, 0);
-  b_at.assign(1, 0);
-  const std::span<const std::uint64_t> s = a.size() >= b.size() ? a : b;
+/// The chunks of a loop over three sorted key lists: chunk c covers the keys of list l from
+/// at[l][c] to at[l][c + 1], cut at the same keys in all three, so that each chunk merges on its
+/// own. Cut into `chunks` runs of about equal length of the longest list. Reuses its buffers.
+void RestSet::KeyChunks::cut(const std::span<const std::uint64_t> (&lists)[3], std::size_t chunks) {
+  std::size_t longest = 0;
+  for (std::size_t l = 0; l < 3; ++l) {
+    at[l].assign(1, 0);
+    if (lists[l].size() > lists[longest].size()) longest = l;
+  }
+  const std::span<const std::uint64_t> s = lists[longest];
   std::uint64_t last = 0;
   for (std::size_t c = 1; c < chunks && !s.empty(); ++c) {
     const std::uint64_t k = s[c * s.size() / chunks];
     if (c > 1 && k <= last) continue;
     last = k;
-    a_at.push_back(static_cast<std::size_t>(std::lower_bound(a.begin(), a.end(), k) - a.begin()));
-    b_at.push_back(static_cast<std::size_t>(std::lower_bound(b.begin(), b.end(), k) - b.begin()));
+    for (std::size_t l = 0; l < 3; ++l)
+      at[l].push_back(
+          static_cast<std::size_t>(std::lower_bound(lists[l].begin(), lists[l].end(), k) - lists[l].begin()));
   }
-  a_at.push_back(a.size());
-  b_at.push_back(b.size());
+  for (std::size_t l = 0; l < 3; ++l) at[l].push_back(lists[l].size());
 }
 
 std::uint64_t RestSet::Part::memory_bytes() const {
@@ -67,11 +68,13 @@ std::uint64_t RestSet::Part::memory_bytes() const {
 }
 
 std::uint64_t RestSet::memory_bytes() const {
-  std::uint64_t b = bytes_of(cur_sph_) + bytes_of(cur_box_) + bytes_of(fat_box_) + bytes_of(fat_sph_) + bytes_of(fat_r_) + bytes_of(part_of_) + bytes_of(changed_bits_) + bytes_of(left_bits_) +
+  std::uint64_t b = bytes_of(cur_sph_) + bytes_of(cur_box_) + bytes_of(fat_box_) + bytes_of(fat_sph_) +
+                    bytes_of(fat_r_) + bytes_of(part_of_) + bytes_of(changed_bits_) + bytes_of(left_bits_) +
                     bytes_of(local_) + bytes_of(changed_) + bytes_of(left_) + bytes_of(scratch_) + bytes_of(cand_) +
                     bytes_of(cand_next_) + bytes_of(found_) + bytes_of(stat_) + bytes_of(stat_next_) +
                     bytes_of(stat_found_) + bytes_of(hit_) + bytes_of(hit_next_) + bytes_of(local_pairs_) +
-                    bytes_of(active_mask_) + bytes_of(offsets_) + bytes_of(sample_index_) + bytes_of(sample_);
+                    bytes_of(active_mask_) + bytes_of(offsets_) + bytes_of(cand_offsets_) + bytes_of(sample_index_) +
+                    bytes_of(sample_);
   for (const Part& p : parts_) b += p.memory_bytes();
   b += exact_.memory_bytes();
   for (const auto& l : chunk_keys_) b += bytes_of(l);
@@ -193,8 +196,8 @@ bool RestSet::sample_rests(const Shapes& s, float margin) {
       const Aabb now = s.aabb(sample_index_[k]);
       const Box& was = sample_[k];
       if (margin == 0) {
-        still += now.lo.x == was.min[0] && now.lo.y == was.min[1] && now.lo.z == was.min[2] &&
-                 now.hi.x == was.max[0] && now.hi.y == was.max[1] && now.hi.z == was.max[2];
+        still += now.lo.x == was.min[0] && now.lo.y == was.min[1] && now.lo.z == was.min[2] && now.hi.x == was.max[0] &&
+                 now.hi.y == was.max[1] && now.hi.z == was.max[2];
       } else {
         still += now.lo.x >= was.min[0] - margin && now.lo.y >= was.min[1] - margin &&
                  now.lo.z >= was.min[2] - margin && now.hi.x <= was.max[0] + margin &&
@@ -253,6 +256,8 @@ Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int t
     status = emit(in, set, threads, pairs);
     stats.ms(Stage::query) += sw.lap();
   }
+  merge_ = false;
+  if (status) clear_bits();
   if (!status) {
     reset();
     return status;
@@ -400,8 +405,7 @@ bool RestSet::static_pairs_of(const BucketBroadphase& tree, std::span<const std:
                               int threads, std::vector<std::uint64_t>& out) {
   if (!st.pairs(tree, {}, false, threads, std::numeric_limits<std::size_t>::max(), out)) return false;
   // Tree ids to object indices: `ids` ascend, so the order stays.
-  parallel_for(out.size(), threads,
-               [&](std::size_t k) { out[k] = key(ids[key_i(out[k])], key_j(out[k])); });
+  parallel_for(out.size(), threads, [&](std::size_t k) { out[k] = key(ids[key_i(out[k])], key_j(out[k])); });
   return true;
 }
 
@@ -432,18 +436,16 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   local_pairs_.clear();
   build_part(recent, left_, kRecent, true, threads, &local_pairs_);
   stats.ms(Stage::build) += sw.lap();
-
-  const double t_build = sw.lap();
   // Their new candidates: among themselves, and with main's and delta's objects.
   found_.resize(local_pairs_.size());
   for (std::size_t k = 0; k < local_pairs_.size(); ++k)
     found_[k] = key(recent.ids[local_pairs_[k].i], recent.ids[local_pairs_[k].j]);  // ids ascend: i < j stays
   if (!left_.empty()) {
     const std::size_t groups = (buckets_for(left_.size()) + kWide - 1) / kWide;
-    const std::size_t chunks = threads_for(left_.size() * 8, threads) == 1 ? 1 : std::min<std::size_t>(groups, 4 * threads);
+    const std::size_t chunks =
+        threads_for(left_.size() * 8, threads) == 1 ? 1 : std::min<std::size_t>(groups, 4 * threads);
     if (chunk_keys_.size() < chunks) chunk_keys_.resize(chunks);
     const std::span<const std::uint32_t> mids = recent.tree.sorted_objects();
-    const bool per_object = std::getenv("VISCD_PER_OBJECT") != nullptr;
     for_chunks(groups, chunks, [&](std::size_t gb, std::size_t ge, std::size_t c) {
       std::vector<std::uint64_t>& list = chunk_keys_[c];
       list.clear();
@@ -456,9 +458,9 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
         };
         for (std::size_t g = gb; g < ge; ++g) {
           if (box_lanes())
-            cross_pairs<BoxTests<SimdBaseline>>(recent.tree, other.tree, g, found, per_object);
+            cross_pairs<BoxTests<SimdBaseline>>(recent.tree, other.tree, g, found);
           else
-            cross_pairs<SphereTests<SimdBaseline>>(recent.tree, other.tree, g, found, per_object);
+            cross_pairs<SphereTests<SimdBaseline>>(recent.tree, other.tree, g, found);
         }
       }
     });
@@ -466,7 +468,6 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
       found_.insert(found_.end(), chunk_keys_[c].begin(), chunk_keys_[c].end());
   }
   std::sort(found_.begin(), found_.end());
-  const double t_cross = sw.lap();
 
   // The static pairs of the objects that changed, from a tree of their exact shapes.
   stat_found_.clear();
@@ -483,8 +484,9 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   }
 
   // The candidates: those of objects that stayed in their fat bounds, tested again where one of
-  // them changed, merged with the new ones (tested here). Chunks cut at the same keys. When no
-  // object left its fat bounds (objects jiggling in place), the list stays: tested again in place.
+  // them changed, merged with the new ones (tested then): emit() does it while it writes the
+  // pairs. When no object left its fat bounds (objects jiggling in place), the list stays: tested
+  // again in place here.
   if (left_.empty()) {
     const std::size_t chunks = ranges_for(cand_.size(), threads);
     for_chunks(cand_.size(), chunks, [&](std::size_t b, std::size_t e, std::size_t) {
@@ -494,49 +496,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
       }
     });
   } else {
-    const std::size_t chunks = threads_for(cand_.size() + found_.size(), threads) == 1
-                                   ? 1
-                                   : 4 * static_cast<std::size_t>(std::max(1, threads));
-    key_chunks_.cut(cand_, found_, chunks);
-    const KeyChunks& kc = key_chunks_;
-    const std::size_t nc = kc.count();
-    offsets_.assign(nc + 1, 0);
-    // Pass 1: how many each chunk keeps.
-    for_chunks(nc, nc, [&](std::size_t c, std::size_t, std::size_t) {
-      std::size_t kept = 0;
-      for (std::size_t a = kc.a_at[c]; a < kc.a_at[c + 1]; ++a)
-        kept += !(bit(left_bits_, key_i(cand_[a])) | bit(left_bits_, key_j(cand_[a])));
-      offsets_[c + 1] = kept + (kc.b_at[c + 1] - kc.b_at[c]);
-    });
-    for (std::size_t c = 0; c < nc; ++c) offsets_[c + 1] += offsets_[c];
-    resize_with_headroom(cand_next_, offsets_[nc]);
-    resize_with_headroom(hit_next_, offsets_[nc]);
-    const bool retest = margin_ > 0;
-    for_chunks(nc, nc, [&](std::size_t c, std::size_t, std::size_t) {
-      std::size_t a = kc.a_at[c], b = kc.b_at[c], o = offsets_[c];
-      const std::size_t ae = kc.a_at[c + 1], be = kc.b_at[c + 1];
-      while (a < ae || b < be) {
-        if (b == be || (a < ae && cand_[a] < found_[b])) {
-          const std::uint64_t k = cand_[a];
-          if (!(bit(left_bits_, key_i(k)) | bit(left_bits_, key_j(k)))) {
-            const bool changed = bit(changed_bits_, key_i(k)) | bit(changed_bits_, key_j(k));
-            cand_next_[o] = k;
-            hit_next_[o] = changed ? static_cast<std::uint8_t>(s.overlap(key_i(k), key_j(k))) : hit_[a];
-            ++o;
-          }
-          ++a;
-        } else {
-          const std::uint64_t k = found_[b++];
-          cand_next_[o] = k;
-          hit_next_[o] = !retest || s.overlap(key_i(k), key_j(k));
-          ++o;
-        }
-      }
-    });
-    cand_.swap(cand_next_);
-    hit_.swap(hit_next_);
-    cand_.resize(offsets_[nc]);
-    hit_.resize(offsets_[nc]);
+    merge_ = true;  // emit() merges as it goes: one pass over the candidates for both
   }
   // The static pairs: those of objects that did not change, merged with the changed ones' new ones.
   if (!set.empty()) {
@@ -551,10 +511,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
     stat_next_.insert(stat_next_.end(), stat_found_.begin() + static_cast<std::ptrdiff_t>(b), stat_found_.end());
     stat_.swap(stat_next_);
   }
-  clear_bits();
-  const double t_merge = sw.lap();
-  if (std::getenv("VISCD_REST_TRACE")) std::fprintf(stderr, "build %.3f cross %.3f merge %.3f found %zu cand %zu\n", t_build, t_cross, t_merge, found_.size(), cand_.size());
-  stats.ms(Stage::query) += t_cross + t_merge;
+  stats.ms(Stage::query) += sw.lap();
 
   // Main rebuilt when too much lives outside it.
   if (parts_[kMain].erased + delta.count + recent.count > std::max(kRebuildFloor, n_ / 8)) {
@@ -571,13 +528,14 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
 }
 
 Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::vector<Pair>& pairs) {
+  const Shapes& shapes = in.objects;
   const bool masked = in.active.size() < n_;
   if (masked) {
     active_mask_.assign(n_, 0);
     for (const std::uint32_t k : in.active) active_mask_[k] = 1;
   }
   const std::span<const Filter> filters = in.filters;
-  auto moving_ok = [&](std::uint64_t k, std::uint8_t hit) {
+  auto moving_ok = [&](std::uint64_t k, bool hit) {
     const std::uint32_t i = key_i(k), j = key_j(k);
     if (!hit) return false;
     if (masked && !(active_mask_[i] & active_mask_[j])) return false;
@@ -588,34 +546,103 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     if (masked && !active_mask_[i]) return false;
     return pair_passes_filter(filters.empty() ? Filter{} : filters[i], set.filter(static_slot(key_j(k))));
   };
-  const std::size_t chunks =
-      threads_for(cand_.size() + stat_.size(), threads) == 1 ? 1 : 4 * static_cast<std::size_t>(std::max(1, threads));
-  key_chunks_.cut(cand_, stat_, chunks);
+  // Three sorted lists: the kept candidates (A), this frame's new ones (B, when merging) and the
+  // static pairs (S); keys never reach kEnd (i < 2^31).
+  constexpr std::uint64_t kEnd = ~std::uint64_t{0};
+  const std::span<const std::uint64_t> lists[3] = {
+      cand_, merge_ ? std::span<const std::uint64_t>(found_) : std::span<const std::uint64_t>(), stat_};
+  const std::span<const std::uint64_t> a_keys = lists[0], b_keys = lists[1], s_keys = lists[2];
+  const std::size_t total = a_keys.size() + b_keys.size() + s_keys.size();
+  const std::size_t chunks = threads_for(total, threads) == 1 ? 1 : 4 * static_cast<std::size_t>(std::max(1, threads));
+  key_chunks_.cut(lists, chunks);
   const KeyChunks& kc = key_chunks_;
   const std::size_t nc = kc.count();
-  offsets_.assign(nc + 1, 0);
-  for_chunks(nc, nc, [&](std::size_t c, std::size_t, std::size_t) {
-    std::size_t count = 0;
-    for (std::size_t a = kc.a_at[c]; a < kc.a_at[c + 1]; ++a) count += moving_ok(cand_[a], hit_[a]);
-    for (std::size_t b = kc.b_at[c]; b < kc.b_at[c + 1]; ++b) count += static_ok(stat_[b]);
-    offsets_[c + 1] = count;
-  });
-  for (std::size_t c = 0; c < nc; ++c) offsets_[c + 1] += offsets_[c];
-  if (Status s = check_pair_cap(offsets_[nc], in.pair_memory_cap); !s) return s;
-  pairs.resize(offsets_[nc]);
-  for_chunks(nc, nc, [&](std::size_t c, std::size_t, std::size_t) {
-    std::size_t a = kc.a_at[c], b = kc.b_at[c], o = offsets_[c];
-    const std::size_t ae = kc.a_at[c + 1], be = kc.b_at[c + 1];
-    while (a < ae || b < be) {
-      if (b == be || (a < ae && cand_[a] < stat_[b])) {
-        if (moving_ok(cand_[a], hit_[a])) pairs[o++] = Pair{key_i(cand_[a]), key_j(cand_[a])};
-        ++a;
+  const bool retest = margin_ > 0;
+  // One chunk: counts what it keeps and emits (kWrite false), or writes them from its offsets.
+  // Templated, and every buffer read through a local pointer: the writes through hit_next_ (bytes,
+  // which may alias anything) would otherwise reload the members at every step.
+  const std::uint64_t* const left = left_bits_.data();
+  const std::uint64_t* const changed = changed_bits_.data();
+  const std::uint8_t* const hits = hit_.data();
+  auto chunk = [&]<bool kWrite, bool kMerge>(std::size_t c) {
+    std::uint64_t* const next_keys = kWrite && kMerge ? cand_next_.data() : nullptr;
+    std::uint8_t* const next_hits = kWrite && kMerge ? hit_next_.data() : nullptr;
+    Pair* const out_pairs = kWrite ? pairs.data() : nullptr;
+    const auto in_bits = [](const std::uint64_t* b, std::uint32_t k) { return (b[k >> 6] >> (k & 63)) & 1; };
+    std::size_t a = kc.at[0][c], b = kc.at[1][c], t = kc.at[2][c];
+    const std::size_t ae = kc.at[0][c + 1], be = kc.at[1][c + 1], te = kc.at[2][c + 1];
+    std::size_t kept = kWrite ? cand_offsets_[c] : 0, out = kWrite ? offsets_[c] : 0;
+    while (a < ae || b < be || t < te) {
+      const std::uint64_t ka = a < ae ? a_keys[a] : kEnd, kb = b < be ? b_keys[b] : kEnd,
+                          kt = t < te ? s_keys[t] : kEnd;
+      if (kt < ka && kt < kb) {
+        if (static_ok(kt)) {
+          if constexpr (kWrite) out_pairs[out] = Pair{key_i(kt), key_j(kt)};
+          ++out;
+        }
+        ++t;
+        continue;
+      }
+      std::uint64_t k;
+      bool hit;
+      if (ka < kb) {
+        k = ka;
+        hit = hits[a++] != 0;
+        if constexpr (kMerge) {
+          const std::uint32_t i = key_i(k), j = key_j(k);
+          if (in_bits(left, i) | in_bits(left, j)) continue;  // placed again: found anew in B
+          if (in_bits(changed, i) | in_bits(changed, j)) hit = shapes.overlap(i, j);
+        }
       } else {
-        if (static_ok(stat_[b])) pairs[o++] = Pair{key_i(stat_[b]), key_j(stat_[b])};
+        k = kb;
         ++b;
+        hit = !retest || shapes.overlap(key_i(k), key_j(k));
+      }
+      if constexpr (kMerge) {
+        if constexpr (kWrite) {
+          next_keys[kept] = k;
+          next_hits[kept] = hit;
+        }
+        ++kept;
+      }
+      if (moving_ok(k, hit)) {
+        if constexpr (kWrite) out_pairs[out] = Pair{key_i(k), key_j(k)};
+        ++out;
       }
     }
+    if constexpr (!kWrite) {
+      cand_offsets_[c + 1] = kept;
+      offsets_[c + 1] = out;
+    }
+  };
+  offsets_.assign(nc + 1, 0);
+  cand_offsets_.assign(nc + 1, 0);
+  for_chunks(nc, nc, [&](std::size_t c, std::size_t, std::size_t) {
+    if (merge_)
+      chunk.template operator()<false, true>(c);
+    else
+      chunk.template operator()<false, false>(c);
   });
+  for (std::size_t c = 0; c < nc; ++c) {
+    offsets_[c + 1] += offsets_[c];
+    cand_offsets_[c + 1] += cand_offsets_[c];
+  }
+  if (Status s = check_pair_cap(offsets_[nc], in.pair_memory_cap); !s) return s;
+  pairs.resize(offsets_[nc]);
+  if (merge_) {
+    resize_with_headroom(cand_next_, cand_offsets_[nc]);
+    resize_with_headroom(hit_next_, cand_offsets_[nc]);
+  }
+  for_chunks(nc, nc, [&](std::size_t c, std::size_t, std::size_t) {
+    if (merge_)
+      chunk.template operator()<true, true>(c);
+    else
+      chunk.template operator()<true, false>(c);
+  });
+  if (merge_) {
+    cand_.swap(cand_next_);
+    hit_.swap(hit_next_);
+  }
   return {};
 }
 

@@ -46,16 +46,16 @@ class RestSet {
  public:
   /// What one frame gives.
   struct Input {
-    Shapes objects;                             ///< the frame's moving objects (N)
-    std::span<const std::uint32_t> active;      ///< ascending, below N
-    std::span<const Filter> filters;            ///< empty or one per object
-    std::span<const std::uint32_t> moved;       ///< FrameInput::moved, checked already
-    bool moved_listed = false;                  ///< FrameInput::moved_listed
-    bool verify_moved = false;                  ///< Config::verify_moved
-    float margin = 0;                           ///< Config::rest_margin
-    Layout layout = Layout::extended;           ///< Config::layout
-    int bits = 32;                              ///< the frame's Morton width (the trees keep the one they were built with)
-    std::size_t pair_memory_cap = 0;            ///< Config::pair_memory_cap
+    Shapes objects;                         ///< the frame's moving objects (N)
+    std::span<const std::uint32_t> active;  ///< ascending, below N
+    std::span<const Filter> filters;        ///< empty or one per object
+    std::span<const std::uint32_t> moved;   ///< FrameInput::moved, checked already
+    bool moved_listed = false;              ///< FrameInput::moved_listed
+    bool verify_moved = false;              ///< Config::verify_moved
+    float margin = 0;                       ///< Config::rest_margin
+    Layout layout = Layout::extended;       ///< Config::layout
+    int bits = 32;                          ///< the frame's Morton width (the trees keep the one they were built with)
+    std::size_t pair_memory_cap = 0;        ///< Config::pair_memory_cap
   };
 
   /// Runs the frame's broadphase (stages 4-8) by following change, when it can. Returns true with
@@ -64,8 +64,8 @@ class RestSet {
   /// must rebuild (nothing written, the set is then out of use until its sample says the objects
   /// rest). `st` must be up to date with `set`. A failed Status (the pair cap, a moved list that
   /// Config::verify_moved finds short) leaves the set out of use.
-  [[nodiscard]] Status run(const Input& in, const StaticSet& set, StaticTree& st, int threads,
-                           std::vector<Pair>& pairs, FrameStats& stats, bool& followed);
+  [[nodiscard]] Status run(const Input& in, const StaticSet& set, StaticTree& st, int threads, std::vector<Pair>& pairs,
+                           FrameStats& stats, bool& followed);
   /// Stops following: the next frames rebuild until the sample says the objects rest.
   void reset();
   /// Whether the set follows these objects: the last frame was followed and had as many of this
@@ -119,7 +119,8 @@ class RestSet {
   /// The static pairs of the objects in `tree` (ids through `ids`), unfiltered, sorted.
   [[nodiscard]] bool static_pairs_of(const BucketBroadphase& tree, std::span<const std::uint32_t> ids, StaticTree& st,
                                      int threads, std::vector<std::uint64_t>& out);
-  /// The frame's pairs from the candidates and static pairs.
+  /// The frame's pairs from the candidates and static pairs; with merge_, also the next list of
+  /// candidates (those of objects placed again dropped, found_ merged in, re-tested where changed).
   [[nodiscard]] Status emit(const Input& in, const StaticSet& set, int threads, std::vector<Pair>& pairs);
   /// Whether the sample says the objects rest; takes a new sample.
   bool sample_rests(const Shapes& s, float margin);
@@ -144,7 +145,7 @@ class RestSet {
   std::vector<float> fat_r_;
   std::vector<std::uint8_t> part_of_;
   std::vector<std::uint64_t> changed_bits_, left_bits_;  // this frame's changed_ and left_, as bitsets
-  std::vector<std::uint32_t> local_;  // the object's id in its tree
+  std::vector<std::uint32_t> local_;                     // the object's id in its tree
   Part parts_[3];
   Part exact_;  // margin > 0: the changed objects' exact shapes, for their static pairs
   std::vector<std::uint32_t> changed_, left_, scratch_;
@@ -156,11 +157,13 @@ class RestSet {
   std::vector<Pair> local_pairs_;
   std::vector<std::uint8_t> active_mask_;
   std::vector<std::size_t> offsets_;
+  std::vector<std::size_t> cand_offsets_;
   struct KeyChunks {
-    std::vector<std::size_t> a_at, b_at;
-    void cut(std::span<const std::uint64_t> a, std::span<const std::uint64_t> b, std::size_t chunks);
-    [[nodiscard]] std::size_t count() const { return a_at.size() - 1; }
+    std::vector<std::size_t> at[3];
+    void cut(const std::span<const std::uint64_t> (&lists)[3], std::size_t chunks);
+    [[nodiscard]] std::size_t count() const { return at[0].size() - 1; }
   } key_chunks_;
+  bool merge_ = false;  // this frame's emit() merges found_ into the candidates
 
   // The sample watched while the set is out of use.
   std::vector<std::uint32_t> sample_index_;

@@ -13,10 +13,10 @@
 // per branch-free step.
 
 #include <bit>
-#include <type_traits>
 #include <cstdint>
 #include <span>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "core/geometry.hpp"

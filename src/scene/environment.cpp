@@ -38,8 +38,7 @@ Status apply_environment(Config& config) {
     else if (s == "0")
       config.follow_change = false;
     else
-      return Status::failure(ErrorKind::invalid_input,
-                             "VISCD_FOLLOW_CHANGE=" + printable(s) + ": expected 1 or 0");
+      return Status::failure(ErrorKind::invalid_input, "VISCD_FOLLOW_CHANGE=" + printable(s) + ": expected 1 or 0");
   }
   return {};
 }

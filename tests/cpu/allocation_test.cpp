@@ -163,7 +163,8 @@ TEST(Allocation, FollowedFramesAllocateNothing) {
           ++step;
           for (const std::uint32_t k : moved) s[k].x += (step % 2 ? 0.05f : -0.05f);
           for (std::size_t k = 0; k < s.size(); ++k)
-            b[k] = Box{{s[k].x - s[k].r, s[k].y - s[k].r, s[k].z - s[k].r}, {s[k].x + s[k].r, s[k].y + s[k].r, s[k].z + s[k].r}};
+            b[k] = Box{{s[k].x - s[k].r, s[k].y - s[k].r, s[k].z - s[k].r},
+                       {s[k].x + s[k].r, s[k].y + s[k].r, s[k].z + s[k].r}};
           FrameInput in;
           if (boxes)
             in.boxes = b;

@@ -53,8 +53,7 @@ void check_side_by_side(Detector& d, const FrameInput& in) {
   ASSERT_TRUE(d.detect(in, f).ok());
   std::vector<Answers> got(4);
   std::vector<std::thread> threads;
-  for (std::size_t t = 0; t < got.size(); ++t)
-    threads.emplace_back([&, t] { got[t] = ask(d, 77); });
+  for (std::size_t t = 0; t < got.size(); ++t) threads.emplace_back([&, t] { got[t] = ask(d, 77); });
   for (auto& t : threads) t.join();
   const Answers alone = ask(d, 77);
   for (const Answers& a : got) EXPECT_TRUE(a == alone);

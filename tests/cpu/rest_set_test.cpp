@@ -22,12 +22,12 @@ namespace {
 struct Scenario {
   bool boxes = false;
   float margin = 0;
-  bool listed = false;      // FrameInput::moved names the movers
+  bool listed = false;  // FrameInput::moved names the movers
   bool with_static = false;
-  bool camera = false;      // culling by the detector's own map
+  bool camera = false;  // culling by the detector's own map
   bool filters = false;
   bool always_active = false;
-  bool resize = false;      // N changes now and then
+  bool resize = false;  // N changes now and then
   float move_fraction = 0.03f;
   std::size_t n = 600;
   int frames = 40;
@@ -69,7 +69,9 @@ int run_scenario(const Scenario& sc) {
   std::mt19937_64 rng(sc.seed);
   std::uniform_real_distribution<float> u(-1, 1), u01(0, 1);
   const float extent = 12.0f * std::cbrt(static_cast<float>(sc.n) / 600.0f);
-  auto random_sphere = [&] { return Sphere{u(rng) * extent, u(rng) * extent * 0.3f, u(rng) * extent, 0.2f + 0.6f * u01(rng)}; };
+  auto random_sphere = [&] {
+    return Sphere{u(rng) * extent, u(rng) * extent * 0.3f, u(rng) * extent, 0.2f + 0.6f * u01(rng)};
+  };
 
   Config on;
   on.follow_change = true;
@@ -142,7 +144,8 @@ int run_scenario(const Scenario& sc) {
         moved.push_back(static_cast<std::uint32_t>(k));
       }
       if (sc.filters && frame % 9 == 4)
-        for (int t = 0; t < 20; ++t) filters[static_cast<std::size_t>(u01(rng) * 0.999f * static_cast<float>(n))] = Filter{1u << (t % 3), 0x5u};
+        for (int t = 0; t < 20; ++t)
+          filters[static_cast<std::size_t>(u01(rng) * 0.999f * static_cast<float>(n))] = Filter{1u << (t % 3), 0x5u};
       if (sc.always_active && frame % 5 == 2)
         for (int t = 0; t < 30; ++t) always[static_cast<std::size_t>(u01(rng) * 0.999f * static_cast<float>(n))] ^= 1;
       if (sc.with_static && frame % 11 == 6) {
@@ -305,8 +308,8 @@ TEST(RestSet, DegenerateCounts) {
   for (const std::size_t n : {0u, 1u, 2u, 15u, 16u, 17u, 100u, 4095u, 4097u}) {
     SCOPED_TRACE(n);
     // All centres equal (every pair), or past the parallel threshold a sparse cloud.
-    std::vector<Sphere> s = n <= 100 ? std::vector<Sphere>(n, Sphere{1, 2, 3, 0.5f})
-                                     : test::random_spheres_by_half_extent(n, n, 20);
+    std::vector<Sphere> s =
+        n <= 100 ? std::vector<Sphere>(n, Sphere{1, 2, 3, 0.5f}) : test::random_spheres_by_half_extent(n, n, 20);
     auto a = make_cpu_detector();
     FrameResult f;
     for (int frame = 0; frame < 4; ++frame) {
@@ -448,7 +451,8 @@ TEST(RestSet, MarginCarriesCandidatesOfJigglingObjects) {
   std::vector<Sphere> s;
   for (int x = 0; x < 20; ++x)
     for (int y = 0; y < 10; ++y)
-      for (int z = 0; z < 20; ++z) s.push_back({static_cast<float>(x), static_cast<float>(y), static_cast<float>(z), 0.5f + 0.01f * u(rng)});
+      for (int z = 0; z < 20; ++z)
+        s.push_back({static_cast<float>(x), static_cast<float>(y), static_cast<float>(z), 0.5f + 0.01f * u(rng)});
   const std::vector<Sphere> home = s;
   Config c;
   c.rest_margin = 0.05f;
