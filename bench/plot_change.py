@@ -52,7 +52,8 @@ def main():
         ax.set_xlabel("objects that move each frame")
         ax.set_ylabel("frame time / rebuild of an all-moving frame")
         shape, objects = key
-        ax.set_title(f"{int(objects):,} {shape}s".replace(",", " "))
+        plural = {"sphere": "spheres", "box": "boxes"}.get(shape, shape)
+        ax.set_title(f"{int(objects):,} {plural}".replace(",", " "))
         ax.grid(True, which="both", alpha=0.3)
     axes[0][0].legend(fontsize=7, loc="lower right")
     if args.title:

@@ -71,8 +71,10 @@ class Detector {
   /// spheres (non-finite, negative radius, beyond kMaxCoordinate), an invalid camera, a
   /// visibility map beyond kMaxMapSide or kMaxMapPixels, filters that are neither empty nor one
   /// per sphere, an id map whose size is not id_map_width x id_map_height or whose ids exceed the
-  /// number of spheres, an id map and a gl texture together, negative Config::threads or more
-  /// than 2^31 - 1 objects; with ErrorKind::unsupported_input on input this backend does not
+  /// number of spheres, an id map and a gl texture together, FrameInput::moved not ascending,
+  /// repeating or out of range (or given without moved_listed), a Config::rest_margin that is
+  /// negative or not finite, a moved list that Config::verify_moved finds short, negative
+  /// Config::threads or more than 2^31 - 1 objects; with ErrorKind::unsupported_input on input this backend does not
   /// take (the message says which); with ErrorKind::pair_cap when the pairs exceed
   /// Config::pair_memory_cap; with ErrorKind::out_of_memory when memory runs out (the message
   /// names the frame's size); with ErrorKind::backend_failure when the backend fails (a GL
