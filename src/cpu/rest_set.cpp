@@ -33,7 +33,7 @@ constexpr std::size_t kGiveUp = 16;
 
 /// Bit k of a bitset (one bit per object: 125 KB for 10^6 objects, which stays in cache while the
 /// candidates stream past).
-[[nodiscard]] bool bit(const std::vector<std::uint64_t>& b, std::uint32_t k) { return (b[k >> 6] >> (k & 63)) & 1; }
+[[nodiscard]] std::uint64_t bit(const std::vector<std::uint64_t>& b, std::uint32_t k) { return (b[k >> 6] >> (k & 63)) & 1; }
 void clear_bit(std::vector<std::uint64_t>& b, std::uint32_t k) { b[k >> 6] &= ~(std::uint64_t{1} << (k & 63)); }
 
 [[nodiscard]] bool same_bits(const Sphere& a, const Sphere& b) { return std::memcmp(&a, &b, sizeof(Sphere)) == 0; }
