@@ -84,8 +84,7 @@ void add_cpu_kernel_options(CLI::App& cmd, PipelineOptions& o) {
   cmd.add_option("--rest-margin", o.rest_margin,
                  "cpu backend: how far (world units) an object may stray and still rest; 0 = only bit-for-bit\n"
                  "unchanged bounds rest")
-      ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+      ->capture_default_str();
 }
 
 void add_scene_options(CLI::App& cmd, SceneOptions& o) {

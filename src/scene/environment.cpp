@@ -8,6 +8,20 @@
 #include "viscd/io.hpp"
 
 namespace viscd {
+namespace {
+
+// A variable that is 1 or 0, into `field` when set; any other value is an error naming it.
+Status bool_variable(const char* name, bool& field) {
+  const char* v = std::getenv(name);
+  if (v == nullptr) return {};
+  const std::string_view s(v);
+  if (s != "1" && s != "0")
+    return Status::failure(ErrorKind::invalid_input, std::string(name) + "=" + printable(s) + ": expected 1 or 0");
+  field = s == "1";
+  return {};
+}
+
+}  // namespace
 
 Status apply_environment(Config& config) {
   if (const char* v = std::getenv("VISCD_SIMD")) {
@@ -22,24 +36,8 @@ Status apply_environment(Config& config) {
       return Status::failure(ErrorKind::invalid_input,
                              "VISCD_SIMD=" + printable(s) + ": expected best, sse2 or scalar");
   }
-  if (const char* v = std::getenv("VISCD_KEEP_ORDER")) {
-    const std::string_view s(v);
-    if (s == "1")
-      config.keep_order = true;
-    else if (s == "0")
-      config.keep_order = false;
-    else
-      return Status::failure(ErrorKind::invalid_input, "VISCD_KEEP_ORDER=" + printable(s) + ": expected 1 or 0");
-  }
-  if (const char* v = std::getenv("VISCD_FOLLOW_CHANGE")) {
-    const std::string_view s(v);
-    if (s == "1")
-      config.follow_change = true;
-    else if (s == "0")
-      config.follow_change = false;
-    else
-      return Status::failure(ErrorKind::invalid_input, "VISCD_FOLLOW_CHANGE=" + printable(s) + ": expected 1 or 0");
-  }
+  if (Status st = bool_variable("VISCD_KEEP_ORDER", config.keep_order); !st) return st;
+  if (Status st = bool_variable("VISCD_FOLLOW_CHANGE", config.follow_change); !st) return st;
   return {};
 }
 

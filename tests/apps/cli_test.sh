@@ -706,11 +706,24 @@ expect_rc 2 pairs --spheres "$W/cloud.csv" --out "$W/pairs_keep_bad.csv" --keep-
 expect_in "$W/err" "--keep-order: expected on or off, got 'maybe'" "--keep-order maybe"
 pass
 
-step "run and pairs --help teach --simd and --keep-order"
+step "--follow-change and --rest-margin give the same pairs; bad values, as option or VISCD_FOLLOW_CHANGE, exit 2"
+expect_rc 0 pairs --spheres "$W/cloud.csv" --out "$W/pairs_follow.csv" --follow-change off --rest-margin 0.5
+cmp -s "$W/pairs_simd_default.csv" "$W/pairs_follow.csv" || fail "--follow-change off --rest-margin 0.5 gives other pairs"
+expect_rc 2 pairs --spheres "$W/cloud.csv" --out "$W/pairs_follow_bad.csv" --follow-change maybe
+expect_in "$W/err" "--follow-change: expected on or off, got 'maybe'" "--follow-change maybe"
+expect_rc 2 pairs --spheres "$W/cloud.csv" --out "$W/pairs_margin_bad.csv" --rest-margin -1
+expect_in "$W/err" "--rest-margin -1.000000: expected a finite distance >= 0" "--rest-margin -1"
+VISCD_FOLLOW_CHANGE=2 expect_rc 2 pairs --spheres "$W/cloud.csv" --out "$W/pairs_env_bad.csv"
+expect_in "$W/err" "VISCD_FOLLOW_CHANGE=2: expected 1 or 0" "VISCD_FOLLOW_CHANGE=2"
+pass
+
+step "run and pairs --help teach --simd, --keep-order, --follow-change and --rest-margin"
 for cmd in run pairs; do
   expect_rc 0 "$cmd" --help
   expect_in "$W/out" "--simd" "$cmd --help"
   expect_in "$W/out" "--keep-order" "$cmd --help"
+  expect_in "$W/out" "--follow-change" "$cmd --help"
+  expect_in "$W/out" "--rest-margin" "$cmd --help"
 done
 pass
 
