@@ -2,7 +2,6 @@
 
 #include "core/brute_queries.hpp"
 #include "core/frame_rules.hpp"
-
 #include "core/stopwatch.hpp"
 #include "cpu/parallel.hpp"
 #include "viscd/assert.hpp"
