@@ -33,7 +33,9 @@ constexpr std::size_t kGiveUp = 16;
 
 /// Bit k of a bitset (one bit per object: 125 KB for 10^6 objects, which stays in cache while the
 /// candidates stream past).
-[[nodiscard]] std::uint64_t bit(const std::vector<std::uint64_t>& b, std::uint32_t k) { return (b[k >> 6] >> (k & 63)) & 1; }
+[[nodiscard]] std::uint64_t bit(const std::vector<std::uint64_t>& b, std::uint32_t k) {
+  return (b[k >> 6] >> (k & 63)) & 1;
+}
 void clear_bit(std::vector<std::uint64_t>& b, std::uint32_t k) { b[k >> 6] &= ~(std::uint64_t{1} << (k & 63)); }
 
 [[nodiscard]] bool same_bits(const Sphere& a, const Sphere& b) { return std::memcmp(&a, &b, sizeof(Sphere)) == 0; }
@@ -228,8 +230,8 @@ Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int t
     reset();
     return {};
   }
-  if (live_ && (n != n_ || s.kind != kind_ || in.margin != margin_ || in.layout != layout_ || in.bits != bits_ ||
-                set.version() != static_version_))
+  if (live_ &&
+      (n != n_ || s.kind != kind_ || in.margin != margin_ || in.layout != layout_ || set.version() != static_version_))
     reset();
   Status status;
   if (live_) {
@@ -264,7 +266,7 @@ Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int t
   }
   followed = true;
   stats.followed_change = true;
-  stats.bits = bits_;
+  stats.bits = in.bits;  // the width the frame chose; the trees keep theirs until rebuilt (exact either way)
   stats.layout = main_layout_;
   stats.pairs = pairs.size();
   return {};

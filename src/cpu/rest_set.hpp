@@ -20,8 +20,8 @@
 //
 // A frame costs the pass over the bounds (none with FrameInput::moved), the movers' tree and its
 // searches, and passes over the candidates and pairs. When more than 1 in 16 objects leave their
-// fat bounds in a frame, when the object count, their kind, the static set, the Morton width, the
-// layout or the margin change, or when culling leaves fewer than half of the objects active (the
+// fat bounds in a frame, when the object count, their kind, the static set, the layout or the
+// margin change, or when culling leaves fewer than half of the objects active (the
 // candidates of culled objects would cost more than a culled rebuild saves), the set lets the
 // frame rebuild and starts again later: while it is not in use it watches a sample of 64 objects,
 // and takes over when 15 in 16 of them rest.
@@ -54,7 +54,7 @@ class RestSet {
     bool verify_moved = false;              ///< Config::verify_moved
     float margin = 0;                       ///< Config::rest_margin
     Layout layout = Layout::extended;       ///< Config::layout
-    int bits = 32;                          ///< the frame's Morton width (the trees keep the one they were built with)
+    int bits = 32;                          ///< the frame's Morton width: reported, and used by trees built this frame
     std::size_t pair_memory_cap = 0;        ///< Config::pair_memory_cap
   };
 
