@@ -35,8 +35,8 @@ std::uint64_t bytes_of(const std::vector<T>& v) {
 [[nodiscard]] Status validate_moved(std::span<const std::uint32_t> moved, std::size_t objects);
 /// validate_frame() for a whole FrameInput (Detector::detect() runs it before run_frame()): also
 /// the filter count, and the id map's size (which then replaces Config's map size); an id map
-/// and a gl texture together are an error; so is FrameInput::moved out of order. The ids themselves are checked where they are
-/// counted (id_map_error()).
+/// and a gl texture together are an error; so is FrameInput::moved out of order. The ids themselves are checked where
+/// they are counted (id_map_error()).
 [[nodiscard]] Status validate_frame_input(const FrameInput& input, const Config& config, bool check_objects = true);
 
 /// validate_spheres()'s and validate_boxes()'s pass over every shape, without branches: true when

@@ -33,8 +33,6 @@ class CpuDetector final : public PipelineDetector {
   }
   /// With FrameInput::moved while the rest set follows these objects: only the listed ones.
   [[nodiscard]] Status validate_frame_objects(const FrameInput& input) override;
-  /// The resting objects' trees and candidates (Config::follow_change), for tests.
-  [[nodiscard]] const RestSet& rest_set() const { return rest_; }
   /// The broadphase of the last frame (its 16-wide tree over buckets, the sorted objects and codes),
   /// for tests.
   [[nodiscard]] const BucketBroadphase& bucket_broadphase() const { return broadphase_; }

@@ -137,8 +137,9 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
   if (own_static)
     if (Status s = follow_change(in, all_.objects, active_, filters, bits, threads, out.pairs, stats, followed); !s)
       return s;
-  if (followed) (void)sw.lap();  // its stages timed themselves
-  if (!followed) {
+  if (followed) {
+    (void)sw.lap();  // its stages timed themselves
+  } else {
     // Objects whose filters pair them with nothing active stay out of the tree.
     std::span<const std::uint32_t> pairable = active_, unpaired;
     if (!filters.empty()) {

@@ -33,9 +33,7 @@ constexpr std::size_t kGiveUp = 16;
 
 /// Bit k of a bitset (one bit per object: 125 KB for 10^6 objects, which stays in cache while the
 /// candidates stream past).
-[[nodiscard]] std::uint64_t bit(const std::vector<std::uint64_t>& b, std::uint32_t k) {
-  return (b[k >> 6] >> (k & 63)) & 1;
-}
+[[nodiscard]] std::uint64_t bit(const std::uint64_t* b, std::uint32_t k) { return (b[k >> 6] >> (k & 63)) & 1; }
 void clear_bit(std::vector<std::uint64_t>& b, std::uint32_t k) { b[k >> 6] &= ~(std::uint64_t{1} << (k & 63)); }
 
 [[nodiscard]] bool same_bits(const Sphere& a, const Sphere& b) { return std::memcmp(&a, &b, sizeof(Sphere)) == 0; }
@@ -181,6 +179,18 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
   if (which == kMain) main_layout_ = built.layout;
 }
 
+std::span<const std::uint32_t> RestSet::rebuild_main(int threads, std::vector<Pair>* pairs) {
+  resize_with_headroom(scratch_, n_);
+  parallel_for(n_, threads, [&](std::size_t k) { scratch_[k] = static_cast<std::uint32_t>(k); });
+  const std::span<const std::uint32_t> all(scratch_.data(), n_);
+  build_part(parts_[kMain], all, kMain, true, threads, pairs);
+  for (const std::uint8_t p : {kDelta, kRecent}) {
+    parts_[p].count = parts_[p].erased = 0;
+    parts_[p].ids.clear();
+  }
+  return all;
+}
+
 void RestSet::erase(std::uint32_t o) {
   const std::uint8_t p = part_of_[o];
   if (p == kNowhere) return;
@@ -300,15 +310,8 @@ Status RestSet::enter(const Input& in, const StaticSet& set, StaticTree& st, int
   changed_bits_.assign((n + 63) / 64, 0);
   left_bits_.assign((n + 63) / 64, 0);
   resize_with_headroom(local_, n);
-  resize_with_headroom(scratch_, n);
-  parallel_for(n, threads, [&](std::size_t k) { scratch_[k] = static_cast<std::uint32_t>(k); });
-  const std::span<const std::uint32_t> all(scratch_.data(), n);
   local_pairs_.clear();
-  build_part(parts_[kMain], all, kMain, true, threads, &local_pairs_);
-  for (const std::uint8_t p : {kDelta, kRecent}) {
-    parts_[p].count = parts_[p].erased = 0;
-    parts_[p].ids.clear();
-  }
+  const std::span<const std::uint32_t> all = rebuild_main(threads, &local_pairs_);
   stats.ms(Stage::build) += sw.lap();
   // Main's tree ids are the object indices: its pairs are the candidates.
   resize_with_headroom(cand_, local_pairs_.size());
@@ -494,7 +497,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
     for_chunks(cand_.size(), chunks, [&](std::size_t b, std::size_t e, std::size_t) {
       for (std::size_t a = b; a < e; ++a) {
         const std::uint32_t i = key_i(cand_[a]), j = key_j(cand_[a]);
-        if (bit(changed_bits_, i) | bit(changed_bits_, j)) hit_[a] = s.overlap(i, j);
+        if (bit(changed_bits_.data(), i) | bit(changed_bits_.data(), j)) hit_[a] = s.overlap(i, j);
       }
     });
   } else {
@@ -506,7 +509,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
     stat_next_.reserve(stat_.size() + stat_found_.size());
     std::size_t b = 0;
     for (const std::uint64_t k : stat_) {
-      if (bit(changed_bits_, key_i(k))) continue;
+      if (bit(changed_bits_.data(), key_i(k))) continue;
       while (b < stat_found_.size() && stat_found_[b] < k) stat_next_.push_back(stat_found_[b++]);
       stat_next_.push_back(k);
     }
@@ -517,13 +520,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
 
   // Main rebuilt when too much lives outside it.
   if (parts_[kMain].erased + delta.count + recent.count > std::max(kRebuildFloor, n_ / 8)) {
-    scratch_.resize(n_);
-    for (std::size_t k = 0; k < n_; ++k) scratch_[k] = static_cast<std::uint32_t>(k);
-    build_part(parts_[kMain], scratch_, kMain, true, threads, nullptr);
-    for (const std::uint8_t p : {kDelta, kRecent}) {
-      parts_[p].count = parts_[p].erased = 0;
-      parts_[p].ids.clear();
-    }
+    (void)rebuild_main(threads, nullptr);
     stats.ms(Stage::build) += sw.lap();
   }
   return {};
@@ -570,7 +567,6 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     std::uint64_t* const next_keys = kWrite && kMerge ? cand_next_.data() : nullptr;
     std::uint8_t* const next_hits = kWrite && kMerge ? hit_next_.data() : nullptr;
     Pair* const out_pairs = kWrite ? pairs.data() : nullptr;
-    const auto in_bits = [](const std::uint64_t* b, std::uint32_t k) { return (b[k >> 6] >> (k & 63)) & 1; };
     std::size_t a = kc.at[0][c], b = kc.at[1][c], t = kc.at[2][c];
     const std::size_t ae = kc.at[0][c + 1], be = kc.at[1][c + 1], te = kc.at[2][c + 1];
     std::size_t kept = kWrite ? cand_offsets_[c] : 0, out = kWrite ? offsets_[c] : 0;
@@ -592,8 +588,8 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
         hit = hits[a++] != 0;
         if constexpr (kMerge) {
           const std::uint32_t i = key_i(k), j = key_j(k);
-          if (in_bits(left, i) | in_bits(left, j)) continue;  // placed again: found anew in B
-          if (in_bits(changed, i) | in_bits(changed, j)) hit = shapes.overlap(i, j);
+          if (bit(left, i) | bit(left, j)) continue;  // placed again: found anew in B
+          if (bit(changed, i) | bit(changed, j)) hit = shapes.overlap(i, j);
         }
       } else {
         k = kb;

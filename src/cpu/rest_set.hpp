@@ -71,15 +71,11 @@ class RestSet {
   /// Whether the set follows these objects: the last frame was followed and had as many of this
   /// kind.
   [[nodiscard]] bool follows(const Shapes& s) const { return live_ && s.size() == n_ && s.kind == kind_; }
-  /// Whether the last frame was followed (its objects are in cur_ and the trees).
-  [[nodiscard]] bool in_use() const { return live_; }
   /// The last followed frame's objects (for the queries after it).
   [[nodiscard]] Shapes objects() const {
     return kind_ == ShapeKind::box ? Shapes(std::span<const Box>(cur_box_)) : Shapes(std::span<const Sphere>(cur_sph_));
   }
   [[nodiscard]] std::uint64_t memory_bytes() const;
-  /// Inspection for tests: the candidates kept (keys i << 32 | j) and the static pairs.
-  [[nodiscard]] std::span<const std::uint64_t> candidates() const { return cand_; }
 
  private:
   // One tree and what its objects are: the shapes its lanes hold (sphere lanes: `spheres`; box
@@ -105,6 +101,9 @@ class RestSet {
   /// the part as the objects' home.
   void build_part(Part& part, std::span<const std::uint32_t> objs, std::uint8_t which, bool fat, int threads,
                   std::vector<Pair>* pairs);
+  /// Builds main over every object (their fat bounds; the pairs among them when `pairs` is not
+  /// null) and empties delta and recent. Returns the object indices 0..N-1 (in scratch_).
+  std::span<const std::uint32_t> rebuild_main(int threads, std::vector<Pair>* pairs);
   /// Takes object o out of its tree.
   void erase(std::uint32_t o);
   /// Starts following: every object placed now, every candidate found.
