@@ -3,7 +3,9 @@
 # put in .dev/ and the EGL loader packages in .gl/ (docs/gpu.md). Each step has its own time limit
 # and the script goes on after a failure; everything lands in $OUT/results.tgz, the last lines
 # printed are a short summary.
-# Usage: bench/gpu/device_run.sh STEP...   steps: env gltests conformance paper stages frame splat cuda cudapaper
+# Usage: bench/gpu/device_run.sh STEP...
+#   steps: env gltests conformance paper stages frame splat cuda cudapaper cudaenv cudabig
+#   (cudaenv: env without the GL probe; cudabig: CudaBroadphase at 10^8 objects, on an H200)
 set -uo pipefail
 OUT=${OUT:-/tmp/out}
 R=/tmp/res
@@ -77,6 +79,11 @@ for s in "$@"; do
           done
         done
       done ;;
+    cudaenv)
+      step env 60 bash -c "date -u; nvidia-smi; nvidia-smi --query-gpu=name,driver_version,clocks.max.sm,clocks.max.mem --format=csv;
+        ldd --version | head -1; nproc; free -g" ;;
+    cudabig) step cuda_bench_1e8 300 "$D/viscd_cuda_bench" --parts device --device 100000000 --frames 5 --warmup 1 \
+      --csv "$R/cuda_bench_1e8.csv" ;;
     cuda)
       step cuda_tests 240 "$D/viscd_cuda_tests" --gtest_brief=1
       step conformance_cuda 300 "$D/viscd_conformance_tests" --gtest_brief=1 --gtest_filter='cuda/*'

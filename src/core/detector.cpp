@@ -54,6 +54,11 @@ Result<std::string> cuda_device() {
   return Result<std::string>::failure(ErrorKind::unsupported_input,
                                       "viscd was built without the cuda backend (VISCD_ENABLE_CUDA=OFF or no nvcc)");
 }
+
+Result<std::unique_ptr<CudaBroadphase>> make_cuda_broadphase(const Config&) {
+  return Result<std::unique_ptr<CudaBroadphase>>::failure(
+      ErrorKind::unsupported_input, "viscd was built without the cuda backend (VISCD_ENABLE_CUDA=OFF or no nvcc)");
+}
 #endif
 
 bool is_software_renderer(std::string_view device) {

@@ -3,32 +3,24 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/morton_rule.hpp"
 #include "viscd/assert.hpp"
 
 namespace viscd::detail {
 namespace {
 
-// Fills `position` from the top bit of the code down; each bit goes to the axis whose current
-// cell is the largest (extent / 2^bits already given), ties in `order`, skipping axes whose bits
-// are used up. The used bits occupy the low sum(axis_bits) positions of the code.
-//
-// With equal extents (the plain layout passes {1, 1, 1}) this is the classic round robin in
-// `order`. For a flat world it keeps the flat axis's few bits for the levels where the other
-// axes' cells have become as thin as it is, so cells stay near cubic all the way down instead of
-// slicing the flat axis at the root (as a plain round robin would; docs/architecture.md,
-// "Morton layout", has the measurement).
-void assign_positions(MortonLayout& l, std::array<double, 3> cell) {
-  const int total = l.axis_bits[0] + l.axis_bits[1] + l.axis_bits[2];
-  VISCD_ASSERT(total <= l.bits, "layout uses more bits than the code has");
-  std::array<int, 3> left = l.axis_bits;
-  for (int pos = total - 1; pos >= 0; --pos) {
-    int pick = -1;
-    for (std::uint8_t axis : l.order)
-      if (left[axis] > 0 && (pick < 0 || cell[axis] > cell[pick])) pick = axis;
-    --left[pick];
-    l.position[pick][left[pick]] = static_cast<std::int8_t>(pos);
-    cell[pick] *= 0.5;
+// The shared rule's plain layout as the host's MortonLayout.
+MortonLayout from_rule(const rule::Layout& r) {
+  MortonLayout l;
+  l.bits = r.bits;
+  for (int a = 0; a < 3; ++a) {
+    const auto axis = static_cast<std::size_t>(a);
+    l.axis_bits[axis] = r.axis_bits[a];
+    l.order[axis] = r.order[a];
+    for (std::size_t b = 0; b < 32; ++b) l.position[axis][b] = r.position[a][b];
   }
+  VISCD_ASSERT(l.axis_bits[0] + l.axis_bits[1] + l.axis_bits[2] <= l.bits, "layout uses more bits than the code has");
+  return l;
 }
 
 }  // namespace
@@ -43,39 +35,12 @@ MortonLayoutInfo MortonLayout::info() const {
 }
 
 MortonLayout extended_layout(int bits, const Aabb& b, float mean_diameter) {
-  MortonLayout l;
-  l.bits = bits;
-  const std::array<float, 3> extent = {std::max(0.f, b.hi.x - b.lo.x), std::max(0.f, b.hi.y - b.lo.y),
-                                       std::max(0.f, b.hi.z - b.lo.z)};
-  std::array<std::uint8_t, 3> order{0, 1, 2};
-  // Stable insertion sort by extent, largest first (std::stable_sort would allocate a buffer).
-  for (int i = 1; i < 3; ++i)
-    for (int k = i; k > 0 && extent[order[k]] > extent[order[k - 1]]; --k) std::swap(order[k], order[k - 1]);
-  l.order = order;
-
-  // Bits finer than an object are wasted on the flattest axis.
-  int cap = 1;
-  const double ratio = static_cast<double>(extent[order[2]]) / static_cast<double>(mean_diameter);
-  if (ratio > 1.0) {  // log2 <= 0 (and NaN from 0/0) leave cap at 1; an infinite ratio caps at m/3
-    cap = std::isinf(ratio) ? bits : std::max(1, static_cast<int>(std::ceil(std::log2(ratio))));
-  }
-  const int smallest = std::min(cap, bits / 3);
-  const int rest = bits - smallest;
-  l.axis_bits[order[0]] = rest - rest / 2;
-  l.axis_bits[order[1]] = rest / 2;
-  l.axis_bits[order[2]] = smallest;
-  assign_positions(l, {extent[0], extent[1], extent[2]});
-  return l;
+  const float extent[3] = {std::max(0.f, b.hi.x - b.lo.x), std::max(0.f, b.hi.y - b.lo.y),
+                           std::max(0.f, b.hi.z - b.lo.z)};
+  return from_rule(rule::extended_layout(bits, extent, mean_diameter));
 }
 
-MortonLayout plain_layout(int bits) {
-  MortonLayout l;
-  l.bits = bits;
-  l.axis_bits = {bits / 3, bits / 3, bits / 3};
-  l.order = {0, 1, 2};
-  assign_positions(l, {1.0, 1.0, 1.0});
-  return l;
-}
+MortonLayout plain_layout(int bits) { return from_rule(rule::plain_layout(bits)); }
 
 MortonLayout make_layout(Layout kind, int bits, const Aabb& centre_bounds, float mean_diameter) {
   return kind == Layout::plain ? plain_layout(bits) : extended_layout(bits, centre_bounds, mean_diameter);
@@ -91,14 +56,10 @@ MortonGrid morton_grid(const MortonLayout& layout, const Aabb& bounds) {
   const std::array<float, 3> lo = {bounds.lo.x, bounds.lo.y, bounds.lo.z};
   const std::array<float, 3> hi = {bounds.hi.x, bounds.hi.y, bounds.hi.z};
   MortonGrid g;
-  for (int axis = 0; axis < 3; ++axis) {
+  for (std::size_t axis = 0; axis < 3; ++axis) {
     const int nb = layout.axis_bits[axis];
     VISCD_ASSERT(nb >= 0 && nb <= 32, "an axis has more than 32 bits");
-    const double cells = std::ldexp(1.0, nb);
-    const double extent = static_cast<double>(hi[axis]) - static_cast<double>(lo[axis]);
-    g.lo[axis] = lo[axis];
-    g.scale[axis] = (extent > 0.0 && std::isfinite(extent)) ? cells / extent : 0.0;
-    g.max_cell[axis] = cells - 1.0;
+    rule::axis_grid(nb, lo[axis], hi[axis], g.lo[axis], g.scale[axis], g.max_cell[axis]);
   }
   return g;
 }

@@ -20,6 +20,7 @@
 #include <string>
 
 #include "core/geometry.hpp"
+#include "core/morton_rule.hpp"
 #include "viscd/config.hpp"
 #include "viscd/frame.hpp"
 
@@ -84,9 +85,7 @@ class MortonEncoder {
 
  private:
   [[nodiscard]] std::uint32_t quantize(int axis, float v) const {
-    const double q = (static_cast<double>(v) - lo_[axis]) * scale_[axis];
-    if (!(q > 0.0)) return 0;  // also catches NaN
-    return q >= max_cell_[axis] ? static_cast<std::uint32_t>(max_cell_[axis]) : static_cast<std::uint32_t>(q);
+    return rule::quantize(v, lo_[axis], scale_[axis], max_cell_[axis]);
   }
   [[nodiscard]] std::uint64_t scatter(int axis, std::uint32_t q) const {
     const auto& t = table_[axis];

@@ -9,12 +9,9 @@
 namespace viscd {
 namespace detail {
 
-void CpuDetector::draw_frame(const CameraRig& cam, const Camera& camera, const FrameInput& in, int threads) {
+Status CpuDetector::draw_frame(const CameraRig& cam, const Camera& camera, const FrameInput& in, int threads) {
   const Shapes moving = Shapes::of(in);
-  if (static_set_.empty()) {
-    rasterize(cam, moving, threads);
-    return;
-  }
+  if (static_set_.empty()) return rasterize(cam, moving, threads);
   // The static layer, redrawn only when the camera, the map or the set changed.
   const bool normals = !map_.normal.empty();
   if (layer_key_.camera != camera || layer_key_.width != map_.width || layer_key_.height != map_.height ||
@@ -29,7 +26,7 @@ void CpuDetector::draw_frame(const CameraRig& cam, const Camera& camera, const F
     }
     layer_key_ = {camera, map_.width, map_.height, normals, static_set_.version()};
   }
-  rasterize(cam, moving, threads);
+  if (Status s = rasterize(cam, moving, threads); !s) return s;
   // Merge: per pixel the nearer of the two, a tie to the moving object (the smaller id); the
   // static ids move up by N. The counts are taken afterwards, from the merged ids (keeping the
   // rasterizer's and subtracting the hidden pixels with atomics was slower: 4.6 against 2.9 ms).
@@ -49,6 +46,7 @@ void CpuDetector::draw_frame(const CameraRig& cam, const Camera& camera, const F
         for (int c = 0; c < 3; ++c) map_.normal[3 * i + c] = static_layer_.normal[3 * i + c];
     }
   });
+  return {};
 }
 
 Status CpuDetector::follow_change(const FrameInput& in, const Shapes& objects, std::span<const std::uint32_t> active,

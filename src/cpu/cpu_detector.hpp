@@ -55,19 +55,20 @@ class CpuDetector final : public PipelineDetector {
   void query_box_visit(const Box& box, const Filter* filter, OverlapVisitor& visitor) override;
 
  private:
-  void rasterize(const CameraRig& cam, const Shapes& objects, int threads) override {
+  Status rasterize(const CameraRig& cam, const Shapes& objects, int threads) override {
     if (objects.is_box()) {
       box_raster_.run(cam, objects.boxes, threads, map_);
-      return;
+      return {};
     }
     raster_.set_simd(simd_level_for(config_.simd));
     raster_.run(cam, objects.spheres, threads, map_);
+    return {};
   }
   /// The static set's layer is drawn once per camera, map size and set version (static_layer_),
   /// and each frame's moving objects are drawn on their own and merged with it pixel by pixel:
   /// the nearer wins, a tie goes to the moving object (its id is the smaller), so the map is the
   /// one a single pass over both would draw, bit for bit.
-  void draw_frame(const CameraRig& cam, const Camera& camera, const FrameInput& in, int threads) override;
+  Status draw_frame(const CameraRig& cam, const Camera& camera, const FrameInput& in, int threads) override;
   Status follow_change(const FrameInput& in, const Shapes& objects, std::span<const std::uint32_t> active,
                        std::span<const Filter> filters, int bits, int threads, std::vector<Pair>& pairs,
                        FrameStats& stats, bool& done) override;

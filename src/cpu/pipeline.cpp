@@ -42,9 +42,9 @@ FilterSplit split_by_filters(std::span<const std::uint32_t> active, std::span<co
   return {std::span<const std::uint32_t>(pairable.data(), p), std::span<const std::uint32_t>(unpaired.data(), u)};
 }
 
-void PipelineDetector::draw_frame(const CameraRig& cam, const Camera&, const FrameInput& in, int threads) {
+Status PipelineDetector::draw_frame(const CameraRig& cam, const Camera&, const FrameInput& in, int threads) {
   draw_.build(in, &static_set_);
-  rasterize(cam, draw_.objects, threads);
+  return rasterize(cam, draw_.objects, threads);
 }
 
 Status PipelineDetector::validate_objects(const Shapes& objects) {
@@ -102,7 +102,7 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     const MapSize map = map_size(config_, *camera);
     rig.emplace(*camera, map.width, map.height);
     map_.resize(map.width, map.height, config_.shade);
-    draw_frame(*rig, *camera, in, threads);  // static objects occlude
+    if (Status s = draw_frame(*rig, *camera, in, threads); !s) return s;  // static objects occlude
     stats.ms(Stage::visibility) = sw.lap();
     if (own_static && !static_set_.empty() && !map_.has_counts) {
       // Ids above n are the static layer's: counted together in the bin above the moving objects

@@ -26,12 +26,14 @@ class PipelineDetector : public Backend {
   [[nodiscard]] Status run_frame(const FrameInput& input, FrameResult& out) final;
   /// The objects checked in ranges on the frame's threads (a pass over every shape each frame).
   [[nodiscard]] Status validate_objects(const Shapes& objects) final;
-  /// Stage 1 into map_ (already sized): every object, the static ones after the moving ones.
-  virtual void rasterize(const CameraRig& cam, const Shapes& objects, int threads) = 0;
+  /// Stage 1 into map_ (already sized): every object, the static ones after the moving ones. Only
+  /// a backend that draws on a device can fail (the cpu rasterizers return ok).
+  [[nodiscard]] virtual Status rasterize(const CameraRig& cam, const Shapes& objects, int threads) = 0;
   /// Stage 1 of a frame: the frame's objects and the static set's into map_ (ids: moving k as
   /// k + 1, the static set's live objects after them in slot order). By default rasterize() over
   /// both at once; a backend may keep the static objects' layer between frames.
-  virtual void draw_frame(const CameraRig& cam, const Camera& camera, const FrameInput& in, int threads);
+  [[nodiscard]] virtual Status draw_frame(const CameraRig& cam, const Camera& camera, const FrameInput& in,
+                                          int threads);
   /// Bytes held by the backend's own stages (raster, broadphase).
   [[nodiscard]] virtual std::uint64_t backend_memory_bytes() const = 0;
   /// Stages 4-8 over `pairable` (ascending: the active objects that can pair with another under

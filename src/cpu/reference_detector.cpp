@@ -17,7 +17,10 @@ class ReferenceDetector final : public PipelineDetector {
   [[nodiscard]] std::uint64_t backend_memory_bytes() const override { return 0; }
 
  private:
-  void rasterize(const CameraRig& cam, const Shapes& objects, int) override { rasterize_reference(cam, objects, map_); }
+  Status rasterize(const CameraRig& cam, const Shapes& objects, int) override {
+    rasterize_reference(cam, objects, map_);
+    return {};
+  }
   // Queries: the base class's brute force over the active spheres (answers_queries() is false).
   Status broadphase(const Shapes& objects, std::span<const std::uint32_t> active, std::span<const std::uint32_t>,
                     std::span<const Filter> filters, std::uint32_t static_from, int bits, int threads,

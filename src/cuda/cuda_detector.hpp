@@ -7,7 +7,13 @@
 
 namespace viscd::detail {
 
-/// The last frame's GPU times of a cuda detector; null for a detector of another backend.
+/// The last frame's GPU times of a cuda detector's broadphase and splat (zero on a frame without
+/// a map); null for a detector of another backend.
 [[nodiscard]] const cuda::Times* cuda_times(const Detector& detector);
+[[nodiscard]] const cuda::SplatTimes* cuda_splat_times(const Detector& detector);
+
+/// A test hook: the longest chunk list the splat plans (0 forces its fallback, a warp an object).
+/// False for a detector of another backend.
+bool set_cuda_chunk_limit(Detector& detector, unsigned long long limit);
 
 }  // namespace viscd::detail

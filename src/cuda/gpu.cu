@@ -3,7 +3,9 @@
 // test here is the one the CPU evaluates: core/geometry.hpp's overlap_exact and
 // conservative_box, core/visibility.hpp's hit(), hit_box(), sphere_rect() and box_rect(), and
 // core/morton.hpp's quantisation, operation for operation.
+#include <cub/block/block_reduce.cuh>
 #include <cub/device/device_radix_sort.cuh>
+#include <cub/device/device_scan.cuh>
 
 #include <cuda_runtime.h>
 #include <algorithm>
@@ -12,6 +14,7 @@
 #include <string>
 #include <utility>
 
+#include "core/morton_rule.hpp"
 #include "cuda/gpu.hpp"
 
 namespace viscd::cuda {
@@ -67,6 +70,36 @@ struct Buffer {
         ptr = nullptr;
         return e;
       }
+    }
+    capacity = want;
+    return cudaSuccess;
+  }
+  template <class T>
+  [[nodiscard]] T* as() const {
+    return static_cast<T*>(ptr);
+  }
+};
+
+// Pinned host memory that only grows, as Buffer.
+struct PinnedBuffer {
+  void* ptr = nullptr;
+  std::size_t capacity = 0;
+  PinnedBuffer() = default;
+  PinnedBuffer(const PinnedBuffer&) = delete;
+  PinnedBuffer& operator=(const PinnedBuffer&) = delete;
+  ~PinnedBuffer() {
+    if (ptr) cudaFreeHost(ptr);
+  }
+  cudaError_t reserve(std::size_t bytes) {
+    if (bytes <= capacity) return cudaSuccess;
+    const std::size_t want = std::max(bytes, capacity + capacity / 2);
+    if (ptr) cudaFreeHost(ptr);
+    ptr = nullptr;
+    capacity = 0;
+    const cudaError_t e = cudaHostAlloc(&ptr, want, cudaHostAllocDefault);
+    if (e != cudaSuccess) {
+      ptr = nullptr;
+      return e;
     }
     capacity = want;
     return cudaSuccess;
@@ -187,12 +220,8 @@ __global__ void clear_map(std::uint64_t n, unsigned long long* map) {
 constexpr unsigned kChunk = 32;          // pixels of a rectangle a warp of the splat takes
 constexpr unsigned kChunksPerBlock = 8;  // warps (chunks) a block
 // Longest chunk list (1 GiB); a frame whose rectangles need more is splatted a warp an object.
-// VISCD_CUDA_MAX_CHUNKS lowers it (the tests run the fallback with 0).
+// Gpu::set_chunk_limit() lowers it (the tests run the fallback with 0).
 constexpr unsigned long long kMaxChunks = 1ull << 27;
-unsigned long long max_chunks() {
-  const char* v = std::getenv("VISCD_CUDA_MAX_CHUNKS");
-  return v && *v ? std::min(std::strtoull(v, nullptr, 10), kMaxChunks) : kMaxChunks;
-}
 
 // The fallback splat: one warp an object, its lanes taking the rectangle's pixels in turn.
 __global__ void splat_objects(std::uint32_t count, const float* objects, bool boxes, Rig rig, unsigned long long* map) {
@@ -279,10 +308,16 @@ __global__ void resolve_map(std::uint64_t n, const unsigned long long* map, floa
 
 // ---- stages 5-8 ----
 
-__device__ unsigned quantize(float v, double lo, double scale, double max_cell) {
-  const double q = (static_cast<double>(v) - lo) * scale;
-  if (!(q > 0.0)) return 0u;  // also NaN
-  return q >= max_cell ? static_cast<unsigned>(max_cell) : static_cast<unsigned>(q);
+// The code of a centre on the grid (core/morton.hpp's MortonEncoder, by the shared rule).
+__device__ std::uint64_t code_of(const Grid& g, float x, float y, float z) {
+  const float c[3] = {x, y, z};
+  std::uint64_t key = 0;
+  for (int a = 0; a < 3; ++a) {
+    const unsigned q = detail::rule::quantize(c[a], g.lo[a], g.scale[a], g.max_cell[a]);
+    for (int b = 0; b < g.axis_bits[a]; ++b)
+      if ((q >> b) & 1u) key |= std::uint64_t{1} << g.position[a][b];
+  }
+  return key;
 }
 
 __global__ void morton_codes(std::uint32_t n, const float4* spheres, Grid g, std::uint64_t* keys,
@@ -290,14 +325,7 @@ __global__ void morton_codes(std::uint32_t n, const float4* spheres, Grid g, std
   const std::uint32_t k = blockIdx.x * blockDim.x + threadIdx.x;
   if (k >= n) return;
   const float4 s = spheres[k];
-  const float c[3] = {s.x, s.y, s.z};
-  std::uint64_t key = 0;
-  for (int a = 0; a < 3; ++a) {
-    const unsigned q = quantize(c[a], g.lo[a], g.scale[a], g.max_cell[a]);
-    for (int b = 0; b < g.axis_bits[a]; ++b)
-      if ((q >> b) & 1u) key |= std::uint64_t{1} << g.position[a][b];
-  }
-  keys[k] = key;
+  keys[k] = code_of(g, s.x, s.y, s.z);
   values[k] = k;
 }
 
@@ -415,21 +443,41 @@ __device__ bool boxes_meet(const float* a, const float* b) {  // box_overlap_exa
   return true;
 }
 
-// One thread a leaf p: the leaves q > p whose boxes meet its own, then the exact test. Every pair
-// is counted; it is stored only below the capacity, and the host grows the buffer and runs this
-// again when the count exceeds it: no pair is ever dropped.
-// A pair is the key (i << id_bits) | j, i < j frame indices of id_bits bits each, so that the
-// pair sort runs over 2 id_bits bits only.
+// What a traversal pass does with each pair it finds.
+enum class Pass {
+  append,  // the host frame: a key (i << id_bits) | j at an atomic slot below the capacity
+  count,   // the device frame's first pass: counts[p] = pairs of leaf p; both objects' states colliding
+  write,   // its second: leaf p's pairs as (i, j) from offsets[p] on, below the capacity
+};
+
+// The traversal's output, by pass.
+struct QueryOut {
+  std::uint64_t* keys = nullptr;               // append
+  unsigned long long* count = nullptr;         // append: every pair counted
+  int id_bits = 0;                             // append
+  unsigned long long* counts = nullptr;        // count
+  std::uint8_t* states = nullptr;              // count; may be null
+  const unsigned long long* offsets = nullptr;  // write
+  uint2* pairs = nullptr;                      // write
+  std::uint64_t capacity = 0;                  // append, write
+};
+
+// One thread a leaf p: the leaves q > p whose boxes meet its own, then the exact test, the static
+// rule and the filters. No pass drops a pair: append counts every pair and stores those below the
+// capacity (the host grows the buffer and runs it again); count and write find the same pairs in
+// the same order, and the caller sees the true total.
+template <Pass kPass>
 __global__ void query(std::uint32_t n, const float4* __restrict__ sorted, const float* __restrict__ leaf_boxes,
                       const Node* __restrict__ nodes, const std::uint32_t* __restrict__ frame_id,
-                      const uint2* __restrict__ filters, std::uint32_t static_from, bool boxes, int id_bits,
-                      std::uint64_t* __restrict__ pairs, std::uint64_t capacity, unsigned long long* count) {
+                      const uint2* __restrict__ filters, std::uint32_t static_from, bool boxes, QueryOut out) {
   const std::uint32_t p = blockIdx.x * blockDim.x + threadIdx.x;
   if (p >= n || n < 2) return;
   const float4 a = sorted[p];
   const float* box = leaf_boxes + 6 * std::uint64_t{p};
   const float lo[3] = {box[0], box[1], box[2]}, hi[3] = {box[3], box[4], box[5]};
   const std::uint32_t ia = frame_id[p];
+  unsigned long long found = 0;
+  std::uint64_t slot = kPass == Pass::write ? out.offsets[p] : 0;
   unsigned stack[kStack];
   int sp = 0;
   unsigned node = 0;
@@ -451,9 +499,17 @@ __global__ void query(std::uint32_t n, const float4* __restrict__ sorted, const 
           const uint2 fa = filters[ia], fb = filters[ib];
           if ((fa.x & fb.y) == 0u || (fb.x & fa.y) == 0u) continue;
         }
-        const unsigned long long slot = atomicAdd(count, 1ull);
-        if (slot < capacity)
-          pairs[slot] = (static_cast<std::uint64_t>(min(ia, ib)) << id_bits) | static_cast<std::uint64_t>(max(ia, ib));
+        const std::uint32_t i = min(ia, ib), j = max(ia, ib);
+        if constexpr (kPass == Pass::append) {
+          const unsigned long long at = atomicAdd(out.count, 1ull);
+          if (at < out.capacity) out.keys[at] = (static_cast<std::uint64_t>(i) << out.id_bits) | j;
+        } else if constexpr (kPass == Pass::count) {
+          ++found;
+          if (out.states) out.states[ib] = 2;  // ObjectState::colliding
+        } else {
+          if (slot < out.capacity) out.pairs[slot] = make_uint2(i, j);
+          ++slot;
+        }
       } else if (next == 0xFFFFFFFFu) {
         next = ch;
       } else {
@@ -465,7 +521,11 @@ __global__ void query(std::uint32_t n, const float4* __restrict__ sorted, const 
     else if (sp > 0)
       node = stack[--sp];
     else
-      return;
+      break;
+  }
+  if constexpr (kPass == Pass::count) {
+    out.counts[p] = found;
+    if (found && out.states) out.states[ia] = 2;
   }
 }
 
@@ -488,10 +548,11 @@ struct Gpu::Impl {
   // splat
   Buffer map, ids, depth, counts, objects, rects, chunks, chunk_count;
   unsigned long long chunk_capacity = 1u << 16;
-  unsigned long long chunk_limit = max_chunks();
+  unsigned long long chunk_limit = kMaxChunks;
   // broadphase
   Buffer spheres, boxes, id_map, filters, keys[2], values[2], nodes, parent, arrivals, sorted, leaf_boxes, frame_id,
       pairs[2], pair_count, temp;
+  PinnedBuffer staged_spheres, staged_boxes, staged_ids, staged_filters;
   std::uint64_t pair_capacity = 1 << 16;
   cudaEvent_t ev[10] = {};
   bool events = false;
@@ -517,6 +578,7 @@ struct Gpu::Impl {
           &boxes,    &id_map, &filters,    &keys[0],  &keys[1],  &values[0], &values[1],  &nodes,       &parent,
           &arrivals, &sorted, &leaf_boxes, &frame_id, &pairs[0], &pairs[1],  &pair_count, &temp})
       b += x->capacity;
+    for (const PinnedBuffer* x : {&staged_spheres, &staged_boxes, &staged_ids, &staged_filters}) b += x->capacity;
     return b;
   }
 };
@@ -557,9 +619,10 @@ Outcome Gpu::probe(std::string& description) {
 Gpu::Gpu() : impl_(std::make_unique<Impl>()) {}
 Gpu::~Gpu() = default;
 std::uint64_t Gpu::bytes() const { return impl_->bytes(); }
+void Gpu::set_chunk_limit(unsigned long long limit) { impl_->chunk_limit = std::min(limit, kMaxChunks); }
 
 Outcome Gpu::splat(const Rig& rig, const float* objects, bool boxes, std::uint32_t count, std::uint32_t* ids,
-                   float* depth, std::uint32_t* counts, Times& times) {
+                   float* depth, std::uint32_t* counts, SplatTimes& times) {
   Impl& m = *impl_;
   if (Outcome o = m.make_events(); !o.ok()) return o;
   const std::uint64_t pixels = static_cast<std::uint64_t>(rig.map_w) * static_cast<std::uint64_t>(rig.map_h);
@@ -616,6 +679,20 @@ Outcome Gpu::splat(const Rig& rig, const float* objects, bool boxes, std::uint32
   return {};
 }
 
+Outcome Gpu::staging(std::uint32_t n, bool boxes, bool ids, std::uint32_t filters, Staging& out) {
+  Impl& m = *impl_;
+  const std::size_t k = std::max<std::size_t>(n, 1);
+  VISCD_CUDA(m.staged_spheres.reserve(16 * k));
+  out.spheres = m.staged_spheres.as<float>();
+  if (boxes) VISCD_CUDA(m.staged_boxes.reserve(24 * k));
+  out.boxes = boxes ? m.staged_boxes.as<float>() : nullptr;
+  if (ids) VISCD_CUDA(m.staged_ids.reserve(4 * k));
+  out.ids = ids ? m.staged_ids.as<std::uint32_t>() : nullptr;
+  if (filters) VISCD_CUDA(m.staged_filters.reserve(8 * std::size_t{filters}));
+  out.filters = filters ? m.staged_filters.as<std::uint32_t>() : nullptr;
+  return {};
+}
+
 Outcome Gpu::broadphase(const BroadphaseInput& in, const Grid& grid, std::uint64_t max_pairs, PairSink sink,
                         void* sink_context, Times& times) {
   Impl& m = *impl_;
@@ -652,11 +729,14 @@ Outcome Gpu::broadphase(const BroadphaseInput& in, const Grid& grid, std::uint64
   }
   VISCD_CUDA(m.temp.reserve(sort_temp));
 
+  // From Gpu::staging()'s pinned buffers these copies run at the bus's speed; from pageable
+  // memory the driver copies through a bounce buffer and they return when done.
   VISCD_CUDA(cudaEventRecord(m.ev[0]));
-  VISCD_CUDA(cudaMemcpy(m.spheres.ptr, in.spheres, 16 * std::size_t{n}, cudaMemcpyHostToDevice));
-  if (boxes) VISCD_CUDA(cudaMemcpy(m.boxes.ptr, in.boxes, 24 * std::size_t{n}, cudaMemcpyHostToDevice));
-  if (in.ids) VISCD_CUDA(cudaMemcpy(m.id_map.ptr, in.ids, 4 * std::size_t{n}, cudaMemcpyHostToDevice));
-  if (in.filters) VISCD_CUDA(cudaMemcpy(m.filters.ptr, in.filters, 8 * std::size_t{in.total}, cudaMemcpyHostToDevice));
+  VISCD_CUDA(cudaMemcpyAsync(m.spheres.ptr, in.spheres, 16 * std::size_t{n}, cudaMemcpyHostToDevice));
+  if (boxes) VISCD_CUDA(cudaMemcpyAsync(m.boxes.ptr, in.boxes, 24 * std::size_t{n}, cudaMemcpyHostToDevice));
+  if (in.ids) VISCD_CUDA(cudaMemcpyAsync(m.id_map.ptr, in.ids, 4 * std::size_t{n}, cudaMemcpyHostToDevice));
+  if (in.filters)
+    VISCD_CUDA(cudaMemcpyAsync(m.filters.ptr, in.filters, 8 * std::size_t{in.total}, cudaMemcpyHostToDevice));
   VISCD_CUDA(cudaEventRecord(m.ev[1]));
   morton_codes<<<blocks(n), kBlock>>>(n, m.spheres.as<float4>(), grid, m.keys[0].as<std::uint64_t>(),
                                       m.values[0].as<std::uint32_t>());
@@ -683,10 +763,14 @@ Outcome Gpu::broadphase(const BroadphaseInput& in, const Grid& grid, std::uint64
   for (int attempt = 0;; ++attempt) {
     VISCD_CUDA(m.pairs[0].reserve(8 * m.pair_capacity));
     VISCD_CUDA(cudaMemsetAsync(m.pair_count.ptr, 0, 8));
-    query<<<blocks(n), kBlock>>>(n, m.sorted.as<float4>(), m.leaf_boxes.as<float>(), m.nodes.as<Node>(),
-                                 m.frame_id.as<std::uint32_t>(), in.filters ? m.filters.as<uint2>() : nullptr,
-                                 in.static_from, boxes, id_bits, m.pairs[0].as<std::uint64_t>(), m.pair_capacity,
-                                 m.pair_count.as<unsigned long long>());
+    QueryOut qo;
+    qo.keys = m.pairs[0].as<std::uint64_t>();
+    qo.count = m.pair_count.as<unsigned long long>();
+    qo.id_bits = id_bits;
+    qo.capacity = m.pair_capacity;
+    query<Pass::append><<<blocks(n), kBlock>>>(n, m.sorted.as<float4>(), m.leaf_boxes.as<float>(), m.nodes.as<Node>(),
+                                               m.frame_id.as<std::uint32_t>(),
+                                               in.filters ? m.filters.as<uint2>() : nullptr, in.static_from, boxes, qo);
     VISCD_CUDA(cudaGetLastError());
     VISCD_CUDA(cudaEventRecord(m.ev[6]));
     VISCD_CUDA(cudaMemcpy(&count, m.pair_count.ptr, 8, cudaMemcpyDeviceToHost));
@@ -696,7 +780,13 @@ Outcome Gpu::broadphase(const BroadphaseInput& in, const Grid& grid, std::uint64
       o.pairs = count;
       return o;
     }
-    if (count <= m.pair_capacity || attempt > 0) break;
+    if (count <= m.pair_capacity) break;
+    if (attempt > 0) {  // the same input gives the same count: this would be a bug, never a loss
+      Outcome o;
+      o.error = "the query found " + std::to_string(count) + " pairs after growing its buffer to " +
+                std::to_string(m.pair_capacity) + " (an internal error)";
+      return o;
+    }
     m.pair_capacity = count;
   }
   if (count > 0x7FFFFFFFull) {  // CUB sorts at most 2^31 - 1 items at a time
@@ -726,12 +816,292 @@ Outcome Gpu::broadphase(const BroadphaseInput& in, const Grid& grid, std::uint64
   times.sort = m.between(2, 3);
   times.build = m.between(3, 4);
   times.fit = m.between(4, 5);
-  times.query = m.between(5, 6);  // the last attempt's start is the fit's end when there was one attempt
+  times.query = m.between(5, 6);  // with a second attempt: both, and the count read back between them
   times.pair_sort = m.between(6, 7);
   times.download = m.between(7, 8);
   Outcome o;
   o.pairs = count;
   return o;
+}
+
+// ---- the device-resident frame ----
+
+namespace {
+
+// One block's share of the objects: the bounds of the valid centres, the sum of their diameters
+// (box_proxy()'s for boxes, as the host's extent_of()), and the invalid ones.
+struct Partial {
+  float lo[3], hi[3];
+  double diameters;
+  unsigned valid, invalid, first_invalid;
+};
+
+struct MergePartial {
+  __device__ Partial operator()(const Partial& a, const Partial& b) const {
+    Partial r;
+    for (int k = 0; k < 3; ++k) {
+      r.lo[k] = fminf(a.lo[k], b.lo[k]);
+      r.hi[k] = fmaxf(a.hi[k], b.hi[k]);
+    }
+    r.diameters = a.diameters + b.diameters;
+    r.valid = a.valid + b.valid;
+    r.invalid = a.invalid + b.invalid;
+    r.first_invalid = min(a.first_invalid, b.first_invalid);
+    return r;
+  }
+};
+
+__device__ Partial empty_partial() {
+  Partial p;
+  for (int k = 0; k < 3; ++k) {
+    p.lo[k] = INFINITY;
+    p.hi[k] = -INFINITY;
+  }
+  p.diameters = 0;
+  p.valid = p.invalid = 0;
+  p.first_invalid = 0xFFFFFFFFu;
+  return p;
+}
+
+constexpr unsigned kPrepareBlocks = 1024;  // at most; the split depends on n alone, so sums are deterministic
+
+// Each block takes a fixed share of the objects: checks them as validate_spheres() and
+// validate_boxes() do (finite, radius >= 0, min <= max), writes a box's proxy (centre, radius) for
+// the codes, and reduces its share's bounds, diameters and invalid objects into partial[block].
+__global__ void prepare(std::uint32_t n, const float4* spheres, const float* boxes, float4* proxies, Partial* partial) {
+  using Reduce = cub::BlockReduce<Partial, kBlock>;
+  __shared__ typename Reduce::TempStorage temp;
+  Partial mine = empty_partial();
+  const std::uint64_t stride = std::uint64_t{gridDim.x} * kBlock;
+  for (std::uint64_t k = blockIdx.x * std::uint64_t{kBlock} + threadIdx.x; k < n; k += stride) {
+    float4 s;
+    bool ok;
+    if (boxes) {
+      const float* b = boxes + 6 * k;
+      ok = true;
+      for (int a = 0; a < 3; ++a) ok = ok && isfinite(b[a]) && isfinite(b[a + 3]) && b[a] <= b[a + 3];
+      // box_proxy(): the centre and the mean half side.
+      s = make_float4((b[0] + b[3]) * 0.5f, (b[1] + b[4]) * 0.5f, (b[2] + b[5]) * 0.5f,
+                      ((b[3] - b[0]) + (b[4] - b[1]) + (b[5] - b[2])) / 6.0f);
+      proxies[k] = s;
+    } else {
+      s = spheres[k];
+      ok = isfinite(s.x) && isfinite(s.y) && isfinite(s.z) && isfinite(s.w) && s.w >= 0.0f;
+    }
+    if (!ok) {
+      ++mine.invalid;
+      mine.first_invalid = min(mine.first_invalid, static_cast<unsigned>(k));
+      continue;
+    }
+    mine.lo[0] = fminf(mine.lo[0], s.x), mine.lo[1] = fminf(mine.lo[1], s.y), mine.lo[2] = fminf(mine.lo[2], s.z);
+    mine.hi[0] = fmaxf(mine.hi[0], s.x), mine.hi[1] = fmaxf(mine.hi[1], s.y), mine.hi[2] = fmaxf(mine.hi[2], s.z);
+    mine.diameters += 2.0 * static_cast<double>(s.w);
+    ++mine.valid;
+  }
+  const Partial all = Reduce(temp).Reduce(mine, MergePartial{});
+  if (threadIdx.x == 0) partial[blockIdx.x] = all;
+}
+
+// One block: the partials merged in a fixed order, then the layout (the shared rule, the host's
+// make_layout()) and its grid, and the report's header. The pair count is finish()'s.
+__global__ void plan_grid(unsigned parts, const Partial* partial, std::uint32_t n, int bits, bool plain, Grid* grid,
+                          Report* report) {
+  using Reduce = cub::BlockReduce<Partial, kBlock>;
+  __shared__ typename Reduce::TempStorage temp;
+  Partial mine = empty_partial();
+  for (unsigned k = threadIdx.x; k < parts; k += kBlock) mine = MergePartial{}(mine, partial[k]);
+  const Partial all = Reduce(temp).Reduce(mine, MergePartial{});
+  if (threadIdx.x != 0) return;
+  float lo[3], hi[3], extent[3];
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = all.valid ? all.lo[a] : 0.0f;
+    hi[a] = all.valid ? all.hi[a] : 0.0f;
+    extent[a] = fmaxf(0.0f, hi[a] - lo[a]);
+  }
+  const float mean = all.valid ? static_cast<float>(all.diameters / static_cast<double>(all.valid)) : 0.0f;
+  const detail::rule::Layout l = plain ? detail::rule::plain_layout(bits) : detail::rule::extended_layout(bits, extent, mean);
+  Grid g;
+  for (int a = 0; a < 3; ++a) {
+    detail::rule::axis_grid(l.axis_bits[a], lo[a], hi[a], g.lo[a], g.scale[a], g.max_cell[a]);
+    g.axis_bits[a] = l.axis_bits[a];
+    for (int b = 0; b < 32; ++b) g.position[a][b] = l.position[a][b];
+  }
+  g.bits = bits;
+  *grid = g;
+  report->pairs = 0;
+  report->invalid = all.invalid;
+  report->first_invalid = all.first_invalid;
+  report->bits = static_cast<std::uint32_t>(bits);
+  report->objects = n;
+}
+
+__global__ void device_codes(std::uint32_t n, const float4* centres, const Grid* grid, std::uint64_t* keys,
+                             std::uint32_t* values) {
+  const std::uint32_t k = blockIdx.x * blockDim.x + threadIdx.x;
+  if (k >= n) return;
+  const float4 s = centres[k];
+  keys[k] = code_of(*grid, s.x, s.y, s.z);
+  values[k] = k;
+}
+
+__global__ void fill_states(std::uint32_t n, std::uint8_t* states) {
+  const std::uint32_t k = blockIdx.x * blockDim.x + threadIdx.x;
+  if (k < n) states[k] = 1;  // ObjectState::free
+}
+
+__global__ void finish(std::uint32_t n, const unsigned long long* counts, const unsigned long long* offsets,
+                       Report* report) {
+  report->pairs = n >= 2 ? offsets[n - 1] + counts[n - 1] : 0ull;
+}
+
+unsigned prepare_blocks(std::uint32_t n) {
+  return std::max(1u, std::min(kPrepareBlocks, static_cast<unsigned>((std::uint64_t{n} + kBlock - 1) / kBlock)));
+}
+
+}  // namespace
+
+struct DeviceFrame::Impl {
+  Buffer proxies, partial, grid, keys[2], values[2], nodes, parent, arrivals, sorted, leaf_boxes, frame_id, counts,
+      offsets, temp;
+  std::size_t sort_temp = 0, scan_temp = 0;
+
+  // The temporary storage CUB needs for n objects at `bits` (no device work).
+  Outcome temp_sizes(std::uint32_t n, int bits) {
+    cub::DoubleBuffer<std::uint64_t> k(nullptr, nullptr);
+    cub::DoubleBuffer<std::uint32_t> v(nullptr, nullptr);
+    VISCD_CUDA(cub::DeviceRadixSort::SortPairs(nullptr, sort_temp, k, v, static_cast<int>(n), 0, bits));
+    VISCD_CUDA(cub::DeviceScan::ExclusiveSum(nullptr, scan_temp, static_cast<unsigned long long*>(nullptr),
+                                             static_cast<unsigned long long*>(nullptr), static_cast<int>(n)));
+    return {};
+  }
+  // Whether every buffer holds a frame of n objects.
+  bool holds(std::uint32_t n, bool boxes) const {
+    const std::size_t m = std::max<std::size_t>(n, 2);
+    return (!boxes || proxies.capacity >= 16 * m) && keys[0].capacity >= 8 * m && counts.capacity >= 8 * m &&
+           temp.capacity >= std::max(sort_temp, scan_temp) && grid.capacity >= sizeof(Grid);
+  }
+  Outcome reserve(std::uint32_t n, bool boxes, int bits) {
+    if (Outcome o = temp_sizes(n, bits); !o.ok()) return o;
+    const std::size_t m = std::max<std::size_t>(n, 2);
+    if (boxes) VISCD_CUDA(proxies.reserve(16 * m));
+    VISCD_CUDA(partial.reserve(sizeof(Partial) * kPrepareBlocks));
+    VISCD_CUDA(grid.reserve(sizeof(Grid)));
+    for (int k = 0; k < 2; ++k) {
+      VISCD_CUDA(keys[k].reserve(8 * m));
+      VISCD_CUDA(values[k].reserve(4 * m));
+    }
+    VISCD_CUDA(nodes.reserve(sizeof(Node) * m));
+    VISCD_CUDA(parent.reserve(4 * 2 * m));
+    VISCD_CUDA(arrivals.reserve(4 * m));
+    VISCD_CUDA(sorted.reserve(16 * m));
+    VISCD_CUDA(leaf_boxes.reserve(24 * m));
+    VISCD_CUDA(frame_id.reserve(4 * m));
+    VISCD_CUDA(counts.reserve(8 * m));
+    VISCD_CUDA(offsets.reserve(8 * m));
+    VISCD_CUDA(temp.reserve(std::max(sort_temp, scan_temp)));
+    return {};
+  }
+};
+
+DeviceFrame::DeviceFrame() : impl_(std::make_unique<Impl>()) {}
+DeviceFrame::~DeviceFrame() = default;
+
+std::uint64_t DeviceFrame::bytes() const {
+  const Impl& m = *impl_;
+  std::uint64_t b = 0;
+  for (const Buffer* x : {&m.proxies, &m.partial, &m.grid, &m.keys[0], &m.keys[1], &m.values[0], &m.values[1], &m.nodes,
+                          &m.parent, &m.arrivals, &m.sorted, &m.leaf_boxes, &m.frame_id, &m.counts, &m.offsets, &m.temp})
+    b += x->capacity;
+  return b;
+}
+
+Outcome DeviceFrame::reserve(std::uint32_t n, bool boxes, int bits) { return impl_->reserve(n, boxes, bits); }
+
+Outcome DeviceFrame::enqueue(const DeviceInput& in, const DeviceOutput& out, void* stream_handle) {
+  Impl& m = *impl_;
+  const auto stream = static_cast<cudaStream_t>(stream_handle);
+  const std::uint32_t n = in.n;
+  const bool boxes = in.boxes != nullptr;
+  cudaStreamCaptureStatus capture = cudaStreamCaptureStatusNone;
+  VISCD_CUDA(cudaStreamIsCapturing(stream, &capture));
+  if (Outcome o = m.temp_sizes(n, in.bits); !o.ok()) return o;
+  if (!m.holds(n, boxes)) {
+    if (capture != cudaStreamCaptureStatusNone) {
+      Outcome o;
+      o.error = "a frame of " + std::to_string(n) +
+                " objects needs more device memory than reserve() gave, and allocating is not allowed while the "
+                "stream is being captured: call reserve() with at least this many objects before the capture";
+      return o;
+    }
+    if (Outcome o = m.reserve(n, boxes, in.bits); !o.ok()) return o;
+  }
+  const unsigned parts = prepare_blocks(n);
+  const float4* centres = boxes ? m.proxies.as<float4>() : reinterpret_cast<const float4*>(in.spheres);
+  prepare<<<parts, kBlock, 0, stream>>>(n, reinterpret_cast<const float4*>(in.spheres), in.boxes, m.proxies.as<float4>(),
+                                        m.partial.as<Partial>());
+  VISCD_CUDA(cudaGetLastError());
+  plan_grid<<<1, kBlock, 0, stream>>>(parts, m.partial.as<Partial>(), n, in.bits, in.plain_layout, m.grid.as<Grid>(),
+                                      out.report);
+  VISCD_CUDA(cudaGetLastError());
+  if (out.states && n) {
+    fill_states<<<blocks(n), kBlock, 0, stream>>>(n, out.states);
+    VISCD_CUDA(cudaGetLastError());
+  }
+  if (n < 2) return {};  // plan_grid() reported 0 pairs
+  device_codes<<<blocks(n), kBlock, 0, stream>>>(n, centres, m.grid.as<Grid>(), m.keys[0].as<std::uint64_t>(),
+                                                 m.values[0].as<std::uint32_t>());
+  VISCD_CUDA(cudaGetLastError());
+  cub::DoubleBuffer<std::uint64_t> keys(m.keys[0].as<std::uint64_t>(), m.keys[1].as<std::uint64_t>());
+  cub::DoubleBuffer<std::uint32_t> values(m.values[0].as<std::uint32_t>(), m.values[1].as<std::uint32_t>());
+  std::size_t temp_bytes = m.temp.capacity;
+  VISCD_CUDA(cub::DeviceRadixSort::SortPairs(m.temp.ptr, temp_bytes, keys, values, static_cast<int>(n), 0, in.bits,
+                                             stream));
+  karras_build<<<blocks(n - 1), kBlock, 0, stream>>>(static_cast<int>(n), in.bits, keys.Current(), m.nodes.as<Node>(),
+                                                     m.parent.as<std::uint32_t>(), m.arrivals.as<std::uint32_t>());
+  VISCD_CUDA(cudaGetLastError());
+  fit<<<blocks(n), kBlock, 0, stream>>>(n, centres, boxes ? in.boxes : nullptr, nullptr, values.Current(),
+                                        m.sorted.as<float4>(), m.leaf_boxes.as<float>(), m.frame_id.as<std::uint32_t>(),
+                                        m.nodes.as<Node>(), m.parent.as<std::uint32_t>(), m.arrivals.as<std::uint32_t>());
+  VISCD_CUDA(cudaGetLastError());
+  const auto* filters = reinterpret_cast<const uint2*>(in.filters);
+  QueryOut counting;
+  counting.counts = m.counts.as<unsigned long long>();
+  counting.states = out.states;
+  query<Pass::count><<<blocks(n), kBlock, 0, stream>>>(n, m.sorted.as<float4>(), m.leaf_boxes.as<float>(),
+                                                       m.nodes.as<Node>(), m.frame_id.as<std::uint32_t>(), filters,
+                                                       in.static_from, boxes, counting);
+  VISCD_CUDA(cudaGetLastError());
+  temp_bytes = m.temp.capacity;
+  VISCD_CUDA(cub::DeviceScan::ExclusiveSum(m.temp.ptr, temp_bytes, m.counts.as<unsigned long long>(),
+                                           m.offsets.as<unsigned long long>(), static_cast<int>(n), stream));
+  if (out.capacity) {
+    QueryOut writing;
+    writing.offsets = m.offsets.as<unsigned long long>();
+    writing.pairs = reinterpret_cast<uint2*>(out.pairs);
+    writing.capacity = out.capacity;
+    query<Pass::write><<<blocks(n), kBlock, 0, stream>>>(n, m.sorted.as<float4>(), m.leaf_boxes.as<float>(),
+                                                         m.nodes.as<Node>(), m.frame_id.as<std::uint32_t>(), filters,
+                                                         in.static_from, boxes, writing);
+    VISCD_CUDA(cudaGetLastError());
+  }
+  finish<<<1, 1, 0, stream>>>(n, m.counts.as<unsigned long long>(), m.offsets.as<unsigned long long>(), out.report);
+  VISCD_CUDA(cudaGetLastError());
+  return {};
+}
+
+std::string device_memory_problem(const void* p) {
+  cudaPointerAttributes a{};
+  if (const cudaError_t e = cudaPointerGetAttributes(&a, p); e != cudaSuccess) {
+    (void)cudaGetLastError();
+    return std::string("not a pointer CUDA knows (") + cudaGetErrorString(e) + ")";
+  }
+  if (a.type == cudaMemoryTypeHost) return "pinned host memory (copy it to the device first)";
+  if (a.type != cudaMemoryTypeDevice && a.type != cudaMemoryTypeManaged) return "host memory";
+  int current = 0;
+  if (cudaGetDevice(&current) == cudaSuccess && a.type == cudaMemoryTypeDevice && a.device != current)
+    return "memory of CUDA device " + std::to_string(a.device) + ", not of device " + std::to_string(current) +
+           " where the broadphase runs";
+  return {};
 }
 
 }  // namespace viscd::cuda

@@ -8,6 +8,10 @@
 //   broadphase()  stages 5-8 over n objects: Morton codes, CUB radix sort over the key width m,
 //                 Karras build, bottom-up fit, traversal with a pair buffer that counts, grows
 //                 and re-runs, CUB sort of the pairs; the sorted pairs back.
+//   DeviceFrame   the device-resident frame (viscd/cuda.hpp CudaBroadphase): objects, pairs and
+//                 the report in device memory, every step enqueued on the caller's stream, no
+//                 host synchronisation: bounds and layout planned on the GPU, two traversal
+//                 passes (count, scan, write) instead of a growing buffer and a pair sort.
 
 #include <cstdint>
 #include <memory>
@@ -43,9 +47,13 @@ struct BroadphaseInput {
   std::uint32_t n = 0, total = 0, static_from = 0xFFFFFFFFu;
 };
 
-/// GPU time of each part of a frame, milliseconds (CUDA events).
+/// GPU time of each part of the broadphase, milliseconds (CUDA events).
 struct Times {
   float upload = 0, codes = 0, sort = 0, build = 0, fit = 0, query = 0, pair_sort = 0, download = 0;
+};
+
+/// GPU time of each part of the splat, milliseconds (CUDA events).
+struct SplatTimes {
   float splat = 0, count = 0, map_download = 0;
 };
 
@@ -56,6 +64,15 @@ struct Outcome {
   bool over_limit = false;  ///< broadphase(): more than max_pairs pairs (`pairs` holds the count)
   std::uint64_t pairs = 0;
   [[nodiscard]] bool ok() const { return error.empty() && !over_limit; }
+};
+
+/// Pinned host memory for a broadphase's input (Gpu::staging()): the host packs the frame here and
+/// the upload runs at the bus's speed rather than through the driver's pageable bounce buffer.
+struct Staging {
+  float* spheres = nullptr;         ///< 4 floats an object
+  float* boxes = nullptr;           ///< 6 floats an object, when asked for
+  std::uint32_t* ids = nullptr;     ///< an object's frame index, when asked for
+  std::uint32_t* filters = nullptr; ///< 2 words a frame index, when asked for
 };
 
 /// Receives the sorted pairs: returns room for `count` pairs of (i, j), 2 count words.
@@ -76,18 +93,71 @@ class Gpu {
   /// ids (object index + 1, 0 = background) and, when `depth` is not null, view depths (far plane
   /// on the background); counts[k] = pixels of object k (count entries).
   Outcome splat(const Rig& rig, const float* objects, bool boxes, std::uint32_t count, std::uint32_t* ids, float* depth,
-                std::uint32_t* counts, Times& times);
+                std::uint32_t* counts, SplatTimes& times);
+
+  /// The longest chunk list the splat plans before it falls back to a warp an object (a test
+  /// hook: 0 forces the fallback). At most 2^27.
+  void set_chunk_limit(unsigned long long limit);
+
+  /// Pinned host buffers for n objects (and `filters` filters), grown as needed and kept.
+  Outcome staging(std::uint32_t n, bool boxes, bool ids, std::uint32_t filters, Staging& out);
 
   /// Every overlapping pair of the input (frame indices i < j; sorted), given to `sink`.
   Outcome broadphase(const BroadphaseInput& in, const Grid& grid, std::uint64_t max_pairs, PairSink sink,
                      void* sink_context, Times& times);
 
-  /// Device memory held (bytes).
+  /// Device and pinned host memory held (bytes).
   [[nodiscard]] std::uint64_t bytes() const;
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+/// viscd::CudaReport's layout (viscd/cuda.hpp; cuda_detector.cpp asserts that they agree).
+struct Report {
+  unsigned long long pairs;
+  std::uint32_t invalid, first_invalid, bits, objects;
+};
+
+/// A device-resident frame's input: device pointers.
+struct DeviceInput {
+  const float* spheres = nullptr;          ///< 4 floats an object, 16-byte aligned; or
+  const float* boxes = nullptr;            ///< 6 floats an object
+  const std::uint32_t* filters = nullptr;  ///< group, mask an object; may be null
+  std::uint32_t n = 0, static_from = 0xFFFFFFFFu;
+  int bits = 32;
+  bool plain_layout = false;
+};
+
+/// A device-resident frame's output: device pointers.
+struct DeviceOutput {
+  std::uint32_t* pairs = nullptr;  ///< 2 words a pair, `capacity` pairs
+  std::uint64_t capacity = 0;
+  Report* report = nullptr;
+  std::uint8_t* states = nullptr;  ///< ObjectState an object; may be null
+};
+
+class DeviceFrame {
+ public:
+  DeviceFrame();
+  ~DeviceFrame();
+  DeviceFrame(const DeviceFrame&) = delete;
+  DeviceFrame& operator=(const DeviceFrame&) = delete;
+
+  /// Allocates what a frame of n objects needs, so that enqueue() allocates nothing.
+  Outcome reserve(std::uint32_t n, bool boxes, int bits);
+  /// Enqueues the frame on `stream` (a cudaStream_t; null: the legacy default stream). Grows
+  /// its buffers first when they are short, unless the stream is capturing (then an error).
+  Outcome enqueue(const DeviceInput& in, const DeviceOutput& out, void* stream);
+  [[nodiscard]] std::uint64_t bytes() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Empty when p points to memory the device can read (device or managed), else what it is.
+std::string device_memory_problem(const void* p);
 
 }  // namespace viscd::cuda

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "cpu/pipeline.hpp"
+#include "cuda/cuda_detector.hpp"
 #include "test_util.hpp"
 #include "viscd/cuda.hpp"
 #include "viscd/scene.hpp"
@@ -120,13 +121,11 @@ TEST(Cuda, SplatMatchesReferenceMap) {
 }
 
 // Its fallback for frames whose rectangles would need too long a chunk list (a warp per object),
-// forced by VISCD_CUDA_MAX_CHUNKS=0.
+// forced by the test hook's limit of 0 chunks.
 TEST(Cuda, SplatFallbackMatchesReferenceMap) {
-  ::setenv("VISCD_CUDA_MAX_CHUNKS", "0", 1);
-  auto made = make_cuda_detector(small_map());
-  ::unsetenv("VISCD_CUDA_MAX_CHUNKS");
-  if (!made) GTEST_SKIP() << "no cuda backend here: " << made.error();
-  expect_reference_maps(*made.value(), 13);
+  VISCD_CUDA_OR_SKIP(gpu, small_map());
+  ASSERT_TRUE(detail::set_cuda_chunk_limit(gpu, 0));
+  expect_reference_maps(gpu, 13);
 }
 
 // Boxes, a static set and filters together, against the cpu backend.
