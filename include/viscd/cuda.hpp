@@ -84,8 +84,8 @@ class CudaBroadphase {
   [[nodiscard]] virtual Status reserve(std::uint32_t objects, bool boxes) = 0;
   /// Enqueues a frame on `stream` (a cudaStream_t; null for the legacy default stream): the
   /// objects' bounds and Morton layout, codes, CUB radix sort, Karras build, fit, a traversal
-  /// that counts each leaf's pairs, a scan, and a second traversal that writes them, then the
-  /// report. Checks the arguments on the host (pointers, alignment, sizes; invalid_input naming
+  /// that counts each leaf's pairs and keeps its first four, a scan, and a pass that writes them
+  /// (a copy, or a second traversal for a leaf with more), then the report. Checks the arguments on the host (pointers, alignment, sizes; invalid_input naming
   /// the field) and the objects on the device (CudaReport::invalid). When the buffers are short it
   /// grows them first (which waits for the device), or fails while the stream is capturing.
   [[nodiscard]] virtual Status enqueue(const CudaObjects& objects, const CudaResults& results,

@@ -12,6 +12,7 @@
 // (After Jolt's split of BroadPhase, what callers see, from BroadPhaseQuadTree, what implements it.)
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <span>
 #include <string_view>
@@ -79,6 +80,13 @@ class Backend {
   /// The objects the brute-force queries search: by default the copy detect() keeps.
   [[nodiscard]] virtual QueryObjects query_objects() {
     return {query_boxes_.empty() ? Shapes(query_spheres_) : Shapes(query_boxes_), query_ids_, query_filters_};
+  }
+
+  /// Runs f(begin, end) over chunks covering [0, n): on the frame's threads for backends that
+  /// have them (the pipeline backends), in one call by default. Detector::detect() copies the
+  /// queries' objects with it.
+  virtual void for_chunks_of(std::size_t n, const std::function<void(std::size_t, std::size_t)>& f) {
+    if (n) f(0, n);
   }
 
   [[nodiscard]] const Config& config() const { return config_; }

@@ -255,44 +255,74 @@ void Detector::keep_query_objects(detail::Backend& b, const FrameInput& input, c
   const detail::Shapes shapes = detail::Shapes::of(input);
   const detail::StaticSet::Compact& stat = b.static_set_.compact();
   const std::size_t n = shapes.size(), total = n + stat.shapes.size();
-  b.query_spheres_.clear();
-  b.query_boxes_.clear();
-  b.query_ids_.clear();
-  b.query_filters_.clear();
   const bool boxes = shapes.is_box() || (n == 0 && stat.shapes.is_box());
+  const bool filters = !input.filters.empty() || stat.filtered;  // else every object has Filter{}: no copy
+  if (boxes)
+    b.query_spheres_.clear();
+  else
+    b.query_boxes_.clear();
+  if (!filters) b.query_filters_.clear();
   if (boxes)
     b.query_boxes_.reserve(total);
   else
     b.query_spheres_.reserve(total);
   b.query_ids_.reserve(total);
-  const bool filters = !input.filters.empty() || stat.filtered;  // else every object has Filter{}: no copy
   if (filters) b.query_filters_.reserve(total);
-  // Runs of objects that are not culled, copied a run at a time (all of them, in one copy, when
-  // nothing is culled: a frame of every object).
-  for (std::size_t begin = 0; begin < n;) {
-    if (out.state[begin] == ObjectState::culled) {
-      ++begin;
-      continue;
-    }
-    std::size_t end = begin + 1;
-    while (end < n && out.state[end] != ObjectState::culled) ++end;
-    const auto from = static_cast<std::ptrdiff_t>(begin), to = static_cast<std::ptrdiff_t>(end);
+  if (n > 0 && std::find(out.state.begin(), out.state.end(), ObjectState::culled) == out.state.end()) {
+    // Nothing culled (every frame without culling): every object, copied in chunks on the frame's
+    // threads. The vectors keep their size from frame to frame, so resize() zeroes nothing then.
     if (boxes)
-      b.query_boxes_.insert(b.query_boxes_.end(), input.boxes.begin() + from, input.boxes.begin() + to);
+      b.query_boxes_.resize(n);
     else
-      b.query_spheres_.insert(b.query_spheres_.end(), input.spheres.begin() + from, input.spheres.begin() + to);
-    const std::size_t at = b.query_ids_.size();
-    b.query_ids_.resize(at + (end - begin));
-    std::iota(b.query_ids_.begin() + static_cast<std::ptrdiff_t>(at), b.query_ids_.end(),
-              static_cast<std::uint32_t>(begin));
-    if (filters) {
-      if (input.filters.empty())
-        b.query_filters_.insert(b.query_filters_.end(), end - begin, Filter{});
+      b.query_spheres_.resize(n);
+    b.query_ids_.resize(n);
+    if (filters) b.query_filters_.resize(n);
+    b.for_chunks_of(n, [&](std::size_t begin, std::size_t end) {
+      const auto from = static_cast<std::ptrdiff_t>(begin), to = static_cast<std::ptrdiff_t>(end);
+      if (boxes)
+        std::copy(input.boxes.begin() + from, input.boxes.begin() + to, b.query_boxes_.begin() + from);
       else
-        b.query_filters_.insert(b.query_filters_.end(), input.filters.begin() + from, input.filters.begin() + to);
+        std::copy(input.spheres.begin() + from, input.spheres.begin() + to, b.query_spheres_.begin() + from);
+      std::iota(b.query_ids_.begin() + from, b.query_ids_.begin() + to, static_cast<std::uint32_t>(begin));
+      if (filters) {
+        if (input.filters.empty())
+          std::fill(b.query_filters_.begin() + from, b.query_filters_.begin() + to, Filter{});
+        else
+          std::copy(input.filters.begin() + from, input.filters.begin() + to, b.query_filters_.begin() + from);
+      }
+    });
+  } else {
+    // Runs of objects that are not culled, copied a run at a time.
+    b.query_boxes_.clear();
+    b.query_spheres_.clear();
+    b.query_ids_.clear();
+    b.query_filters_.clear();
+    for (std::size_t begin = 0; begin < n;) {
+      if (out.state[begin] == ObjectState::culled) {
+        ++begin;
+        continue;
+      }
+      std::size_t end = begin + 1;
+      while (end < n && out.state[end] != ObjectState::culled) ++end;
+      const auto from = static_cast<std::ptrdiff_t>(begin), to = static_cast<std::ptrdiff_t>(end);
+      if (boxes)
+        b.query_boxes_.insert(b.query_boxes_.end(), input.boxes.begin() + from, input.boxes.begin() + to);
+      else
+        b.query_spheres_.insert(b.query_spheres_.end(), input.spheres.begin() + from, input.spheres.begin() + to);
+      const std::size_t at = b.query_ids_.size();
+      b.query_ids_.resize(at + (end - begin));
+      std::iota(b.query_ids_.begin() + static_cast<std::ptrdiff_t>(at), b.query_ids_.end(),
+                static_cast<std::uint32_t>(begin));
+      if (filters) {
+        if (input.filters.empty())
+          b.query_filters_.insert(b.query_filters_.end(), end - begin, Filter{});
+        else
+          b.query_filters_.insert(b.query_filters_.end(), input.filters.begin() + from, input.filters.begin() + to);
+      }
+      begin = end;
     }
-    begin = end;
   }
+  // The static set after them.
   for (std::size_t k = 0; k < stat.shapes.size(); ++k) {
     if (boxes)
       b.query_boxes_.push_back(stat.shapes.boxes[k]);

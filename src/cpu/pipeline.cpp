@@ -47,6 +47,12 @@ Status PipelineDetector::draw_frame(const CameraRig& cam, const Camera&, const F
   return rasterize(cam, draw_.objects, threads);
 }
 
+void PipelineDetector::for_chunks_of(std::size_t n, const std::function<void(std::size_t, std::size_t)>& f) {
+  const ExecutorScope scope(config_.executor);
+  const int threads = resolve_threads(config_.threads, config_.executor ? config_.executor->concurrency() : 0);
+  for_chunks(n, ranges_for(n, threads), [&](std::size_t b, std::size_t e, std::size_t) { f(b, e); });
+}
+
 Status PipelineDetector::validate_objects(const Shapes& objects) {
   const std::size_t n = objects.size();
   const ExecutorScope scope(config_.executor);

@@ -26,6 +26,8 @@ class PipelineDetector : public Backend {
   [[nodiscard]] Status run_frame(const FrameInput& input, FrameResult& out) final;
   /// The objects checked in ranges on the frame's threads (a pass over every shape each frame).
   [[nodiscard]] Status validate_objects(const Shapes& objects) final;
+  /// On the frame's threads.
+  void for_chunks_of(std::size_t n, const std::function<void(std::size_t, std::size_t)>& f) final;
   /// Stage 1 into map_ (already sized): every object, the static ones after the moving ones. Only
   /// a backend that draws on a device can fail (the cpu rasterizers return ok).
   [[nodiscard]] virtual Status rasterize(const CameraRig& cam, const Shapes& objects, int threads) = 0;

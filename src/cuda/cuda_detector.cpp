@@ -138,18 +138,24 @@ class CudaDetector final : public PipelineDetector {
     in.filters = st.filters;
     const double host_ms = sw.lap();
 
+    // The pairs, copied out of the pinned download on the frame's threads.
     struct Sink {
       std::vector<Pair>* pairs;
-      static std::uint32_t* give(void* self, std::size_t count) {
+      int threads;
+      static void take(void* self, const std::uint32_t* words, std::size_t count) {
         auto* s = static_cast<Sink*>(self);
         s->pairs->resize(count);
-        return reinterpret_cast<std::uint32_t*>(s->pairs->data());
+        const auto* from = reinterpret_cast<const Pair*>(words);
+        Pair* to = s->pairs->data();
+        for_chunks(count, ranges_for(count, s->threads), [&](std::size_t b, std::size_t e, std::size_t) {
+          std::copy(from + b, from + e, to + b);
+        });
       }
-    } sink{&pairs};
+    } sink{&pairs, threads};
     if (!std::exchange(splatted_, false)) splat_times_ = cuda::SplatTimes{};
     cuda::Times t;
     const std::size_t cap = pairs_within_cap(config_.pair_memory_cap);
-    const cuda::Outcome o = gpu_.broadphase(in, to_grid(layout, extent.bounds), cap, &Sink::give, &sink, t);
+    const cuda::Outcome o = gpu_.broadphase(in, to_grid(layout, extent.bounds), cap, &Sink::take, &sink, t);
     times_ = t;
     if (o.over_limit) return check_pair_cap(o.pairs, config_.pair_memory_cap);
     if (!o.ok()) return to_status(o, objects.size(), config_);

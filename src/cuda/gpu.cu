@@ -446,9 +446,15 @@ __device__ bool boxes_meet(const float* a, const float* b) {  // box_overlap_exa
 // What a traversal pass does with each pair it finds.
 enum class Pass {
   append,  // the host frame: a key (i << id_bits) | j at an atomic slot below the capacity
-  count,   // the device frame's first pass: counts[p] = pairs of leaf p; both objects' states colliding
-  write,   // its second: leaf p's pairs as (i, j) from offsets[p] on, below the capacity
+  count,   // the device frame's first pass: counts[p] = pairs of leaf p, the first kKept of them kept in
+           // kept[kKept p ...]; both objects' states colliding
+  write,   // its second: leaf p's pairs as (i, j) from offsets[p] on, below the capacity: copied from
+           // `kept`, or found again by a second traversal for the few leaves with more than kKept
 };
+
+// Pairs a leaf keeps from the counting pass (8 bytes each, per object): dense scenes have 0.6
+// pairs a leaf on average, so nearly every leaf's second pass is a copy.
+constexpr unsigned kKept = 4;
 
 // The traversal's output, by pass.
 struct QueryOut {
@@ -457,6 +463,7 @@ struct QueryOut {
   int id_bits = 0;                             // append
   unsigned long long* counts = nullptr;        // count
   std::uint8_t* states = nullptr;              // count; may be null
+  uint2* kept = nullptr;                       // count (written), write (read)
   const unsigned long long* offsets = nullptr;  // write
   uint2* pairs = nullptr;                      // write
   std::uint64_t capacity = 0;                  // append, write
@@ -478,6 +485,13 @@ __global__ void query(std::uint32_t n, const float4* __restrict__ sorted, const 
   const std::uint32_t ia = frame_id[p];
   unsigned long long found = 0;
   std::uint64_t slot = kPass == Pass::write ? out.offsets[p] : 0;
+  if constexpr (kPass == Pass::write) {
+    const unsigned long long c = out.counts[p];
+    if (c <= kKept) {
+      for (unsigned k = 0; k < c && slot + k < out.capacity; ++k) out.pairs[slot + k] = out.kept[kKept * std::uint64_t{p} + k];
+      return;
+    }
+  }
   unsigned stack[kStack];
   int sp = 0;
   unsigned node = 0;
@@ -504,6 +518,7 @@ __global__ void query(std::uint32_t n, const float4* __restrict__ sorted, const 
           const unsigned long long at = atomicAdd(out.count, 1ull);
           if (at < out.capacity) out.keys[at] = (static_cast<std::uint64_t>(i) << out.id_bits) | j;
         } else if constexpr (kPass == Pass::count) {
+          if (found < kKept) out.kept[kKept * std::uint64_t{p} + found] = make_uint2(i, j);
           ++found;
           if (out.states) out.states[ib] = 2;  // ObjectState::colliding
         } else {
@@ -552,7 +567,7 @@ struct Gpu::Impl {
   // broadphase
   Buffer spheres, boxes, id_map, filters, keys[2], values[2], nodes, parent, arrivals, sorted, leaf_boxes, frame_id,
       pairs[2], pair_count, temp;
-  PinnedBuffer staged_spheres, staged_boxes, staged_ids, staged_filters;
+  PinnedBuffer staged_spheres, staged_boxes, staged_ids, staged_filters, staged_pairs;
   std::uint64_t pair_capacity = 1 << 16;
   cudaEvent_t ev[10] = {};
   bool events = false;
@@ -578,7 +593,7 @@ struct Gpu::Impl {
           &boxes,    &id_map, &filters,    &keys[0],  &keys[1],  &values[0], &values[1],  &nodes,       &parent,
           &arrivals, &sorted, &leaf_boxes, &frame_id, &pairs[0], &pairs[1],  &pair_count, &temp})
       b += x->capacity;
-    for (const PinnedBuffer* x : {&staged_spheres, &staged_boxes, &staged_ids, &staged_filters}) b += x->capacity;
+    for (const PinnedBuffer* x : {&staged_spheres, &staged_boxes, &staged_ids, &staged_filters, &staged_pairs}) b += x->capacity;
     return b;
   }
 };
@@ -702,7 +717,7 @@ Outcome Gpu::broadphase(const BroadphaseInput& in, const Grid& grid, std::uint64
   times.upload = times.codes = times.sort = times.build = times.fit = times.query = times.pair_sort = times.download =
       0;
   if (n < 2) {  // no pair; nothing to run
-    sink(sink_context, 0);
+    sink(sink_context, nullptr, 0);
     return {};
   }
   // Buffers (n >= 2).
@@ -807,10 +822,11 @@ Outcome Gpu::broadphase(const BroadphaseInput& in, const Grid& grid, std::uint64
   if (count) to_pairs<<<blocks(count), kBlock>>>(count, pk.Current(), id_bits, out);
   VISCD_CUDA(cudaGetLastError());
   VISCD_CUDA(cudaEventRecord(m.ev[7]));
-  std::uint32_t* dst = sink(sink_context, count);
-  if (count) VISCD_CUDA(cudaMemcpy(dst, out, 8 * std::size_t{count}, cudaMemcpyDeviceToHost));
+  VISCD_CUDA(m.staged_pairs.reserve(8 * std::max<std::size_t>(count, 1)));
+  if (count) VISCD_CUDA(cudaMemcpyAsync(m.staged_pairs.ptr, out, 8 * std::size_t{count}, cudaMemcpyDeviceToHost));
   VISCD_CUDA(cudaEventRecord(m.ev[8]));
   VISCD_CUDA(cudaEventSynchronize(m.ev[8]));
+  sink(sink_context, m.staged_pairs.as<std::uint32_t>(), count);
   times.upload = m.between(0, 1);
   times.codes = m.between(1, 2);
   times.sort = m.between(2, 3);
@@ -962,7 +978,7 @@ unsigned prepare_blocks(std::uint32_t n) {
 
 struct DeviceFrame::Impl {
   Buffer proxies, partial, grid, keys[2], values[2], nodes, parent, arrivals, sorted, leaf_boxes, frame_id, counts,
-      offsets, temp;
+      offsets, kept, temp;
   std::size_t sort_temp = 0, scan_temp = 0;
 
   // The temporary storage CUB needs for n objects at `bits` (no device work).
@@ -977,7 +993,7 @@ struct DeviceFrame::Impl {
   // Whether every buffer holds a frame of n objects.
   bool holds(std::uint32_t n, bool boxes) const {
     const std::size_t m = std::max<std::size_t>(n, 2);
-    return (!boxes || proxies.capacity >= 16 * m) && keys[0].capacity >= 8 * m && counts.capacity >= 8 * m &&
+    return (!boxes || proxies.capacity >= 16 * m) && keys[0].capacity >= 8 * m && kept.capacity >= 8 * kKept * m && counts.capacity >= 8 * m &&
            temp.capacity >= std::max(sort_temp, scan_temp) && grid.capacity >= sizeof(Grid);
   }
   Outcome reserve(std::uint32_t n, bool boxes, int bits) {
@@ -998,6 +1014,7 @@ struct DeviceFrame::Impl {
     VISCD_CUDA(frame_id.reserve(4 * m));
     VISCD_CUDA(counts.reserve(8 * m));
     VISCD_CUDA(offsets.reserve(8 * m));
+    VISCD_CUDA(kept.reserve(sizeof(uint2) * kKept * m));
     VISCD_CUDA(temp.reserve(std::max(sort_temp, scan_temp)));
     return {};
   }
@@ -1010,7 +1027,7 @@ std::uint64_t DeviceFrame::bytes() const {
   const Impl& m = *impl_;
   std::uint64_t b = 0;
   for (const Buffer* x : {&m.proxies, &m.partial, &m.grid, &m.keys[0], &m.keys[1], &m.values[0], &m.values[1], &m.nodes,
-                          &m.parent, &m.arrivals, &m.sorted, &m.leaf_boxes, &m.frame_id, &m.counts, &m.offsets, &m.temp})
+                          &m.parent, &m.arrivals, &m.sorted, &m.leaf_boxes, &m.frame_id, &m.counts, &m.offsets, &m.kept, &m.temp})
     b += x->capacity;
   return b;
 }
@@ -1067,6 +1084,7 @@ Outcome DeviceFrame::enqueue(const DeviceInput& in, const DeviceOutput& out, voi
   QueryOut counting;
   counting.counts = m.counts.as<unsigned long long>();
   counting.states = out.states;
+  counting.kept = m.kept.as<uint2>();
   query<Pass::count><<<blocks(n), kBlock, 0, stream>>>(n, m.sorted.as<float4>(), m.leaf_boxes.as<float>(),
                                                        m.nodes.as<Node>(), m.frame_id.as<std::uint32_t>(), filters,
                                                        in.static_from, boxes, counting);
@@ -1079,6 +1097,8 @@ Outcome DeviceFrame::enqueue(const DeviceInput& in, const DeviceOutput& out, voi
     writing.offsets = m.offsets.as<unsigned long long>();
     writing.pairs = reinterpret_cast<uint2*>(out.pairs);
     writing.capacity = out.capacity;
+    writing.counts = m.counts.as<unsigned long long>();
+    writing.kept = m.kept.as<uint2>();
     query<Pass::write><<<blocks(n), kBlock, 0, stream>>>(n, m.sorted.as<float4>(), m.leaf_boxes.as<float>(),
                                                          m.nodes.as<Node>(), m.frame_id.as<std::uint32_t>(), filters,
                                                          in.static_from, boxes, writing);

@@ -10,8 +10,9 @@
 //                 and re-runs, CUB sort of the pairs; the sorted pairs back.
 //   DeviceFrame   the device-resident frame (viscd/cuda.hpp CudaBroadphase): objects, pairs and
 //                 the report in device memory, every step enqueued on the caller's stream, no
-//                 host synchronisation: bounds and layout planned on the GPU, two traversal
-//                 passes (count, scan, write) instead of a growing buffer and a pair sort.
+//                 host synchronisation: bounds and layout planned on the GPU, a counting
+//                 traversal that keeps each leaf's first pairs, a scan and a writing pass,
+//                 instead of a growing buffer and a pair sort.
 
 #include <cstdint>
 #include <memory>
@@ -75,8 +76,9 @@ struct Staging {
   std::uint32_t* filters = nullptr; ///< 2 words a frame index, when asked for
 };
 
-/// Receives the sorted pairs: returns room for `count` pairs of (i, j), 2 count words.
-using PairSink = std::uint32_t* (*)(void* context, std::size_t count);
+/// Receives the sorted pairs: `count` pairs of (i, j), 2 count words in pinned host memory that
+/// stays valid until the next broadphase().
+using PairSink = void (*)(void* context, const std::uint32_t* pairs, std::size_t count);
 
 class Gpu {
  public:

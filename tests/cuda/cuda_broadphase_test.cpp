@@ -179,7 +179,7 @@ TEST(CudaBroadphase, EveryWidthAndLayoutSamePairsDeterministic) {
 // Filters and a static tail together, against a brute force written here.
 TEST(CudaBroadphase, FiltersAndStaticTail) {
   VISCD_BROADPHASE_OR_SKIP(bp, Config{});
-  const std::vector<Sphere> s = test::random_spheres_by_half_extent(3000, 5, 20.0f);
+  const std::vector<Sphere> s = test::random_spheres_by_half_extent(3000, 5, 10.0f);
   const std::vector<Filter> f = test::random_filters(s.size(), 3);
   const std::uint32_t static_from = 2000;
   std::vector<Pair> want;
