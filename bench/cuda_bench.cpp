@@ -10,11 +10,6 @@
 //           the device, the frame enqueued on a stream (GPU time between events, and the host's
 //           time to enqueue it) and the same frame captured once into a CUDA graph and replayed;
 //           the two alternate frame by frame.
-//   culling the paper's Fig. 6 in the paper's setting: N objects of the ring (packing 0.04), the
-//           zoom-out camera at 1280x720, lambda = 200; the engine's id map (here the cpu backend's
-//           own map of each frame, uploaded untimed, as a G-buffer attachment would already be on
-//           the GPU) culled by CudaBroadphase, against every object at 32 and at 64 bits (the
-//           paper's baseline); GPU time between events, the three alternating frame by frame.
 // Medians over --frames frames after --warmup; the scene moves every frame.
 #include <cuda_runtime.h>
 
@@ -26,7 +21,6 @@
 #include <vector>
 
 #include "bench_util.hpp"
-#include "cpu/pipeline.hpp"
 #include "cuda/cuda_detector.hpp"
 #include "viscd/cuda.hpp"
 #include "viscd/scene.hpp"
@@ -46,7 +40,6 @@ struct Row {
   double pageable_upload = 0;  // the same bytes as the upload, copied from pageable memory (the former path)
   double layout = 0, outside = 0;  // detect(): the host's layout stage; wall time outside every stage
   double stream_gpu = 0, stream_enqueue = 0, graph_gpu = 0, graph_launch = 0;  // device part
-  double culled_gpu = 0, every32_gpu = 0, every64_gpu = 0;                       // culling part
   [[nodiscard]] double on_gpu() const { return codes + sort + build + fit + query + pair_sort; }
 };
 
@@ -213,94 +206,6 @@ Row measure_device(std::uint32_t n, int frames, int warmup) {
   return row;
 }
 
-// Fig. 6 with the engine's map: culled frames against frames of every object at 32 and 64 bits.
-Row measure_culling(std::uint32_t n, int frames, int warmup) {
-  Scene scene = Scene::make(SceneParams{.objects = n, .seed = 1, .packing = 0.04f});
-  const auto preset = camera_preset("zoom-out", scene, 1280, 720);
-  if (!preset) {
-    std::fprintf(stderr, "viscd_cuda_bench: %s\n", preset.error().c_str());
-    std::exit(1);
-  }
-  const Camera cam = preset.value();
-  Config c;
-  c.bits = Bits::b32;
-  auto culled = make_cuda_broadphase(c);
-  check(culled.status());
-  auto every32 = make_cuda_broadphase(c);
-  c.bits = Bits::b64;
-  auto every64 = make_cuda_broadphase(c);
-  check(every64.status());
-  Config drawing = bench::bench_config();
-  auto painter = make_cpu_detector(drawing);  // draws each frame's map, as the engine's G-buffer would hold it
-  const std::size_t pixels = 1280u * 720u;
-  Sphere* spheres = nullptr;
-  std::uint32_t* map = nullptr;
-  Pair* pairs = nullptr;
-  CudaReport* report = nullptr;
-  const std::uint64_t capacity = 2 * std::uint64_t{n} + 1024;
-  check(cudaMalloc(&spheres, sizeof(Sphere) * n), "cudaMalloc");
-  check(cudaMalloc(&map, 4 * pixels), "cudaMalloc");
-  check(cudaMalloc(&pairs, sizeof(Pair) * capacity), "cudaMalloc");
-  check(cudaMalloc(&report, sizeof(CudaReport)), "cudaMalloc");
-  cudaStream_t stream = nullptr;
-  check(cudaStreamCreateWithFlags(&stream, cudaStreamNonBlocking), "cudaStreamCreate");
-  cudaEvent_t ev[2];
-  for (cudaEvent_t& e : ev) check(cudaEventCreate(&e), "cudaEventCreate");
-  CudaResults r;
-  r.pairs = pairs;
-  r.capacity = capacity;
-  r.report = report;
-  std::vector<double> on, off32, off64;
-  CudaReport rep{};
-  Row row{"culling", n};
-  FrameResult drawn;
-  for (int f = 0; f < warmup + frames; ++f) {
-    scene.step(1.0f / 60.0f);
-    check(painter->detect(scene.spheres(), &cam, drawn));
-    const auto& ids = detail::backend_as<detail::PipelineDetector>(*painter).visibility_map().ids;
-    check(cudaMemcpy(map, ids.data(), 4 * pixels, cudaMemcpyHostToDevice), "map upload");
-    check(cudaMemcpy(spheres, scene.spheres().data(), sizeof(Sphere) * n, cudaMemcpyHostToDevice), "upload");
-    for (int variant = 0; variant < 3; ++variant) {
-      CudaObjects o;
-      o.spheres = spheres;
-      o.count = n;
-      CudaBroadphase* bp = variant == 0 ? culled.value().get() : variant == 1 ? every32.value().get() : every64.value().get();
-      if (variant == 0) {
-        o.id_map = map;
-        o.id_map_width = 1280;
-        o.id_map_height = 720;
-      }
-      check(cudaEventRecord(ev[0], stream), "cudaEventRecord");
-      check(bp->enqueue(o, r, stream));
-      check(cudaEventRecord(ev[1], stream), "cudaEventRecord");
-      check(cudaEventSynchronize(ev[1]), "cudaEventSynchronize");
-      float gpu = 0;
-      check(cudaEventElapsedTime(&gpu, ev[0], ev[1]), "cudaEventElapsedTime");
-      check(cudaMemcpy(&rep, report, sizeof rep, cudaMemcpyDeviceToHost), "report");
-      if (rep.pairs > capacity) {
-        std::fprintf(stderr, "viscd_cuda_bench: %llu pairs past the capacity\n", rep.pairs);
-        std::exit(1);
-      }
-      if (variant == 0) {
-        row.active = rep.active;
-        row.pairs = rep.pairs;
-        if (rep.active != drawn.stats.active) {
-          std::fprintf(stderr, "viscd_cuda_bench: %u active on the GPU, %u on the cpu backend\n", rep.active,
-                       drawn.stats.active);
-          std::exit(1);
-        }
-      }
-      if (f >= warmup) (variant == 0 ? on : variant == 1 ? off32 : off64).push_back(gpu);
-    }
-  }
-  using bench::median;
-  row.culled_gpu = median(on), row.every32_gpu = median(off32), row.every64_gpu = median(off64);
-  for (cudaEvent_t e : ev) cudaEventDestroy(e);
-  cudaStreamDestroy(stream);
-  cudaFree(spheres), cudaFree(map), cudaFree(pairs), cudaFree(report);
-  return row;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -308,9 +213,8 @@ int main(int argc, char** argv) {
   std::vector<std::uint32_t> dense_sizes = {10000, 100000, 1000000, 10000000};
   std::vector<std::uint32_t> frame_sizes = {10000, 100000, 1000000};
   std::vector<std::uint32_t> device_sizes = {10000, 100000, 1000000, 10000000};
-  std::vector<std::uint32_t> culling_sizes = {10000, 20000, 50000, 100000, 200000, 500000, 1000000};
   int frames = 20, warmup = 3;
-  std::vector<std::string> parts = {"dense", "frame", "device", "culling"};
+  std::vector<std::string> parts = {"dense", "frame", "device"};
   std::string csv;
   app.add_option("--dense", dense_sizes, "object counts of the dense frames")->delimiter(',')->capture_default_str();
   app.add_option("--frame", frame_sizes, "object counts of the frames with the camera")
@@ -319,12 +223,9 @@ int main(int argc, char** argv) {
   app.add_option("--device", device_sizes, "object counts of the device-resident frames (CudaBroadphase)")
       ->delimiter(',')
       ->capture_default_str();
-  app.add_option("--culling", culling_sizes, "object counts of the culling frames (Fig. 6, the engine's map)")
-      ->delimiter(',')
-      ->capture_default_str();
   app.add_option("--parts", parts, "which parts to run")
       ->delimiter(',')
-      ->check(CLI::IsMember({"dense", "frame", "device", "culling"}))
+      ->check(CLI::IsMember({"dense", "frame", "device"}))
       ->capture_default_str();
   app.add_option("--frames", frames, "timed frames per point")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--warmup", warmup, "untimed frames first")->check(CLI::NonNegativeNumber)->capture_default_str();
@@ -344,12 +245,10 @@ int main(int argc, char** argv) {
     for (std::uint32_t n : frame_sizes) rows.push_back(measure("frame", n, frames, warmup));
   if (wanted("device"))
     for (std::uint32_t n : device_sizes) rows.push_back(measure_device(n, frames, warmup));
-  if (wanted("culling"))
-    for (std::uint32_t n : culling_sizes) rows.push_back(measure_culling(n, frames, warmup));
   const char* head =
       "part,objects,active,pairs,detect_ms,on_gpu_ms,upload_ms,codes_ms,sort_ms,build_ms,fit_ms,query_ms,pair_sort_ms,"
       "download_ms,splat_ms,count_ms,map_download_ms,pageable_upload_ms,layout_ms,outside_stages_ms,stream_gpu_ms,stream_enqueue_ms,graph_gpu_ms,"
-      "graph_launch_ms,culled_gpu_ms,every32_gpu_ms,every64_gpu_ms";
+      "graph_launch_ms";
   std::printf("%s\n", head);
   std::ofstream file;
   if (!csv.empty()) {
@@ -360,11 +259,10 @@ int main(int argc, char** argv) {
     char line[768];
     std::snprintf(line, sizeof line,
                   "%s,%u,%u,%llu,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,"
-                  "%.4f,%.4f,%.4f,%.4f,%.4f",
+                  "%.4f,%.4f",
                   r.part.c_str(), r.objects, r.active, static_cast<unsigned long long>(r.pairs), r.wall, r.on_gpu(),
                   r.upload, r.codes, r.sort, r.build, r.fit, r.query, r.pair_sort, r.download, r.splat, r.count,
-                  r.map_download, r.pageable_upload, r.layout, r.outside, r.stream_gpu, r.stream_enqueue, r.graph_gpu, r.graph_launch,
-                  r.culled_gpu, r.every32_gpu, r.every64_gpu);
+                  r.map_download, r.pageable_upload, r.layout, r.outside, r.stream_gpu, r.stream_enqueue, r.graph_gpu, r.graph_launch);
     std::printf("%s\n", line);
     if (file) file << line << "\n";
   }

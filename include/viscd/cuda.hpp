@@ -39,16 +39,8 @@ struct CudaObjects {
   std::uint32_t count = 0;          ///< at most 2^31 - 1
   const Filter* filters = nullptr;  ///< optional, count filters (the rule of FrameInput::filters)
   /// Objects from this index on are static: never paired with each other (a level's walls after
-  /// its bodies), and never culled. The default, and any value >= count, makes none static.
+  /// its bodies). The default, and any value >= count, makes none static.
   std::uint32_t static_from = 0xFFFFFFFFu;
-  /// The engine's visibility map, optional (the paper's setting: one more attachment of the
-  /// G-buffer the game draws anyway): object index + 1 a pixel, 0 for the background, row by row,
-  /// id_map_width x id_map_height in device memory. With it and Config::culling, objects covering
-  /// fewer than Config::lambda of its pixels are culled: left out of the tree, state culled.
-  const std::uint32_t* id_map = nullptr;
-  int id_map_width = 0, id_map_height = 0;
-  /// Optional, count flags: an object with a non-zero flag is never culled (FrameInput::always_active).
-  const std::uint8_t* always_active = nullptr;
 };
 
 /// What a frame reports, written by the frame into device memory the caller owns.
@@ -63,17 +55,15 @@ struct CudaReport {
   std::uint32_t first_invalid = 0xFFFFFFFFu;  ///< the lowest invalid index, or 0xFFFFFFFF
   std::uint32_t bits = 0;                     ///< the Morton code width m used
   std::uint32_t objects = 0;                  ///< count, as the frame read it
-  std::uint32_t active = 0;                   ///< objects not culled (count without a map)
-  std::uint32_t map_errors = 0;               ///< map pixels holding an id past count (ignored)
 };
-static_assert(sizeof(CudaReport) == 32);
+static_assert(sizeof(CudaReport) == 24);
 
 /// Where a frame writes its results: device memory the caller owns.
 struct CudaResults {
   Pair* pairs = nullptr;       ///< room for `capacity` pairs (i < j): deterministic order, see enqueue()
   std::uint64_t capacity = 0;  ///< may be 0: the frame then only counts (and writes states)
   CudaReport* report = nullptr;  ///< required
-  ObjectState* states = nullptr;  ///< optional, count entries: colliding, free, or culled (with a map)
+  ObjectState* states = nullptr;  ///< optional, count entries: colliding, or free (no object is culled)
 };
 
 /// The cuda backend's broadphase for engines whose objects live on the GPU (Warp, Newton,
@@ -81,10 +71,8 @@ struct CudaResults {
 /// enqueued on the caller's stream with no host synchronisation, so that it can be captured into
 /// a CUDA graph. The pairs are exact (those detect() returns for the same objects with culling
 /// off); their order is deterministic (the same objects give the same array) but not sorted:
-/// grouped by the tree's leaves, i < j within each pair. Culling reads the engine's id map
-/// (CudaObjects::id_map), which the frame counts and culls on the GPU; it draws no map of its own.
-/// Config::bits (adaptive means 32 here: m is fixed before the frame runs), Config::layout,
-/// Config::culling and Config::lambda (in the map's pixels) are honoured.
+/// grouped by the tree's leaves, i < j within each pair. No visibility map and no culling: every
+/// object takes part. Config::bits (adaptive means 32 here) and Config::layout are honoured.
 ///
 /// Not thread-safe: one frame at a time per object; frames on several streams need one object
 /// each. The caller keeps the inputs and outputs alive and unchanged until the stream has run.

@@ -180,18 +180,14 @@ static_assert(sizeof(CudaReport) == sizeof(cuda::Report) && offsetof(CudaReport,
               offsetof(CudaReport, invalid) == offsetof(cuda::Report, invalid) &&
               offsetof(CudaReport, first_invalid) == offsetof(cuda::Report, first_invalid) &&
               offsetof(CudaReport, bits) == offsetof(cuda::Report, bits) &&
-              offsetof(CudaReport, objects) == offsetof(cuda::Report, objects) &&
-              offsetof(CudaReport, active) == offsetof(cuda::Report, active) &&
-              offsetof(CudaReport, map_errors) == offsetof(cuda::Report, map_errors));
+              offsetof(CudaReport, objects) == offsetof(cuda::Report, objects));
 static_assert(sizeof(ObjectState) == 1);
 
 class CudaBroadphaseImpl final : public CudaBroadphase {
  public:
   explicit CudaBroadphaseImpl(const Config& config)
       : bits_(config.bits == Bits::adaptive ? 32 : static_cast<int>(config.bits)),
-        plain_(config.layout == Layout::plain),
-        culling_(config.culling),
-        lambda_(config.lambda) {}
+        plain_(config.layout == Layout::plain) {}
 
   Status reserve(std::uint32_t objects, bool boxes) override {
     if (Status s = check_count(objects); !s) return s;
@@ -208,9 +204,6 @@ class CudaBroadphaseImpl final : public CudaBroadphase {
     if (results.report == nullptr) return invalid("CudaResults::report is null; the frame needs somewhere to write its count");
     if (results.capacity > 0 && results.pairs == nullptr)
       return invalid("CudaResults::pairs is null with a capacity of " + std::to_string(results.capacity));
-    if (objects.id_map && (objects.id_map_width <= 0 || objects.id_map_height <= 0))
-      return invalid("CudaObjects::id_map is given with a size of " + std::to_string(objects.id_map_width) + "x" +
-                     std::to_string(objects.id_map_height) + "; both sides must be positive");
     if (objects.static_from != 0xFFFFFFFFu && objects.static_from > n)
       return invalid("CudaObjects::static_from is " + std::to_string(objects.static_from) + ", past count " +
                      std::to_string(n) + " (0xFFFFFFFF makes no object static)");
@@ -222,8 +215,6 @@ class CudaBroadphaseImpl final : public CudaBroadphase {
     const Field fields[] = {{n ? objects.spheres : nullptr, 16, "CudaObjects::spheres"},
                             {n ? objects.boxes : nullptr, 4, "CudaObjects::boxes"},
                             {n ? objects.filters : nullptr, 8, "CudaObjects::filters"},
-                            {objects.id_map, 4, "CudaObjects::id_map"},
-                            {n ? objects.always_active : nullptr, 1, "CudaObjects::always_active"},
                             {results.capacity ? results.pairs : nullptr, 8, "CudaResults::pairs"},
                             {results.report, 8, "CudaResults::report"},
                             {n ? results.states : nullptr, 1, "CudaResults::states"}};
@@ -241,12 +232,6 @@ class CudaBroadphaseImpl final : public CudaBroadphase {
     in.filters = reinterpret_cast<const std::uint32_t*>(objects.filters);
     in.n = n;
     in.static_from = objects.static_from;
-    if (culling_ && objects.id_map) {
-      in.id_map = objects.id_map;
-      in.map_pixels = static_cast<std::uint64_t>(objects.id_map_width) * static_cast<std::uint64_t>(objects.id_map_height);
-      in.lambda = lambda_;
-      in.always_active = objects.always_active;
-    }
     in.bits = bits_;
     in.plain_layout = plain_;
     cuda::DeviceOutput out;
@@ -276,8 +261,6 @@ class CudaBroadphaseImpl final : public CudaBroadphase {
 
   int bits_;
   bool plain_;
-  bool culling_;
-  float lambda_;
   cuda::DeviceFrame frame_;
 };
 

@@ -6,8 +6,6 @@
 #include <cub/block/block_reduce.cuh>
 #include <cub/device/device_radix_sort.cuh>
 #include <cub/device/device_scan.cuh>
-#include <cub/device/device_select.cuh>
-#include <thrust/iterator/counting_iterator.h>
 
 #include <cuda_runtime.h>
 #include <algorithm>
@@ -339,10 +337,8 @@ __device__ int delta(const std::uint64_t* keys, int n, int bits, int i, int j) {
   return bits + __clz(i ^ j);
 }
 
-// n_dev, when given, holds the object count (at most n): the device frame's active count.
 __global__ void karras_build(int n, int bits, const std::uint64_t* keys, Node* nodes, std::uint32_t* parent,
-                             std::uint32_t* arrivals, const std::uint32_t* n_dev = nullptr) {
-  if (n_dev) n = min(n, static_cast<int>(*n_dev));
+                             std::uint32_t* arrivals) {
   const int i = static_cast<int>(blockIdx.x * blockDim.x + threadIdx.x);
   if (i >= n - 1) return;
   arrivals[i] = 0;
@@ -388,8 +384,7 @@ __global__ void karras_build(int n, int bits, const std::uint64_t* keys, Node* n
 // written and fenced before the arrival count, and read back past L1 (__ldcg).
 __global__ void fit(std::uint32_t n, const float4* spheres, const float* boxes, const std::uint32_t* ids,
                     const std::uint32_t* order, float4* sorted, float* leaf_boxes, std::uint32_t* frame_id, Node* nodes,
-                    const std::uint32_t* parent, std::uint32_t* arrivals, const std::uint32_t* n_dev = nullptr) {
-  if (n_dev) n = min(n, *n_dev);
+                    const std::uint32_t* parent, std::uint32_t* arrivals) {
   const std::uint32_t p = blockIdx.x * blockDim.x + threadIdx.x;
   if (p >= n) return;
   const std::uint32_t g = order[p];
@@ -451,17 +446,14 @@ __device__ bool boxes_meet(const float* a, const float* b) {  // box_overlap_exa
 // What a traversal pass does with each pair it finds.
 enum class Pass {
   append,  // the host frame: a key (i << id_bits) | j at an atomic slot below the capacity
-  count,   // the device frame's first pass: counts[p] = pairs of leaf p; the first kKept kept in
-           // kept[kKept p ...], the rest spilled as (p, rank, i, j) while the spill list has room,
-           // redo[p] = 1 when it had none; both objects' states colliding
-  write,   // its second: leaf p's kept pairs copied from offsets[p] on, below the capacity, and for a
-           // leaf with redo[p] all of its pairs found again by a second traversal
+  count,   // the device frame's first pass: counts[p] = pairs of leaf p, the first kKept of them kept in
+           // kept[kKept p ...]; both objects' states colliding
+  write,   // its second: leaf p's pairs as (i, j) from offsets[p] on, below the capacity: copied from
+           // `kept`, or found again by a second traversal for the few leaves with more than kKept
 };
 
 // Pairs a leaf keeps from the counting pass (8 bytes each, per object): dense scenes have 0.6
-// pairs a leaf on average. The rest go to the spill list (n entries of 16 bytes), scattered to
-// their places after the scan; only a leaf whose pairs found the list full traverses again. A
-// second traversal would cost as much as the first: the pass takes as long as its slowest thread.
+// pairs a leaf on average, so nearly every leaf's second pass is a copy.
 constexpr unsigned kKept = 4;
 
 // The traversal's output, by pass.
@@ -472,10 +464,6 @@ struct QueryOut {
   unsigned long long* counts = nullptr;        // count
   std::uint8_t* states = nullptr;              // count; may be null
   uint2* kept = nullptr;                       // count (written), write (read)
-  uint4* spill = nullptr;                      // count
-  unsigned long long* spilled = nullptr;       // count: entries wanted (may pass spill_capacity)
-  std::uint64_t spill_capacity = 0;            // count
-  std::uint8_t* redo = nullptr;                // count (written), write (read)
   const unsigned long long* offsets = nullptr;  // write
   uint2* pairs = nullptr;                      // write
   std::uint64_t capacity = 0;                  // append, write
@@ -488,20 +476,9 @@ struct QueryOut {
 template <Pass kPass>
 __global__ void query(std::uint32_t n, const float4* __restrict__ sorted, const float* __restrict__ leaf_boxes,
                       const Node* __restrict__ nodes, const std::uint32_t* __restrict__ frame_id,
-                      const uint2* __restrict__ filters, std::uint32_t static_from, bool boxes, QueryOut out,
-                      const std::uint32_t* n_dev = nullptr) {
+                      const uint2* __restrict__ filters, std::uint32_t static_from, bool boxes, QueryOut out) {
   const std::uint32_t p = blockIdx.x * blockDim.x + threadIdx.x;
-  const std::uint32_t launched = n;
-  if (n_dev) n = min(n, *n_dev);
-  if (p >= n || n < 2) {
-    if constexpr (kPass == Pass::count) {
-      if (p < launched) {  // no leaf here (or no pair at all): nothing for the scan
-        out.counts[p] = 0;
-        out.redo[p] = 0;
-      }
-    }
-    return;
-  }
+  if (p >= n || n < 2) return;
   const float4 a = sorted[p];
   const float* box = leaf_boxes + 6 * std::uint64_t{p};
   const float lo[3] = {box[0], box[1], box[2]}, hi[3] = {box[3], box[4], box[5]};
@@ -510,13 +487,11 @@ __global__ void query(std::uint32_t n, const float4* __restrict__ sorted, const 
   std::uint64_t slot = kPass == Pass::write ? out.offsets[p] : 0;
   if constexpr (kPass == Pass::write) {
     const unsigned long long c = out.counts[p];
-    if (!out.redo[p]) {
-      for (unsigned k = 0; k < c && k < kKept && slot + k < out.capacity; ++k)
-        out.pairs[slot + k] = out.kept[kKept * std::uint64_t{p} + k];
+    if (c <= kKept) {
+      for (unsigned k = 0; k < c && slot + k < out.capacity; ++k) out.pairs[slot + k] = out.kept[kKept * std::uint64_t{p} + k];
       return;
     }
   }
-  bool redo = false;
   unsigned stack[kStack];
   int sp = 0;
   unsigned node = 0;
@@ -543,15 +518,7 @@ __global__ void query(std::uint32_t n, const float4* __restrict__ sorted, const 
           const unsigned long long at = atomicAdd(out.count, 1ull);
           if (at < out.capacity) out.keys[at] = (static_cast<std::uint64_t>(i) << out.id_bits) | j;
         } else if constexpr (kPass == Pass::count) {
-          if (found < kKept) {
-            out.kept[kKept * std::uint64_t{p} + found] = make_uint2(i, j);
-          } else if (!redo) {
-            const unsigned long long at = atomicAdd(out.spilled, 1ull);
-            if (at < out.spill_capacity)
-              out.spill[at] = make_uint4(p, static_cast<unsigned>(found), i, j);
-            else
-              redo = true;
-          }
+          if (found < kKept) out.kept[kKept * std::uint64_t{p} + found] = make_uint2(i, j);
           ++found;
           if (out.states) out.states[ib] = 2;  // ObjectState::colliding
         } else {
@@ -573,7 +540,6 @@ __global__ void query(std::uint32_t n, const float4* __restrict__ sorted, const 
   }
   if constexpr (kPass == Pass::count) {
     out.counts[p] = found;
-    out.redo[p] = redo ? 1 : 0;
     if (found && out.states) out.states[ia] = 2;
   }
 }
@@ -918,8 +884,7 @@ constexpr unsigned kPrepareBlocks = 1024;  // at most; the split depends on n al
 // Each block takes a fixed share of the objects: checks them as validate_spheres() and
 // validate_boxes() do (finite, radius >= 0, min <= max), writes a box's proxy (centre, radius) for
 // the codes, and reduces its share's bounds, diameters and invalid objects into partial[block].
-__global__ void prepare(std::uint32_t n, const float4* spheres, const float* boxes, const std::uint8_t* active,
-                        float4* proxies, Partial* partial) {
+__global__ void prepare(std::uint32_t n, const float4* spheres, const float* boxes, float4* proxies, Partial* partial) {
   using Reduce = cub::BlockReduce<Partial, kBlock>;
   __shared__ typename Reduce::TempStorage temp;
   Partial mine = empty_partial();
@@ -944,7 +909,6 @@ __global__ void prepare(std::uint32_t n, const float4* spheres, const float* box
       mine.first_invalid = min(mine.first_invalid, static_cast<unsigned>(k));
       continue;
     }
-    if (active && !active[k]) continue;  // culled: not in the tree, not in its bounds
     mine.lo[0] = fminf(mine.lo[0], s.x), mine.lo[1] = fminf(mine.lo[1], s.y), mine.lo[2] = fminf(mine.lo[2], s.z);
     mine.hi[0] = fmaxf(mine.hi[0], s.x), mine.hi[1] = fmaxf(mine.hi[1], s.y), mine.hi[2] = fmaxf(mine.hi[2], s.z);
     mine.diameters += 2.0 * static_cast<double>(s.w);
@@ -957,7 +921,7 @@ __global__ void prepare(std::uint32_t n, const float4* spheres, const float* box
 // One block: the partials merged in a fixed order, then the layout (the shared rule, the host's
 // make_layout()) and its grid, and the report's header. The pair count is finish()'s.
 __global__ void plan_grid(unsigned parts, const Partial* partial, std::uint32_t n, int bits, bool plain, Grid* grid,
-                          Report* report, const std::uint32_t* active) {
+                          Report* report) {
   using Reduce = cub::BlockReduce<Partial, kBlock>;
   __shared__ typename Reduce::TempStorage temp;
   Partial mine = empty_partial();
@@ -985,74 +949,26 @@ __global__ void plan_grid(unsigned parts, const Partial* partial, std::uint32_t 
   report->first_invalid = all.first_invalid;
   report->bits = static_cast<std::uint32_t>(bits);
   report->objects = n;
-  report->active = active ? *active : n;
 }
 
-// Codes of the objects, or with culling of the active ones (list, count): their slots first,
-// then keys of all ones in m bits, which the stable sort keeps after every active object.
 __global__ void device_codes(std::uint32_t n, const float4* centres, const Grid* grid, std::uint64_t* keys,
-                             std::uint32_t* values, const std::uint32_t* list, const std::uint32_t* listed) {
+                             std::uint32_t* values) {
   const std::uint32_t k = blockIdx.x * blockDim.x + threadIdx.x;
   if (k >= n) return;
-  if (list && k >= *listed) {
-    keys[k] = grid->bits == 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << grid->bits) - 1;
-    values[k] = 0xFFFFFFFFu;
-    return;
-  }
-  const std::uint32_t g = list ? list[k] : k;
-  const float4 s = centres[g];
+  const float4 s = centres[k];
   keys[k] = code_of(*grid, s.x, s.y, s.z);
-  values[k] = g;
+  values[k] = k;
 }
 
-// Pixels per object from the caller's map, lanes holding the same id adding once; ids past the
-// objects are counted as map errors.
-__global__ void count_map(std::uint64_t pixels, const std::uint32_t* ids, std::uint32_t n, std::uint32_t* counts,
-                          Report* report) {
-  const std::uint64_t i = blockIdx.x * std::uint64_t{blockDim.x} + threadIdx.x;
-  if (i >= pixels) return;
-  const std::uint32_t id = ids[i];
-  if (id == 0) return;
-  if (id > n) {
-    atomicAdd(&report->map_errors, 1u);
-    return;
-  }
-  const unsigned peers = __match_any_sync(__activemask(), id);
-  if ((threadIdx.x & 31u) == static_cast<unsigned>(__ffs(peers) - 1)) atomicAdd(&counts[id - 1], __popc(peers));
-}
-
-// Stage 3: active when covering at least lambda pixels, flagged always active, or static.
-__global__ void cull(std::uint32_t n, const std::uint32_t* counts, float lambda, const std::uint8_t* always_active,
-                     std::uint32_t static_from, std::uint8_t* active) {
+__global__ void fill_states(std::uint32_t n, std::uint8_t* states) {
   const std::uint32_t k = blockIdx.x * blockDim.x + threadIdx.x;
-  if (k >= n) return;
-  active[k] = static_cast<double>(counts[k]) >= static_cast<double>(lambda) || k >= static_from ||
-              (always_active && always_active[k] != 0);
-}
-
-// The spilled pairs to their places: offsets[p] + rank (below the capacity). A leaf marked redo
-// writes all of its pairs itself; its spilled entries carry the same pairs to the same places.
-__global__ void scatter_spill(std::uint64_t entries, const uint4* spill, const unsigned long long* spilled,
-                              const unsigned long long* offsets, uint2* pairs, std::uint64_t capacity) {
-  const std::uint64_t e = blockIdx.x * std::uint64_t{blockDim.x} + threadIdx.x;
-  if (e >= entries || e >= *spilled) return;
-  const uint4 s = spill[e];
-  const std::uint64_t slot = offsets[s.x] + s.y;
-  if (slot < capacity) pairs[slot] = make_uint2(s.z, s.w);
-}
-
-__global__ void fill_states(std::uint32_t n, const std::uint8_t* active, std::uint8_t* states) {
-  const std::uint32_t k = blockIdx.x * blockDim.x + threadIdx.x;
-  if (k < n) states[k] = !active || active[k] ? 1 : 0;  // ObjectState::free, culled
+  if (k < n) states[k] = 1;  // ObjectState::free
 }
 
 __global__ void finish(std::uint32_t n, const unsigned long long* counts, const unsigned long long* offsets,
                        Report* report) {
   report->pairs = n >= 2 ? offsets[n - 1] + counts[n - 1] : 0ull;
 }
-
-// Entries of the spill list: one an object, at least 2^12.
-std::uint64_t spill_entries(std::uint32_t n) { return std::max<std::uint64_t>(n, 4096); }
 
 unsigned prepare_blocks(std::uint32_t n) {
   return std::max(1u, std::min(kPrepareBlocks, static_cast<unsigned>((std::uint64_t{n} + kBlock - 1) / kBlock)));
@@ -1062,29 +978,23 @@ unsigned prepare_blocks(std::uint32_t n) {
 
 struct DeviceFrame::Impl {
   Buffer proxies, partial, grid, keys[2], values[2], nodes, parent, arrivals, sorted, leaf_boxes, frame_id, counts,
-      offsets, kept, spill, spilled, redo, pixels, active, list, listed, temp;
-  std::size_t temp_bytes = 0;  // CUB's largest need for the last size asked
+      offsets, kept, temp;
+  std::size_t sort_temp = 0, scan_temp = 0;
 
   // The temporary storage CUB needs for n objects at `bits` (no device work).
   Outcome temp_sizes(std::uint32_t n, int bits) {
-    std::size_t sort = 0, scan = 0, select = 0;
     cub::DoubleBuffer<std::uint64_t> k(nullptr, nullptr);
     cub::DoubleBuffer<std::uint32_t> v(nullptr, nullptr);
-    VISCD_CUDA(cub::DeviceRadixSort::SortPairs(nullptr, sort, k, v, static_cast<int>(n), 0, bits));
-    VISCD_CUDA(cub::DeviceScan::ExclusiveSum(nullptr, scan, static_cast<unsigned long long*>(nullptr),
+    VISCD_CUDA(cub::DeviceRadixSort::SortPairs(nullptr, sort_temp, k, v, static_cast<int>(n), 0, bits));
+    VISCD_CUDA(cub::DeviceScan::ExclusiveSum(nullptr, scan_temp, static_cast<unsigned long long*>(nullptr),
                                              static_cast<unsigned long long*>(nullptr), static_cast<int>(n)));
-    VISCD_CUDA(cub::DeviceSelect::Flagged(nullptr, select, thrust::counting_iterator<std::uint32_t>(0),
-                                          static_cast<const std::uint8_t*>(nullptr), static_cast<std::uint32_t*>(nullptr),
-                                          static_cast<std::uint32_t*>(nullptr), static_cast<int>(n)));
-    temp_bytes = std::max({sort, scan, select});
     return {};
   }
   // Whether every buffer holds a frame of n objects.
-  [[nodiscard]] bool holds(std::uint32_t n, bool boxes) const {
+  bool holds(std::uint32_t n, bool boxes) const {
     const std::size_t m = std::max<std::size_t>(n, 2);
-    return (!boxes || proxies.capacity >= 16 * m) && keys[0].capacity >= 8 * m && kept.capacity >= 8 * kKept * m &&
-           counts.capacity >= 8 * m && spill.capacity >= sizeof(uint4) * spill_entries(n) && list.capacity >= 4 * m &&
-           temp.capacity >= temp_bytes && grid.capacity >= sizeof(Grid);
+    return (!boxes || proxies.capacity >= 16 * m) && keys[0].capacity >= 8 * m && kept.capacity >= 8 * kKept * m && counts.capacity >= 8 * m &&
+           temp.capacity >= std::max(sort_temp, scan_temp) && grid.capacity >= sizeof(Grid);
   }
   Outcome reserve(std::uint32_t n, bool boxes, int bits) {
     if (Outcome o = temp_sizes(n, bits); !o.ok()) return o;
@@ -1105,14 +1015,7 @@ struct DeviceFrame::Impl {
     VISCD_CUDA(counts.reserve(8 * m));
     VISCD_CUDA(offsets.reserve(8 * m));
     VISCD_CUDA(kept.reserve(sizeof(uint2) * kKept * m));
-    VISCD_CUDA(spill.reserve(sizeof(uint4) * spill_entries(n)));
-    VISCD_CUDA(spilled.reserve(8));
-    VISCD_CUDA(redo.reserve(m));
-    VISCD_CUDA(pixels.reserve(4 * m));
-    VISCD_CUDA(active.reserve(m));
-    VISCD_CUDA(list.reserve(4 * m));
-    VISCD_CUDA(listed.reserve(4));
-    VISCD_CUDA(temp.reserve(temp_bytes));
+    VISCD_CUDA(temp.reserve(std::max(sort_temp, scan_temp)));
     return {};
   }
 };
@@ -1123,10 +1026,8 @@ DeviceFrame::~DeviceFrame() = default;
 std::uint64_t DeviceFrame::bytes() const {
   const Impl& m = *impl_;
   std::uint64_t b = 0;
-  for (const Buffer* x :
-       {&m.proxies, &m.partial, &m.grid,     &m.keys[0], &m.keys[1], &m.values[0], &m.values[1], &m.nodes,
-        &m.parent,  &m.arrivals, &m.sorted, &m.leaf_boxes, &m.frame_id, &m.counts, &m.offsets,   &m.kept,
-        &m.spill,   &m.spilled,  &m.redo,   &m.pixels,  &m.active,  &m.list,    &m.listed,    &m.temp})
+  for (const Buffer* x : {&m.proxies, &m.partial, &m.grid, &m.keys[0], &m.keys[1], &m.values[0], &m.values[1], &m.nodes,
+                          &m.parent, &m.arrivals, &m.sorted, &m.leaf_boxes, &m.frame_id, &m.counts, &m.offsets, &m.kept, &m.temp})
     b += x->capacity;
   return b;
 }
@@ -1138,7 +1039,6 @@ Outcome DeviceFrame::enqueue(const DeviceInput& in, const DeviceOutput& out, voi
   const auto stream = static_cast<cudaStream_t>(stream_handle);
   const std::uint32_t n = in.n;
   const bool boxes = in.boxes != nullptr;
-  const bool culling = in.id_map != nullptr;
   cudaStreamCaptureStatus capture = cudaStreamCaptureStatusNone;
   VISCD_CUDA(cudaStreamIsCapturing(stream, &capture));
   if (Outcome o = m.temp_sizes(n, in.bits); !o.ok()) return o;
@@ -1152,74 +1052,42 @@ Outcome DeviceFrame::enqueue(const DeviceInput& in, const DeviceOutput& out, voi
     }
     if (Outcome o = m.reserve(n, boxes, in.bits); !o.ok()) return o;
   }
-  std::size_t temp_bytes = m.temp.capacity;
-  VISCD_CUDA(cudaMemsetAsync(out.report, 0, sizeof(Report), stream));
-  // Stages 2-3 with the caller's map: pixels per object, the active flags, their list and count.
-  const std::uint8_t* active = nullptr;
-  const std::uint32_t* list = nullptr;
-  const std::uint32_t* listed = nullptr;
-  if (culling && n) {
-    VISCD_CUDA(cudaMemsetAsync(m.pixels.ptr, 0, 4 * std::size_t{n}, stream));
-    if (in.map_pixels) {
-      count_map<<<blocks(in.map_pixels), kBlock, 0, stream>>>(in.map_pixels, in.id_map, n, m.pixels.as<std::uint32_t>(),
-                                                              out.report);
-      VISCD_CUDA(cudaGetLastError());
-    }
-    cull<<<blocks(n), kBlock, 0, stream>>>(n, m.pixels.as<std::uint32_t>(), in.lambda, in.always_active,
-                                           in.static_from, m.active.as<std::uint8_t>());
-    VISCD_CUDA(cudaGetLastError());
-    VISCD_CUDA(cub::DeviceSelect::Flagged(m.temp.ptr, temp_bytes, thrust::counting_iterator<std::uint32_t>(0),
-                                          m.active.as<std::uint8_t>(), m.list.as<std::uint32_t>(),
-                                          m.listed.as<std::uint32_t>(), static_cast<int>(n), stream));
-    active = m.active.as<std::uint8_t>();
-    list = m.list.as<std::uint32_t>();
-    listed = m.listed.as<std::uint32_t>();
-  }
   const unsigned parts = prepare_blocks(n);
   const float4* centres = boxes ? m.proxies.as<float4>() : reinterpret_cast<const float4*>(in.spheres);
-  prepare<<<parts, kBlock, 0, stream>>>(n, reinterpret_cast<const float4*>(in.spheres), in.boxes, active,
-                                        m.proxies.as<float4>(), m.partial.as<Partial>());
+  prepare<<<parts, kBlock, 0, stream>>>(n, reinterpret_cast<const float4*>(in.spheres), in.boxes, m.proxies.as<float4>(),
+                                        m.partial.as<Partial>());
   VISCD_CUDA(cudaGetLastError());
   plan_grid<<<1, kBlock, 0, stream>>>(parts, m.partial.as<Partial>(), n, in.bits, in.plain_layout, m.grid.as<Grid>(),
-                                      out.report, listed);
+                                      out.report);
   VISCD_CUDA(cudaGetLastError());
   if (out.states && n) {
-    fill_states<<<blocks(n), kBlock, 0, stream>>>(n, active, out.states);
+    fill_states<<<blocks(n), kBlock, 0, stream>>>(n, out.states);
     VISCD_CUDA(cudaGetLastError());
   }
   if (n < 2) return {};  // plan_grid() reported 0 pairs
-  // Stages 5-8 over every object, or over the listed ones: the rest sort behind them, and every
-  // kernel after the sort reads the count from the device.
   device_codes<<<blocks(n), kBlock, 0, stream>>>(n, centres, m.grid.as<Grid>(), m.keys[0].as<std::uint64_t>(),
-                                                 m.values[0].as<std::uint32_t>(), list, listed);
+                                                 m.values[0].as<std::uint32_t>());
   VISCD_CUDA(cudaGetLastError());
   cub::DoubleBuffer<std::uint64_t> keys(m.keys[0].as<std::uint64_t>(), m.keys[1].as<std::uint64_t>());
   cub::DoubleBuffer<std::uint32_t> values(m.values[0].as<std::uint32_t>(), m.values[1].as<std::uint32_t>());
-  temp_bytes = m.temp.capacity;
+  std::size_t temp_bytes = m.temp.capacity;
   VISCD_CUDA(cub::DeviceRadixSort::SortPairs(m.temp.ptr, temp_bytes, keys, values, static_cast<int>(n), 0, in.bits,
                                              stream));
   karras_build<<<blocks(n - 1), kBlock, 0, stream>>>(static_cast<int>(n), in.bits, keys.Current(), m.nodes.as<Node>(),
-                                                     m.parent.as<std::uint32_t>(), m.arrivals.as<std::uint32_t>(),
-                                                     listed);
+                                                     m.parent.as<std::uint32_t>(), m.arrivals.as<std::uint32_t>());
   VISCD_CUDA(cudaGetLastError());
   fit<<<blocks(n), kBlock, 0, stream>>>(n, centres, boxes ? in.boxes : nullptr, nullptr, values.Current(),
                                         m.sorted.as<float4>(), m.leaf_boxes.as<float>(), m.frame_id.as<std::uint32_t>(),
-                                        m.nodes.as<Node>(), m.parent.as<std::uint32_t>(), m.arrivals.as<std::uint32_t>(),
-                                        listed);
+                                        m.nodes.as<Node>(), m.parent.as<std::uint32_t>(), m.arrivals.as<std::uint32_t>());
   VISCD_CUDA(cudaGetLastError());
   const auto* filters = reinterpret_cast<const uint2*>(in.filters);
   QueryOut counting;
   counting.counts = m.counts.as<unsigned long long>();
   counting.states = out.states;
   counting.kept = m.kept.as<uint2>();
-  counting.spill = m.spill.as<uint4>();
-  counting.spilled = m.spilled.as<unsigned long long>();
-  counting.spill_capacity = spill_entries(n);
-  counting.redo = m.redo.as<std::uint8_t>();
-  VISCD_CUDA(cudaMemsetAsync(m.spilled.ptr, 0, 8, stream));
   query<Pass::count><<<blocks(n), kBlock, 0, stream>>>(n, m.sorted.as<float4>(), m.leaf_boxes.as<float>(),
                                                        m.nodes.as<Node>(), m.frame_id.as<std::uint32_t>(), filters,
-                                                       in.static_from, boxes, counting, listed);
+                                                       in.static_from, boxes, counting);
   VISCD_CUDA(cudaGetLastError());
   temp_bytes = m.temp.capacity;
   VISCD_CUDA(cub::DeviceScan::ExclusiveSum(m.temp.ptr, temp_bytes, m.counts.as<unsigned long long>(),
@@ -1231,14 +1099,9 @@ Outcome DeviceFrame::enqueue(const DeviceInput& in, const DeviceOutput& out, voi
     writing.capacity = out.capacity;
     writing.counts = m.counts.as<unsigned long long>();
     writing.kept = m.kept.as<uint2>();
-    writing.redo = m.redo.as<std::uint8_t>();
     query<Pass::write><<<blocks(n), kBlock, 0, stream>>>(n, m.sorted.as<float4>(), m.leaf_boxes.as<float>(),
                                                          m.nodes.as<Node>(), m.frame_id.as<std::uint32_t>(), filters,
-                                                         in.static_from, boxes, writing, listed);
-    VISCD_CUDA(cudaGetLastError());
-    scatter_spill<<<blocks(spill_entries(n)), kBlock, 0, stream>>>(
-        spill_entries(n), m.spill.as<uint4>(), m.spilled.as<unsigned long long>(), m.offsets.as<unsigned long long>(),
-        reinterpret_cast<uint2*>(out.pairs), out.capacity);
+                                                         in.static_from, boxes, writing);
     VISCD_CUDA(cudaGetLastError());
   }
   finish<<<1, 1, 0, stream>>>(n, m.counts.as<unsigned long long>(), m.offsets.as<unsigned long long>(), out.report);

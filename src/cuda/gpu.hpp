@@ -119,7 +119,7 @@ class Gpu {
 /// viscd::CudaReport's layout (viscd/cuda.hpp; cuda_detector.cpp asserts that they agree).
 struct Report {
   unsigned long long pairs;
-  std::uint32_t invalid, first_invalid, bits, objects, active, map_errors;
+  std::uint32_t invalid, first_invalid, bits, objects;
 };
 
 /// A device-resident frame's input: device pointers.
@@ -127,13 +127,6 @@ struct DeviceInput {
   const float* spheres = nullptr;          ///< 4 floats an object, 16-byte aligned; or
   const float* boxes = nullptr;            ///< 6 floats an object
   const std::uint32_t* filters = nullptr;  ///< group, mask an object; may be null
-  /// The caller's id map (object index + 1 a pixel, 0 background), map_pixels of them, or null;
-  /// with it and `lambda` > 0 objects below lambda pixels are culled, unless always_active[k] != 0
-  /// or k >= static_from.
-  const std::uint32_t* id_map = nullptr;
-  std::uint64_t map_pixels = 0;
-  float lambda = 0;
-  const std::uint8_t* always_active = nullptr;
   std::uint32_t n = 0, static_from = 0xFFFFFFFFu;
   int bits = 32;
   bool plain_layout = false;

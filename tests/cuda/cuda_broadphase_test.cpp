@@ -13,7 +13,6 @@
 #include <string>
 #include <vector>
 
-#include "cpu/pipeline.hpp"
 #include "test_util.hpp"
 #include "viscd/cuda.hpp"
 #include "viscd/scene.hpp"
@@ -223,89 +222,6 @@ TEST(CudaBroadphase, ShortCapacityCountsEveryPair) {
   std::size_t k = 0;
   for (std::uint32_t i = 0; i < n; ++i)
     for (std::uint32_t j = i + 1; j < n; ++j, ++k) ASSERT_EQ(got[k], (Pair{i, j}));
-}
-
-// Leaves with more pairs than the counting pass keeps: clusters of 8 coincident spheres spill a
-// few pairs each (the spill list has room), clusters of 200 fill the list, so their leaves
-// traverse again. Every pair in its place, as the brute force has them, deterministic.
-TEST(CudaBroadphase, SpilledAndRetraversedLeaves) {
-  VISCD_BROADPHASE_OR_SKIP(bp, Config{});
-  std::vector<Sphere> s;
-  for (int c = 0; c < 2000; ++c)
-    for (int k = 0; k < 8; ++k) s.push_back(Sphere{static_cast<float>(c % 50) * 10, 0, static_cast<float>(c / 50) * 10, 1});
-  for (int c = 0; c < 5; ++c)
-    for (int k = 0; k < 200; ++k) s.push_back(Sphere{-100.0f - 10.0f * static_cast<float>(c), 50, 0, 1});
-  const std::vector<Pair> want = test::oracle_pairs(s);
-  ASSERT_EQ(want.size(), 2000u * 28u + 5u * 19900u);
-  const Got a = run(bp, &s, nullptr);
-  EXPECT_EQ(a.report.pairs, want.size());
-  EXPECT_TRUE(test::same_pairs(sorted(a.pairs), want));
-  EXPECT_TRUE(test::same_pairs(run(bp, &s, nullptr).pairs, a.pairs)) << "not deterministic";
-}
-
-// Culling from the engine's id map on the GPU: the cpu backend's own map of the ring from a
-// camera, handed to both as the caller's map (the cpu backend's from the host, the broadphase's
-// from the device), with some objects flagged always active and a few pixels holding ids past N.
-// The same active count, states and pairs.
-TEST(CudaBroadphase, CullsFromTheCallersMap) {
-  Config c;
-  c.bits = Bits::b32;
-  c.lambda = 20;  // so that a few hundred objects of the zoomed-in ring stay active
-  VISCD_BROADPHASE_OR_SKIP(bp, c);
-  auto cpu = make_cpu_detector(c);
-  for (const char* preset : {"zoom-in", "zoom-out"}) {
-    SCOPED_TRACE(preset);
-    Scene scene = Scene::make(SceneParams{.objects = 20000, .seed = 4, .packing = 0.18f});
-    const auto cam = camera_preset(preset, scene, 320, 180);
-    ASSERT_TRUE(cam.ok()) << cam.error();
-    FrameResult drawn;
-    ASSERT_TRUE(cpu->detect(scene.spheres(), &cam.value(), drawn).ok());
-    const auto& own = detail::backend_as<detail::PipelineDetector>(*cpu).visibility_map();
-    std::vector<std::uint32_t> ids(own.ids.begin(), own.ids.end());
-    std::vector<std::uint8_t> always(scene.spheres().size(), 0);
-    for (std::size_t k = 0; k < always.size(); k += 997) always[k] = 1;
-    const std::vector<Sphere> spheres(scene.spheres().begin(), scene.spheres().end());
-    FrameInput in;
-    in.spheres = spheres;
-    in.id_map = ids;
-    in.id_map_width = 320;
-    in.id_map_height = 180;
-    in.always_active = always;
-    FrameResult want;
-    ASSERT_TRUE(cpu->detect(in, want).ok());
-    ASSERT_GT(want.stats.active, 10u);
-    ASSERT_LT(want.stats.active, spheres.size());
-    // A background pixel turned into a map error: counted, ignored.
-    const auto background = std::find(ids.begin(), ids.end(), 0u);
-    const bool with_error = background != ids.end();
-    if (with_error) *background = static_cast<std::uint32_t>(spheres.size()) + 5;
-    DeviceArray<Sphere> ds(spheres);
-    DeviceArray<std::uint32_t> dm(ids);
-    DeviceArray<std::uint8_t> da(always);
-    DeviceArray<Pair> dp(64 * spheres.size());
-    DeviceArray<CudaReport> dr(1);
-    DeviceArray<ObjectState> dst(spheres.size());
-    CudaObjects o;
-    o.spheres = ds.get();
-    o.count = static_cast<std::uint32_t>(spheres.size());
-    o.id_map = dm.get();
-    o.id_map_width = 320;
-    o.id_map_height = 180;
-    o.always_active = da.get();
-    CudaResults r;
-    r.pairs = dp.get();
-    r.capacity = dp.size();
-    r.report = dr.get();
-    r.states = dst.get();
-    ASSERT_TRUE(bp.enqueue(o, r, nullptr).ok());
-    CUDA_OK(cudaDeviceSynchronize());
-    const CudaReport rep = dr.download(1)[0];
-    EXPECT_EQ(rep.active, want.stats.active);
-    EXPECT_EQ(rep.map_errors, with_error ? 1u : 0u);
-    EXPECT_EQ(rep.pairs, want.pairs.size());
-    EXPECT_TRUE(test::same_pairs(sorted(dp.download(rep.pairs)), want.pairs));
-    EXPECT_EQ(dst.download(spheres.size()), want.state);
-  }
 }
 
 // N = 0, 1, 2 (touching), huge and tiny radii, and invalid objects reported, not paired.
