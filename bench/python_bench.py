@@ -16,7 +16,13 @@
 The scene is bench's "dense cube": radii uniform in [0.25, 0.75] in a cube holding 17% of its
 volume in spheres (about 0.6 pairs per object), no camera, every object active.
 
+3. `viscd.pairs_within(points, r)` against `cKDTree(points).query_pairs(r, output_type="ndarray")`
+   (the tree's build included, its rows unsorted, viscd's sorted), with --pairs-within: uniform
+   points at unit density, r = 0.78 (about one pair per point), at 10^4 .. 10^7 points; the sets
+   are checked equal.
+
 usage: PYTHONPATH=build/release/python python3 bench/python_bench.py [--objects 100000] [--repeats 31]
+       PYTHONPATH=build/release/python python3 bench/python_bench.py --pairs-within [--sizes 10000,...]
 """
 
 import argparse
@@ -63,8 +69,38 @@ def median(xs):
     return statistics.median(xs)
 
 
+def pairs_within_vs_kdtree(sizes, repeats, seed):
+    from scipy.spatial import cKDTree
+    import scipy
+
+    r = 0.78
+    print(f"\n3. viscd.pairs_within vs scipy {scipy.__version__} cKDTree(points).query_pairs(r={r}), "
+          f"uniform points at unit density, threads = 0 ({os.cpu_count()} CPUs); medians of {repeats} runs after one")
+    print(f"   {'points':>10} {'pairs':>10} {'pairs_within ms':>16} {'cKDTree ms':>12} {'cKDTree / viscd':>16}")
+    for n in sizes:
+        rng = np.random.default_rng(seed)
+        points = rng.uniform(0, n ** (1.0 / 3.0), (n, 3)).astype(np.float32)
+        ours, theirs = [], []
+        for k in range(repeats + 1):
+            t0 = time.perf_counter()
+            got = viscd.pairs_within(points, r)
+            t1 = time.perf_counter()
+            kd = cKDTree(points).query_pairs(r, output_type="ndarray")
+            t2 = time.perf_counter()
+            if k:
+                ours.append((t1 - t0) * 1e3)
+                theirs.append((t2 - t1) * 1e3)
+        kd = np.sort(kd, axis=1)
+        kd = kd[np.lexsort((kd[:, 1], kd[:, 0]))].astype(np.uint32)
+        assert np.array_equal(got, kd), f"{n} points: pairs_within and cKDTree disagree"
+        a, b = median(ours), median(theirs)
+        print(f"   {n:>10} {len(got):>10} {a:>16.2f} {b:>12.2f} {b / a:>15.1f}x", flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--pairs-within", action="store_true", help="part 3 only: pairs_within against cKDTree")
+    ap.add_argument("--sizes", default="10000,100000,1000000,10000000", help="point counts of part 3")
     ap.add_argument("--objects", type=int, default=100_000)
     ap.add_argument("--repeats", type=int, default=31, help="frames timed for the overhead (default 31)")
     ap.add_argument("--kdtree-repeats", type=int, default=7, help="timed runs of each method in part 2 (default 7)")
@@ -74,6 +110,11 @@ def main():
     print(f"date: {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC")
     print(f"machine: {cpu_model()}, {os.cpu_count()} logical CPUs, load average {os.getloadavg()[0]:.2f} at start")
     print(f"python {platform.python_version()}, numpy {np.__version__}, viscd {viscd.__version__}")
+    if args.pairs_within:
+        sizes = [int(x) for x in args.sizes.split(",")]
+        pairs_within_vs_kdtree(sizes, min(args.kdtree_repeats, 3), args.seed)
+        print(f"\nload average {os.getloadavg()[0]:.2f} at the end")
+        return
 
     spheres, side = dense_cube(args.objects, args.seed)
     rng = np.random.default_rng(args.seed + 1)

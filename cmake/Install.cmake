@@ -16,6 +16,7 @@ install(TARGETS viscd_tools EXPORT viscdToolsTargets
 # One include folder for both: io.hpp and scene.hpp are installed with the rest and usable once
 # viscd::tools is linked.
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/viscd DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+install(FILES ${PROJECT_SOURCE_DIR}/LICENSE DESTINATION ${CMAKE_INSTALL_DATADIR}/doc/viscd)
 install(EXPORT viscdTargets NAMESPACE viscd:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/viscd)
 install(EXPORT viscdToolsTargets NAMESPACE viscd:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/viscd)
 

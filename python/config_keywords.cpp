@@ -51,7 +51,9 @@ std::size_t choice_value(py::handle v, const std::string& key, const std::vector
 
 Bits bits_value(py::handle v, const std::string& key) {
   if (!py::isinstance<py::str>(v) && !PyBool_Check(v.ptr()) && PyIndex_Check(v.ptr())) {
-    const long long b = py::reinterpret_steal<py::int_>(PyNumber_Index(v.ptr())).cast<long long>();
+    PyObject* index = PyNumber_Index(v.ptr());  // new reference, or null with an exception set
+    if (index == nullptr) throw py::error_already_set();
+    const long long b = py::reinterpret_steal<py::int_>(index).cast<long long>();
     if (b == 16) return Bits::b16;
     if (b == 32) return Bits::b32;
     if (b == 64) return Bits::b64;
@@ -65,77 +67,125 @@ Bits bits_value(py::handle v, const std::string& key) {
   }
 }
 
+// One keyword: the one place that names it. Its setter, its value for Detector.config (the gl
+// ones are not in it), and its line in the docstring; the type stub (__init__.pyi) is checked
+// against this table by a test (tests/python/test_threads_and_docs.py), through _keyword_table().
 struct Keyword {
   std::string_view name;
   bool gl;
+  std::string_view type;          // as the stub writes it
+  std::string_view default_text;  // a Python literal
+  std::string_view help;
   std::function<void(py::handle, const std::string&, Config&, GlOptions&)> set;
+  std::function<py::object(const Config&, const GlOptions&)> get;
 };
+
+const char* bits_text(Bits b) {
+  switch (b) {
+    case Bits::b16: return "16";
+    case Bits::b32: return "32";
+    case Bits::b64: return "64";
+    default: return "adaptive";
+  }
+}
 
 const std::vector<Keyword>& keywords() {
   constexpr long long kIntMax = std::numeric_limits<int>::max();
+  using C = const Config&;
+  using G = const GlOptions&;
   static const std::vector<Keyword> table = {
-      {"lambda_", false,
-       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.lambda = float_value(v, k); }},
-      {"pixels_for_32_bits", false,
-       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.pixels_for_32_bits = float_value(v, k); }},
-      {"pixels_for_64_bits", false,
-       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.pixels_for_64_bits = float_value(v, k); }},
-      {"bits", false, [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.bits = bits_value(v, k); }},
-      {"layout", false,
+      {"lambda_", false, "float", "200.0", "culling threshold in screen pixels (also \"lambda\" via **dict)",
+       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.lambda = float_value(v, k); },
+       [](C c, G) { return py::cast(c.lambda); }},
+      {"pixels_for_32_bits", false, "float", "100.0", "adaptive Morton width: m = 16 below this mean pixel count,",
+       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.pixels_for_32_bits = float_value(v, k); },
+       [](C c, G) { return py::cast(c.pixels_for_32_bits); }},
+      {"pixels_for_64_bits", false, "float", "400.0", "32 below this one, else 64",
+       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.pixels_for_64_bits = float_value(v, k); },
+       [](C c, G) { return py::cast(c.pixels_for_64_bits); }},
+      {"bits", false, "\"adaptive\" | 16 | 32 | 64", "\"adaptive\"", "Morton code width (pairs are exact for each)",
+       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.bits = bits_value(v, k); },
+       [](C c, G) -> py::object {
+         if (c.bits == Bits::adaptive) return py::str("adaptive");
+         return py::int_(std::stoi(bits_text(c.bits)));
+       }},
+      {"layout", false, "\"extended\" | \"plain\"", "\"extended\"", "Morton bit layout over the axes",
        [](py::handle v, const std::string& k, Config& c, GlOptions&) {
          c.layout = choice_value(v, k, {"extended", "plain"}) == 0 ? Layout::extended : Layout::plain;
-       }},
-      {"culling", false,
-       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.culling = bool_value(v, k); }},
-      {"map_width", false,
+       },
+       [](C c, G) { return py::str(c.layout == Layout::extended ? "extended" : "plain"); }},
+      {"culling", false, "bool", "True", "cull objects below lambda_ pixels (with a camera or an id map)",
+       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.culling = bool_value(v, k); },
+       [](C c, G) { return py::cast(c.culling); }},
+      {"map_width", false, "int", "0", "visibility map width; 0 x 0 = the camera's screen",
        [=](py::handle v, const std::string& k, Config& c, GlOptions&) {
          c.map_width = static_cast<int>(int_value(v, k, 0, kIntMax));
-       }},
-      {"map_height", false,
+       },
+       [](C c, G) { return py::cast(c.map_width); }},
+      {"map_height", false, "int", "0", "visibility map height",
        [=](py::handle v, const std::string& k, Config& c, GlOptions&) {
          c.map_height = static_cast<int>(int_value(v, k, 0, kIntMax));
-       }},
-      {"shade", false, [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.shade = bool_value(v, k); }},
-      {"report_pixels", false,
-       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.report_pixels = bool_value(v, k); }},
-      {"contact_events", false,
-       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.contact_events = bool_value(v, k); }},
-      {"pair_memory_cap", false,
+       },
+       [](C c, G) { return py::cast(c.map_height); }},
+      {"shade", false, "bool", "False", "produce Frame.image (needs a camera)",
+       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.shade = bool_value(v, k); },
+       [](C c, G) { return py::cast(c.shade); }},
+      {"report_pixels", false, "bool", "False", "count pixels (Frame.pixels) even when no stage needs them",
+       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.report_pixels = bool_value(v, k); },
+       [](C c, G) { return py::cast(c.report_pixels); }},
+      {"contact_events", false, "bool", "False", "fill Frame.began / Frame.ended",
+       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.contact_events = bool_value(v, k); },
+       [](C c, G) { return py::cast(c.contact_events); }},
+      {"pair_memory_cap", false, "int", "0", "bytes pairs may take (8 per pair); 0 = no cap; beyond: PairCapError",
        [](py::handle v, const std::string& k, Config& c, GlOptions&) {
          c.pair_memory_cap = static_cast<std::size_t>(int_value(v, k, 0, std::numeric_limits<long long>::max()));
-       }},
-      {"threads", false,
+       },
+       [](C c, G) { return py::cast(c.pair_memory_cap); }},
+      {"threads", false, "int", "0", "cpu worker threads; 0 = all hardware threads, 1 = serial",
        [=](py::handle v, const std::string& k, Config& c, GlOptions&) {
          c.threads = static_cast<int>(int_value(v, k, 0, kIntMax));
-       }},
-      {"keep_order", false,
-       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.keep_order = bool_value(v, k); }},
-      {"follow_change", false,
-       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.follow_change = bool_value(v, k); }},
-      {"rest_margin", false,
-       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.rest_margin = float_value(v, k); }},
-      {"simd", false,
+       },
+       [](C c, G) { return py::cast(c.threads); }},
+      {"keep_order", false, "bool", "True", "cpu: keep the last frame's object order while it stays good",
+       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.keep_order = bool_value(v, k); },
+       [](C c, G) { return py::cast(c.keep_order); }},
+      {"follow_change", false, "bool", "True", "cpu: keep resting objects in trees across frames (cost follows change)",
+       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.follow_change = bool_value(v, k); },
+       [](C c, G) { return py::cast(c.follow_change); }},
+      {"rest_margin", false, "float", "0.0", "cpu: how far an object may stray and still rest (0: bit for bit)",
+       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.rest_margin = float_value(v, k); },
+       [](C c, G) { return py::cast(c.rest_margin); }},
+      {"simd", false, "\"best\" | \"sse2\" | \"scalar\"", "\"best\"", "widest SIMD kernels the cpu backend may use",
        [](py::handle v, const std::string& k, Config& c, GlOptions&) {
          static constexpr Simd kSimd[] = {Simd::best, Simd::sse2, Simd::scalar};
          c.simd = kSimd[choice_value(v, k, {"best", "sse2", "scalar"})];
-       }},
-      {"gl_geometry", true,
+       },
+       [](C c, G) { return py::str(c.simd == Simd::best ? "best" : c.simd == Simd::sse2 ? "sse2" : "scalar"); }},
+      {"gl_geometry", true, "\"impostor\" | \"mesh\" | \"splat\"", "\"impostor\"", "how spheres are drawn into the map",
        [](py::handle v, const std::string& k, Config&, GlOptions& g) {
          const std::size_t choice = choice_value(v, k, {"impostor", "mesh", "splat"});
          g.geometry = choice == 0 ? GlGeometry::impostor : choice == 1 ? GlGeometry::mesh : GlGeometry::splat;
+       },
+       [](C, G g) {
+         return py::str(g.geometry == GlGeometry::impostor ? "impostor" : g.geometry == GlGeometry::mesh ? "mesh" : "splat");
        }},
-      {"gl_counter", true,
+      {"gl_counter", true, "\"ssbo\" | \"atomic_uint\"", "\"ssbo\"", "how pixels are counted",
        [](py::handle v, const std::string& k, Config&, GlOptions& g) {
          g.counter = choice_value(v, k, {"ssbo", "atomic_uint"}) == 0 ? GlCounter::ssbo : GlCounter::atomic_uint;
-       }},
-      {"gl_debug", true, [](py::handle v, const std::string& k, Config&, GlOptions& g) { g.debug = bool_value(v, k); }},
-      {"gl_initial_pair_capacity", true,
+       },
+       [](C, G g) { return py::str(g.counter == GlCounter::ssbo ? "ssbo" : "atomic_uint"); }},
+      {"gl_debug", true, "bool", "False", "a debug context: any GL error fails detect()",
+       [](py::handle v, const std::string& k, Config&, GlOptions& g) { g.debug = bool_value(v, k); },
+       [](C, G g) { return py::cast(g.debug); }},
+      {"gl_initial_pair_capacity", true, "int", "65536", "pairs the pair buffer holds before it first grows",
        [](py::handle v, const std::string& k, Config&, GlOptions& g) {
          g.initial_pair_capacity =
              static_cast<std::uint32_t>(int_value(v, k, 1, std::numeric_limits<std::uint32_t>::max()));
-       }},
-      {"gl_sync_layout", true,
-       [](py::handle v, const std::string& k, Config&, GlOptions& g) { g.sync_layout = bool_value(v, k); }},
+       },
+       [](C, G g) { return py::cast(g.initial_pair_capacity); }},
+      {"gl_sync_layout", true, "bool", "False", "m and the layout from this frame (one mid-frame readback)",
+       [](py::handle v, const std::string& k, Config&, GlOptions& g) { g.sync_layout = bool_value(v, k); },
+       [](C, G g) { return py::cast(g.sync_layout); }},
   };
   return table;
 }
@@ -171,51 +221,35 @@ void apply_keywords(const py::kwargs& given, Config& config, GlOptions& gl, bool
 
 py::dict config_dict(const Config& c) {
   py::dict d;
-  d["lambda_"] = c.lambda;
-  d["pixels_for_32_bits"] = c.pixels_for_32_bits;
-  d["pixels_for_64_bits"] = c.pixels_for_64_bits;
-  if (c.bits == Bits::adaptive)
-    d["bits"] = "adaptive";
-  else
-    d["bits"] = static_cast<int>(c.bits);
-  d["layout"] = c.layout == Layout::extended ? "extended" : "plain";
-  d["culling"] = c.culling;
-  d["map_width"] = c.map_width;
-  d["map_height"] = c.map_height;
-  d["shade"] = c.shade;
-  d["report_pixels"] = c.report_pixels;
-  d["contact_events"] = c.contact_events;
-  d["pair_memory_cap"] = c.pair_memory_cap;
-  d["threads"] = c.threads;
-  d["keep_order"] = c.keep_order;
-  d["follow_change"] = c.follow_change;
-  d["rest_margin"] = c.rest_margin;
-  d["simd"] = c.simd == Simd::best ? "best" : c.simd == Simd::sse2 ? "sse2" : "scalar";
+  for (const Keyword& k : keywords())
+    if (!k.gl) d[py::str(std::string(k.name))] = k.get(c, GlOptions{});
   return d;
 }
 
 const char* keywords_doc() {
-  return R"(Keywords (viscd::Config; every one optional, defaults are the paper's setup):
-    lambda_: float = 200.0        culling threshold in screen pixels (also "lambda" via **dict)
-    pixels_for_32_bits: float = 100.0   adaptive Morton width: m = 16 below this mean pixel count,
-    pixels_for_64_bits: float = 400.0   32 below this one, else 64
-    bits: "adaptive" | 16 | 32 | 64 = "adaptive"   Morton code width (pairs are exact for each)
-    layout: "extended" | "plain" = "extended"      Morton bit layout over the axes
-    culling: bool = True          cull objects below lambda_ pixels (with a camera or an id map)
-    map_width: int = 0, map_height: int = 0        visibility map size; 0 x 0 = the camera's screen
-    shade: bool = False           produce Frame.image (needs a camera)
-    report_pixels: bool = False   count pixels (Frame.pixels) even when no stage needs them
-    contact_events: bool = False  fill Frame.began / Frame.ended
-    pair_memory_cap: int = 0      bytes pairs may take (8 per pair); 0 = no cap; beyond: PairCapError
-    threads: int = 0              cpu worker threads; 0 = all hardware threads, 1 = serial
-    keep_order: bool = True       cpu: keep the last frame's object order while it stays good
-    follow_change: bool = True    cpu: keep resting objects in trees across frames (cost follows change)
-    rest_margin: float = 0.0      cpu: how far an object may stray and still rest (0: bit for bit)
-    simd: "best" | "sse2" | "scalar" = "best"      widest SIMD kernels the cpu backend may use
-  backend="gl" only (viscd::GlOptions):
-    gl_geometry: "impostor" | "mesh" | "splat" = "impostor", gl_counter: "ssbo" | "atomic_uint" = "ssbo",
-    gl_debug: bool = False, gl_initial_pair_capacity: int = 65536, gl_sync_layout: bool = False
-An unknown keyword raises TypeError; a bad value raises ValueError.)";
+  static const std::string doc = [] {
+    std::string out = "Keywords (viscd::Config; every one optional, defaults are the paper's setup):\n";
+    bool gl_heading = false;
+    for (const Keyword& k : keywords()) {
+      if (k.gl && !gl_heading) {
+        out += "  backend=\"gl\" only (viscd::GlOptions):\n";
+        gl_heading = true;
+      }
+      std::string line = "    " + std::string(k.name) + ": " + std::string(k.type) + " = " + std::string(k.default_text);
+      if (line.size() < 44) line.resize(44, ' ');
+      out += line + "  " + std::string(k.help) + "\n";
+    }
+    out += "An unknown keyword raises TypeError; a bad value raises ValueError.";
+    return out;
+  }();
+  return doc.c_str();
+}
+
+py::list keyword_table() {
+  py::list out;
+  for (const Keyword& k : keywords())
+    out.append(py::make_tuple(std::string(k.name), k.gl, std::string(k.type), std::string(k.default_text)));
+  return out;
 }
 
 }  // namespace viscd::python

@@ -23,4 +23,8 @@ void apply_keywords(const py::kwargs& keywords, Config& config, GlOptions& gl, b
 /// The docstring lines listing every keyword, its default and what it takes.
 [[nodiscard]] const char* keywords_doc();
 
+/// The keywords as (name, gl only, type as the stub writes it, default as a Python literal):
+/// the module's _keyword_table(), which a test checks the type stub against.
+[[nodiscard]] py::list keyword_table();
+
 }  // namespace viscd::python

@@ -23,9 +23,32 @@ std::string dtype_text(const py::array& a) { return py::str(a.dtype()).cast<std:
 
 std::string type_text(py::handle obj) { return py::str(py::type::handle_of(obj).attr("__name__")).cast<std::string>(); }
 
-// numpy.asarray(obj): the caller's array itself when it is one.
+// A DLPack producer (a torch, JAX or CuPy tensor...) as a NumPy view of its memory, without a
+// copy; one on another device than the CPU is refused, naming the device type.
+py::array from_dlpack(py::handle obj, const char* name) {
+  if (py::hasattr(obj, "__dlpack_device__")) {
+    const py::tuple device = obj.attr("__dlpack_device__")();
+    const int type = device.size() > 0 ? device[0].cast<int>() : -1;
+    if (type != 1)  // kDLCPU
+      throw py::value_error(std::string(name) + ": a DLPack array on device type " + std::to_string(type) +
+                            " (1 is the CPU); viscd reads host memory: copy it to the CPU first");
+  }
+  const py::module_ numpy = py::module_::import("numpy");
+  try {
+    return numpy.attr("from_dlpack")(obj);
+  } catch (py::error_already_set& e) {
+    throw py::value_error(std::string(name) + ": cannot read it through DLPack (" + e.what() + ")");
+  }
+}
+
+// numpy.asarray(obj): the caller's array itself when it is one; anything with the buffer
+// protocol or __array_interface__ is viewed where it lies (NumPy does that); a DLPack producer
+// through numpy.from_dlpack.
 py::array as_array(py::handle obj, const char* name) {
   if (py::isinstance<py::array>(obj)) return py::reinterpret_borrow<py::array>(obj);
+  if (py::hasattr(obj, "__dlpack__") && !py::hasattr(obj, "__array_interface__") &&
+      !PyObject_CheckBuffer(obj.ptr()))
+    return from_dlpack(obj, name);
   py::array a = py::array::ensure(obj);  // clears NumPy's error on failure and returns null
   if (!a) throw py::value_error(std::string(name) + ": expected an array of numbers, got " + type_text(obj));
   return a;

@@ -365,6 +365,25 @@ class PyDetector {
 
   [[nodiscard]] const Detector& detector() const { return *detector_; }
 
+  // Reads of the detector's state wait for no frame: under the busy rule, a read while another
+  // thread's call runs (with the GIL released) raises instead of racing with it.
+  [[nodiscard]] std::uint64_t memory_bytes() {
+    BusyGuard busy(busy_);
+    return detector_->memory_bytes();
+  }
+  [[nodiscard]] Config config() {
+    BusyGuard busy(busy_);
+    return detector_->config();
+  }
+  [[nodiscard]] std::size_t static_count() {
+    BusyGuard busy(busy_);
+    return detector_->static_count();
+  }
+  [[nodiscard]] ShapeKind static_kind() {
+    BusyGuard busy(busy_);
+    return detector_->static_kind();
+  }
+
  private:
   // A FrameResult that Python holds nothing of (use_count 1: only this pool), to be written by
   // the next frame with its buffers' capacity kept; else a new one. Two slots suffice for the
@@ -470,10 +489,14 @@ PYBIND11_MODULE(_viscd, m) {
       "were found when the search stopped.";
   auto backend_error = py::exception<BackendTag>(m, "BackendError", PyExc_RuntimeError);
   g_backend_error = backend_error.ptr();
-  backend_error.attr("__doc__") = "The backend itself failed (no OpenGL 4.5 context, a GL error).";
+  backend_error.attr("__doc__") =
+      "The backend itself failed (gl: no OpenGL 4.5 context, a GL error; cuda: no usable GPU, a CUDA error).";
 
   m.attr("STATIC_BIT") = kStaticBit;
   m.attr("MAX_COORDINATE") = kMaxCoordinate;
+  m.def("_keyword_table", &keyword_table,
+        "The Detector's keywords as (name, gl only, type, default literal): the table the docstring, "
+        "Detector.config and the type stub follow.");
   m.attr("__version__") =
       std::to_string(kVersionMajor) + "." + std::to_string(kVersionMinor) + "." + std::to_string(kVersionPatch);
 
@@ -579,9 +602,10 @@ PYBIND11_MODULE(_viscd, m) {
       std::string(
           "Detector(backend='cpu', **config)\n\n"
           "Finds every overlapping pair among moving spheres or boxes, frame after frame, and answers ray and\n"
-          "overlap queries on the last frame. backend: 'cpu' (all cores), 'reference' (brute force) or 'gl'\n"
-          "(OpenGL 4.5, headless through EGL). Not thread-safe: a call while another thread's call runs raises\n"
-          "RuntimeError; use one Detector per thread.\n\n") +
+          "overlap queries on the last frame. backend: 'cpu' (all cores), 'reference' (brute force), 'gl'\n"
+          "(OpenGL 4.5, headless through EGL) or 'cuda' (an NVIDIA GPU, when viscd was built with CUDA).\n"
+          "Not thread-safe: a call (or a read of config, memory_bytes, static_count, static_kind) while\n"
+          "another thread's call runs raises RuntimeError; use one Detector per thread.\n\n") +
       keywords_doc();
   py::class_<PyDetector>(m, "Detector", detector_doc.c_str())
       .def(py::init([](const std::string& backend, const py::kwargs& kw) {
@@ -608,11 +632,9 @@ PYBIND11_MODULE(_viscd, m) {
       .def("remove_static", &PyDetector::remove_static, py::arg("k"),
            "remove_static(k)\n\nRemoves the static object in slot k; the slot is free for a later add.")
       .def("clear_static", &PyDetector::clear_static, "clear_static()\n\nEmpties the static set.")
+      .def_property_readonly("static_count", &PyDetector::static_count, "Objects in the static set.")
       .def_property_readonly(
-          "static_count", [](const PyDetector& d) { return d.detector().static_count(); }, "Objects in the static set.")
-      .def_property_readonly(
-          "static_kind",
-          [](const PyDetector& d) { return d.detector().static_kind() == ShapeKind::box ? "box" : "sphere"; },
+          "static_kind", [](PyDetector& d) { return d.static_kind() == ShapeKind::box ? "box" : "sphere"; },
           "'sphere' or 'box': the static set's kind ('sphere' while empty).")
       .def("ray_cast", &PyDetector::ray_cast, py::arg("origin"), py::arg("direction"),
            py::arg("max_t") = std::numeric_limits<double>::infinity(), py::arg("filter") = py::none(),
@@ -637,16 +659,16 @@ PYBIND11_MODULE(_viscd, m) {
            "frame.stats (the gl backend\n"
            "reports them one frame late). cpu and reference: does nothing.")
       .def_property_readonly(
-          "config", [](const PyDetector& d) { return config_dict(d.detector().config()); },
+          "config", [](PyDetector& d) { return config_dict(d.config()); },
           "The settings as a dict of the keywords Detector() takes.")
       .def("set_config", &PyDetector::set_config,
            "set_config(**config)\n\nChanges settings (the Detector's keywords, gl_* excepted); takes effect at the "
            "next detect().")
       .def_property_readonly(
           "backend", [](const PyDetector& d) { return std::string(d.detector().name()); },
-          "'reference', 'cpu' or 'gl'.")
+          "'reference', 'cpu', 'gl' or 'cuda'.")
       .def_property_readonly(
-          "memory_bytes", [](const PyDetector& d) { return d.detector().memory_bytes(); },
+          "memory_bytes", &PyDetector::memory_bytes,
           "Working memory the backend holds now, in bytes.")
       .def("__repr__",
            [](const PyDetector& d) { return "<viscd.Detector backend='" + std::string(d.detector().name()) + "'>"; });

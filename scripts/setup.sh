@@ -13,6 +13,7 @@ packages=(
   libbullet-dev libfcl-dev
   python3-matplotlib
   pybind11-dev python3-dev python3-numpy python3-pytest python3-scipy
+  python3-pip python3-venv python3-setuptools python3-wheel
   clang libclang-rt-14-dev
 )
 

@@ -299,8 +299,10 @@ void add_bench_command(CLI::App& app, int& rc) {
       "peers",
       "viscd against Bullet (btDbvtBroadphase, bt32BitAxisSweep3) and FCL (DynamicAABBTree) on the\n"
       "same moving scene, in one process; arguments after -- go to the driver (try -- --help).");
-  // Everything after `peers` (main() drops a `--` right after it) belongs to the driver.
+  // Everything after `peers` (main() drops a `--` right after it) belongs to the driver, --help
+  // too: the driver's help lists its options (`viscd bench --help` describes the command).
   peers->prefix_command();
+  peers->set_help_flag();
   peers->callback([args, peers, &rc] {
     args->peer_args = peers->remaining();
     rc = run_peers(*args);

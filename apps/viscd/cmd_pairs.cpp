@@ -132,10 +132,15 @@ void add_pairs_command(CLI::App& app, int& rc) {
       "(group_i & mask_j) != 0 and (group_j & mask_i) != 0. A CSV with an always_active column\n"
       "(0 or 1) keeps the objects marked 1 active whatever their pixels. With --static, the N\n"
       "moving objects are numbered 0..N-1 and static object k is N + k. Outputs are written whole\n"
-      "or not at all, and never over an input.\n"
-      "Examples:\n"
+      "or not at all, and never over an input.");
+  cmd->footer(
+      "\nExamples:\n"
       "  viscd pairs --spheres scene.csv --out pairs.csv\n"
-      "  viscd pairs --boxes crates.csv --static walls.csv --camera cam.json");
+      "  viscd pairs --spheres scene.xyzr --out pairs.csv --stats stats.json\n"
+      "  viscd pairs --spheres scene.csv --camera cam.json --lambda 50\n"
+      "  viscd pairs --spheres scene.csv --id-map ids.u32 --map-size 1280x720   # your own visibility map\n"
+      "  viscd pairs --boxes crates.csv --static walls.csv --camera cam.json\n"
+      "\nDocs: docs/usage.md");
   cmd->add_option("--spheres", args->spheres,
                   "sphere file: XYZR text (x y z r per line, # comments) or .csv with header x,y,z,r,\n"
                   "optionally followed by group,mask and then always_active (group, mask: unsigned 32-bit,\n"

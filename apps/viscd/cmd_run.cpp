@@ -262,6 +262,7 @@ int run_run(RunArgs a) {
   }
   progress.finish();
 
+  det->wait_for_stage_times(frame.stats);  // the screenshot frame's GPU times (shading), now
   const FrameStats& st = frame.stats;
   const double med_frame = frame_ms.median(), med_sim = sim_ms.median();
   std::array<double, kStageCount> med_stage{};  // shading ran on the last frame only: not a median

@@ -2,6 +2,7 @@
 #include <CLI/CLI.hpp>
 #include <exception>
 #include <new>
+#include <string>
 #include <string_view>
 #include <vector>
 
@@ -45,6 +46,15 @@ int main(int argc, char** argv) {
 #ifdef VISCD_HAVE_VIEWER
   viscd::app::add_view_command(app, rc);
 #endif
+  // CLI11 gives each command the tool's footer; a command shows its own examples, or points back.
+  const std::string tool_footer = app.get_footer();
+  auto own_footers = [&](auto& self, CLI::App& parent) -> void {
+    for (CLI::App* sub : parent.get_subcommands([](CLI::App*) { return true; })) {
+      if (sub->get_footer() == tool_footer) sub->footer("\n`viscd --help` shows examples of every command. Docs: docs/usage.md");
+      self(self, *sub);
+    }
+  };
+  own_footers(own_footers, app);
   // `viscd bench peers -- ARGS`: CLI11 would hand everything after `--` to the top-level app as
   // positionals; the `--` only marks where the driver's arguments begin, so drop it here.
   std::vector<char*> args(argv, argv + argc);

@@ -36,9 +36,48 @@ __all__ = [
     "PairCapError",
     "STATIC_BIT",
     "is_static",
+    "pairs_within",
     "static_index",
     "static_slot",
 ]
+
+
+def pairs_within(points, r, *, threads=0):
+    """Every pair of points closer than r: viscd's counterpart of ``cKDTree(points).query_pairs(r)``.
+
+    ``points``: (N, 3) or (N, 2) coordinates, any real dtype (converted to float32; 2-d points lie
+    at z = 0). ``r``: a distance (pairs with |p_i - p_j| <= r), or (N,) radii, one per point
+    (pairs with |p_i - p_j| <= r_i + r_j: spheres that touch). ``threads``: 0 for every core.
+
+    Returns a (P, 2) uint32 array, i < j in each row, rows sorted by (i, j): the same set as
+    ``cKDTree.query_pairs(r, output_type="ndarray")`` (whose rows come in no stated order, int64),
+    decided in float32 as viscd decides: (dx^2 + dy^2 + dz^2) <= (r_i + r_j)^2 with each point a
+    sphere of radius r/2 (or r_i), so a pair within a float32 rounding of the distance may differ
+    from SciPy's float64 test. Raises ValueError for a bad shape, a NaN or infinite coordinate, or
+    a negative or non-finite r.
+    """
+    pts = _np.asarray(points)
+    if pts.ndim != 2 or pts.shape[1] not in (2, 3):
+        raise ValueError(f"pairs_within: points must have shape (N, 3) or (N, 2), got {pts.shape}")
+    if not (_np.issubdtype(pts.dtype, _np.floating) or _np.issubdtype(pts.dtype, _np.integer)):
+        raise TypeError(f"pairs_within: points must be real numbers, got dtype {pts.dtype}")
+    n = pts.shape[0]
+    radii = _np.asarray(r)
+    if not (_np.issubdtype(radii.dtype, _np.floating) or _np.issubdtype(radii.dtype, _np.integer)):
+        raise TypeError(f"pairs_within: r must be a real number or (N,) real radii, got dtype {radii.dtype}")
+    spheres = _np.zeros((n, 4), _np.float32)
+    spheres[:, : pts.shape[1]] = pts
+    if radii.ndim == 0:
+        value = float(radii)
+        if not _np.isfinite(value) or value < 0:
+            raise ValueError(f"pairs_within: r must be finite and >= 0, got {value}")
+        spheres[:, 3] = _np.float32(value) / _np.float32(2)
+    elif radii.shape == (n,):
+        spheres[:, 3] = radii
+    else:
+        raise ValueError(f"pairs_within: r must be a number or have shape ({n},), got shape {radii.shape}")
+    detector = Detector("cpu", culling=False, bits=32, threads=threads, follow_change=False)
+    return detector.detect(spheres).pairs
 
 
 def is_static(index):

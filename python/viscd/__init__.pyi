@@ -19,7 +19,7 @@ class PairCapError(RuntimeError):
     """A frame's pairs would exceed the Detector's pair_memory_cap."""
 
 class BackendError(RuntimeError):
-    """The backend itself failed (no OpenGL 4.5 context, a GL error)."""
+    """The backend itself failed (gl: no OpenGL 4.5 context, a GL error; cuda: no usable GPU, a CUDA error)."""
 
 class Camera:
     """A pinhole camera: right-handed look-at, OpenGL clip space; width x height screen pixels."""
@@ -155,6 +155,9 @@ class Detector:
     def backend(self) -> str: ...
     @property
     def memory_bytes(self) -> int: ...
+
+def pairs_within(points: npt.ArrayLike, r: Union[float, npt.ArrayLike], *, threads: int = 0) -> _UInt32Array:
+    """(P, 2) uint32 pairs i < j, sorted, with |p_i - p_j| <= r (or <= r_i + r_j for (N,) radii)."""
 
 @overload
 def is_static(index: int) -> bool: ...

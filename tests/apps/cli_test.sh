@@ -40,9 +40,12 @@ expect_in "$W/out" "run" "--help"
 expect_in "$W/out" "pairs" "--help"
 pass
 
-step "viscd pairs --help mentions --spheres"
+step "viscd pairs --help mentions --spheres and ends with its own examples, not the tool's"
 expect_rc 0 pairs --help
 expect_in "$W/out" "--spheres" "pairs --help"
+expect_in "$W/out" "viscd pairs --boxes crates.csv --static walls.csv" "pairs --help"
+if grep -qF -- "viscd run --objects 100000" "$W/out"; then fail "pairs --help shows the tool's run examples"; fi
+if [[ "$(tail -n 1 "$W/out")" != "Docs: docs/usage.md" ]]; then fail "pairs --help does not end with its own footer"; fi
 pass
 
 step "viscd run --help mentions --objects and --frames"

@@ -14,6 +14,8 @@ here="$(cd "$(dirname "$0")" && pwd)"
 rm -rf "$work" && mkdir -p "$work"
 prefix="$work/prefix"
 cmake --install "$build" --prefix "$prefix" >/dev/null
+# The licence travels with the library (and with the Python package, when it is built).
+[[ -f "$prefix/share/doc/viscd/LICENSE" ]] || { echo "install test: LICENSE is not installed" >&2; exit 1; }
 consumer_flags=(-DCMAKE_PREFIX_PATH="$prefix" -DCMAKE_BUILD_TYPE=Release -DCMAKE_DISABLE_FIND_PACKAGE_nlohmann_json=ON
                 --no-warn-unused-cli)
 

@@ -13,6 +13,7 @@ memory, and their base is the capsule that keeps the buffers alive, not an array
 import tracemalloc
 
 import numpy as np
+import pytest
 
 import viscd
 from conftest import brute_sphere_pairs, random_spheres
@@ -108,3 +109,55 @@ def test_a_released_frame_is_reused(rng):
         frame = det.detect(s)
         addresses.add(frame.pairs.__array_interface__["data"][0])
     assert len(addresses) <= 2
+
+
+class _Interface:
+    """Only __array_interface__, NumPy's array interface (as other array libraries export it)."""
+
+    def __init__(self, a):
+        self._a = a
+        self.__array_interface__ = a.__array_interface__
+
+
+class _DLPack:
+    """Only the DLPack protocol, as a torch or JAX CPU tensor offers it."""
+
+    def __init__(self, a, device=(1, 0)):
+        self._a = a
+        self._device = device
+
+    def __dlpack__(self, stream=None):
+        return self._a.__dlpack__()
+
+    def __dlpack_device__(self):
+        return self._device
+
+
+def test_buffer_protocol_array_interface_and_dlpack_are_read_in_place(rng):
+    spheres = random_spheres(rng, 3000, extent=40.0)
+    want = brute_sphere_pairs(spheres)
+    det = viscd.Detector()
+    n = len(spheres)
+    views = {
+        "memoryview (buffer protocol)": memoryview(spheres.tobytes()).cast("B").cast("f", shape=[n, 4]),
+        "__array_interface__": _Interface(spheres),
+        "DLPack": _DLPack(spheres),
+    }
+    for what, view in views.items():
+        frame = det.detect(view)
+        np.testing.assert_array_equal(frame.pairs, want, err_msg=what)
+        assert not frame.input_copied, what
+    strided = np.asfortranarray(spheres)
+    frame = det.detect(_DLPack(spheres.astype(np.float64)))
+    np.testing.assert_array_equal(frame.pairs, want)
+    assert frame.input_copied  # float64 is converted
+    assert det.detect(strided).input_copied
+
+
+def test_dlpack_on_another_device_is_refused(rng):
+    spheres = random_spheres(rng, 10, extent=5.0)
+    det = viscd.Detector()
+    before = det.detect(spheres).pairs.copy()
+    with pytest.raises(ValueError, match="device type 2"):
+        det.detect(_DLPack(spheres, device=(2, 0)))
+    np.testing.assert_array_equal(det.detect(spheres).pairs, before)

@@ -90,3 +90,46 @@ def test_stats_have_stage_times(rng):
     assert s["detect_ms"] >= s["total_ms"] * 0.5 and s["bits"] in (16, 32, 64)
     assert "(" in s["layout"] and len(s["layout_axis_bits"]) == 3
     assert "5000 objects" in repr(frame)
+
+
+def test_type_stub_follows_the_keyword_table():
+    # The table in config_keywords.cpp is the one source: the stub's Detector.__init__ must list
+    # the same keywords, in the same order, with the same defaults; Detector().config must hold
+    # the non-gl ones with those defaults; the docstring must name every one.
+    import ast
+    import pathlib
+
+    stub = pathlib.Path(viscd.__file__).with_name("__init__.pyi")
+    tree = ast.parse(stub.read_text())
+    detector = next(n for n in tree.body if isinstance(n, ast.ClassDef) and n.name == "Detector")
+    init = next(n for n in detector.body if isinstance(n, ast.FunctionDef) and n.name == "__init__")
+    stub_keywords = [(a.arg, ast.literal_eval(d)) for a, d in zip(init.args.kwonlyargs, init.args.kw_defaults)]
+    table = viscd._viscd._keyword_table()
+    assert [name for name, _ in stub_keywords] == [row[0] for row in table]
+    defaults = viscd.Detector().config
+    for (name, stub_default), (_, gl_only, _, literal) in zip(stub_keywords, table):
+        assert stub_default == ast.literal_eval(literal), name
+        assert name in viscd.Detector.__doc__, name
+        if not gl_only:
+            assert defaults[name] == stub_default, name
+    assert set(defaults) == {row[0] for row in table if not row[1]}
+
+
+def test_reads_during_a_frame_in_another_thread_raise(rng):
+    # config, memory_bytes, static_count and static_kind read the detector: during another
+    # thread's frame (GIL released) they raise as a call would, instead of racing with it.
+    spheres = random_spheres(rng, 400_000, extent=600.0, r_min=0.05, r_max=0.5)
+    det = viscd.Detector(threads=1)
+    worker = threading.Thread(target=lambda: det.detect(spheres))
+    refused = set()
+    worker.start()
+    while worker.is_alive():
+        for name in ("config", "memory_bytes", "static_count", "static_kind"):
+            try:
+                getattr(det, name)
+            except RuntimeError as e:
+                assert "another thread" in str(e)
+                refused.add(name)
+    worker.join()
+    assert refused, "no read ever met the running frame"
+    assert det.memory_bytes > 0 and det.static_count == 0

@@ -1,0 +1,54 @@
+#!/usr/bin/env bash
+# The Python module as users install it (docs/python.md, "Installing"): pip builds it from this
+# checkout, offline, into a fresh virtual environment that sees Debian's NumPy, SciPy and pytest
+# (--system-site-packages), and the pytest suite runs against that install from a folder outside
+# the checkout. Then `pip wheel .` makes a wheel, whose contents are checked. scripts/test.sh runs
+# this after ctest (release preset). The build folder is build/pip-py3X (kept between runs).
+# Usage: scripts/python_install_test.sh
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+py=/usr/bin/python3  # Debian's, which has NumPy; the venv is made from it
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+
+echo "python: a virtual environment in $work"
+"$py" -m venv --system-site-packages "$work/venv"
+vpy="$work/venv/bin/python"
+echo "python: pip install --no-build-isolation $root"
+"$vpy" -m pip install --no-build-isolation --no-index --quiet "$root"
+
+cd "$work"  # outside the checkout: the installed module, not python/ of the checkout
+"$vpy" - <<'PY'
+import importlib.metadata as metadata
+import pathlib
+import sys
+
+import viscd
+
+where = pathlib.Path(viscd.__file__).resolve()
+assert pathlib.Path(sys.prefix).resolve() in where.parents, f"viscd imported from {where}, not the venv"
+assert viscd.__version__ == metadata.version("viscd"), (viscd.__version__, metadata.version("viscd"))
+files = {str(f) for f in metadata.files("viscd")}
+for needed in ("viscd/__init__.py", "viscd/__init__.pyi", "viscd/py.typed"):
+    assert needed in files, f"{needed} is not installed"
+assert any(f.startswith("viscd/_viscd") for f in files), "the extension is not installed"
+assert any(f.endswith("LICENSE") for f in files), "the licence is not installed"
+assert metadata.metadata("viscd")["License"] == "MIT"
+print(f"python: viscd {viscd.__version__} installed at {where.parent}")
+PY
+"$vpy" -m pytest -q -p no:cacheprovider "$root/tests/python"
+
+echo "python: pip wheel --no-build-isolation $root"
+"$vpy" -m pip wheel --no-build-isolation --no-index --no-deps --quiet -w "$work/wheel" "$root"
+"$vpy" - "$work"/wheel/viscd-*.whl <<'PY'
+import sys
+import zipfile
+
+names = zipfile.ZipFile(sys.argv[1]).namelist()
+for needed in ("viscd/__init__.py", "viscd/__init__.pyi", "viscd/py.typed"):
+    assert needed in names, f"{needed} is not in the wheel"
+assert any(n.startswith("viscd/_viscd") for n in names), "the extension is not in the wheel"
+assert any(n.endswith(".dist-info/LICENSE") for n in names), "the licence is not in the wheel"
+print(f"python: {sys.argv[1].rsplit('/', 1)[-1]}: {len(names)} files")
+PY
+echo "python: install, tests and wheel ok"
