@@ -19,7 +19,7 @@ volume in spheres (about 0.6 pairs per object), no camera, every object active.
 3. `viscd.pairs_within(points, r)` against `cKDTree(points).query_pairs(r, output_type="ndarray")`
    (the tree's build included, its rows unsorted, viscd's sorted), with --pairs-within: uniform
    points at unit density, r = 0.78 (about one pair per point), at 10^4 .. 10^7 points; the sets
-   are checked equal.
+   are checked equal, except for pairs whose float32 and float64 distances straddle r.
 
 usage: PYTHONPATH=build/release/python python3 bench/python_bench.py [--objects 100000] [--repeats 31]
        PYTHONPATH=build/release/python python3 bench/python_bench.py --pairs-within [--sizes 10000,...]
@@ -92,9 +92,20 @@ def pairs_within_vs_kdtree(sizes, repeats, seed):
                 theirs.append((t2 - t1) * 1e3)
         kd = np.sort(kd, axis=1)
         kd = kd[np.lexsort((kd[:, 1], kd[:, 0]))].astype(np.uint32)
-        assert np.array_equal(got, kd), f"{n} points: pairs_within and cKDTree disagree"
+        differ = 0
+        if not np.array_equal(got, kd):
+            # viscd decides in float32, SciPy in float64: a pair may differ only where the two
+            # roundings of the distance straddle r.
+            key = lambda p: p[:, 0].astype(np.uint64) << np.uint64(32) | p[:, 1].astype(np.uint64)
+            odd = np.setxor1d(key(got), key(kd))
+            i, j = (odd >> np.uint64(32)).astype(np.int64), (odd & np.uint64(0xFFFFFFFF)).astype(np.int64)
+            d = np.linalg.norm(points[i].astype(np.float64) - points[j].astype(np.float64), axis=1)
+            worst = float(np.max(np.abs(d - r) / r))
+            assert worst < 1e-5, f"{n} points: a pair {worst:.2e} of r from the threshold differs"
+            differ = len(odd)
         a, b = median(ours), median(theirs)
-        print(f"   {n:>10} {len(got):>10} {a:>16.2f} {b:>12.2f} {b / a:>15.1f}x", flush=True)
+        note = f"  ({differ} pairs differ, each within {worst:.1e} r of the threshold)" if differ else ""
+        print(f"   {n:>10} {len(got):>10} {a:>16.2f} {b:>12.2f} {b / a:>15.1f}x{note}", flush=True)
 
 
 def main():
