@@ -5,7 +5,8 @@
 //           calculateOverlappingPairs) and the whole step; medians over the steps.
 //   fcl:    self collision of --fcl-boxes random boxes with a counting callback (no narrowphase)
 //           on viscd::FclBroadphaseManager and fcl::DynamicAABBTreeCollisionManager: setup +
-//           collide, then update + collide after every box moved; medians over --reps.
+//           collide, then update + collide after every box moved, then 10 frames in which 1 % of
+//           the boxes move and update(vector) names them; medians over --reps (x 10 for the last).
 // Not a test: timings depend on the machine. Run: viscd_adapters_bench [--only bullet|fcl] ...
 #include <btBulletDynamicsCommon.h>
 #include <fcl/broadphase/broadphase_dynamic_AABB_tree.h>
@@ -229,8 +230,8 @@ void bench_fcl(int boxes, int reps) {
   // Pairs: after setup, every manager's callback count is exact or above (viscd: float boxes
   // rounded outward); after update, DynamicAABBTree keeps a leaf's old box while it contains the
   // new one, so it may count more.
-  std::printf("%-38s %14s %16s %12s %14s\n", "manager", "setup+collide", "update+collide", "setup_pairs",
-              "update_pairs");
+  std::printf("%-38s %14s %16s %16s %12s %14s\n", "manager", "setup+collide", "update+collide", "1%named+collide",
+              "setup_pairs", "pairs_last");
   const std::vector<std::pair<std::string, std::function<std::unique_ptr<fcl::BroadPhaseCollisionManagerd>()>>> kinds =
       {
           {"viscd::FclBroadphaseManager", [] { return std::make_unique<viscd::FclBroadphaseManager>(); }},
@@ -246,7 +247,7 @@ void bench_fcl(int boxes, int reps) {
       objects[k]->computeAABB();
     }
     std::mt19937 moves(3);
-    std::vector<double> first, second;
+    std::vector<double> first, second, few;
     std::size_t pairs = 0, setup_pairs = 0;
     for (int r = 0; r < reps; ++r) {
       auto manager = make();
@@ -268,8 +269,26 @@ void bench_fcl(int boxes, int reps) {
       pairs = 0;
       manager->collide(&pairs, count_pair);
       second.push_back(ms_since(start));
+      // Then frames where 1 % of the boxes move and update(vector) names them.
+      for (int f = 0; f < 10; ++f) {
+        std::vector<fcl::CollisionObjectd*> named;
+        for (std::size_t k = 0; k < objects.size(); k += 100) {
+          auto& o = objects[(k + static_cast<std::size_t>(f) * 37) % objects.size()];
+          fcl::Transform3d t = o->getTransform();
+          t.translation() += fcl::Vector3d(step(moves), step(moves), step(moves));
+          o->setTransform(t);
+          o->computeAABB();
+          named.push_back(o.get());
+        }
+        start = Clock::now();
+        manager->update(named);
+        pairs = 0;
+        manager->collide(&pairs, count_pair);
+        few.push_back(ms_since(start));
+      }
     }
-    std::printf("%-38s %14.1f %16.1f %12zu %14zu\n", name.c_str(), median(first), median(second), setup_pairs, pairs);
+    std::printf("%-38s %14.1f %16.1f %16.2f %12zu %14zu\n", name.c_str(), median(first), median(second), median(few),
+                setup_pairs, pairs);
     std::fflush(stdout);
   }
 }

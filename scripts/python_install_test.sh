@@ -3,7 +3,9 @@
 # checkout, offline, into a fresh virtual environment that sees Debian's NumPy, SciPy and pytest
 # (--system-site-packages), and the pytest suite runs against that install from a folder outside
 # the checkout. Then `pip wheel .` makes a wheel, whose contents are checked. scripts/test.sh runs
-# this after ctest (release preset). The build folder is build/pip-py3X (kept between runs).
+# this after ctest (release preset). The build folder is build/pip-py3X (kept between runs). The
+# cuda backend is left out of this install unless VISCD_CMAKE_ARGS says otherwise: nvcc's part is
+# most of a fresh build's time here, and the build tree's module (ctest's python.pytest) has it.
 # Usage: scripts/python_install_test.sh
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -14,7 +16,8 @@ trap 'rm -rf "$work"' EXIT
 echo "python: a virtual environment in $work"
 "$py" -m venv --system-site-packages "$work/venv"
 vpy="$work/venv/bin/python"
-echo "python: pip install --no-build-isolation $root"
+export VISCD_CMAKE_ARGS="${VISCD_CMAKE_ARGS:--DVISCD_ENABLE_CUDA=OFF}"
+echo "python: pip install --no-build-isolation $root (VISCD_CMAKE_ARGS=$VISCD_CMAKE_ARGS)"
 "$vpy" -m pip install --no-build-isolation --no-index --quiet "$root"
 
 cd "$work"  # outside the checkout: the installed module, not python/ of the checkout

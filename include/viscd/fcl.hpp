@@ -62,7 +62,10 @@ class FclBroadphaseManager final : public fcl::BroadPhaseCollisionManager<double
   void setup() override;
   /// Reads every object's AABB again.
   void update() override;
-  /// Reads these objects' AABBs again (unknown objects are ignored).
+  /// Reads these objects' AABBs again (unknown objects are ignored). The next self collide() is
+  /// told which boxes changed (FrameInput::moved), so with the detector's resting objects
+  /// (Config::follow_change) it costs about what moved and what is near it; update() and
+  /// registering or removing objects let the detector compare every box itself.
   void update(Object* updated_obj) override;
   void update(const std::vector<Object*>& updated_objs) override;
   void clear() override;

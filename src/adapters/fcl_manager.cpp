@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <span>
 #include <unordered_map>
@@ -91,6 +92,10 @@ struct FclBroadphaseManager::State {
   std::vector<Aabb> aabbs;
   std::vector<Box> boxes;
   bool frame_ready = false;  // `frame` describes `boxes`
+  // The objects whose box changed since the last self frame (FrameInput::moved), unless
+  // moved_all: then the next frame is not listed (the detector compares every box itself).
+  std::vector<std::uint32_t> moved;
+  bool moved_all = true;
   bool detector_ok = false;  // and the detector answers box queries on them
   FrameResult frame;
   FrameResult grown_frame;
@@ -109,13 +114,29 @@ struct FclBroadphaseManager::State {
     boxes[k] = to_box(aabbs[k]);
   }
 
+  // update(obj): the AABB read again; listed for the next frame when its float box changed.
+  void reread(std::uint32_t k) {
+    const Box before = boxes[k];
+    read(k);
+    frame_ready = false;
+    if (std::memcmp(&before, &boxes[k], sizeof(Box)) != 0) moved.push_back(k);
+  }
+
   // The self frame on the current boxes; by brute force if the detector fails (out of memory).
   void ensure_frame() {
     if (frame_ready) return;
     FrameInput in;
     in.boxes = boxes;
+    if (!moved_all) {  // only the named objects changed: the detector compares nothing else
+      std::sort(moved.begin(), moved.end());
+      moved.erase(std::unique(moved.begin(), moved.end()), moved.end());
+      in.moved = moved;
+      in.moved_listed = true;
+    }
     status = detector->detect(in, frame);
     detector_ok = status.ok();
+    moved.clear();
+    moved_all = !detector_ok;  // after a failed frame the next one compares everything
     if (!detector_ok) {
       frame.pairs.clear();
       for (std::uint32_t i = 0; i < boxes.size(); ++i)
@@ -268,6 +289,7 @@ struct FclBroadphaseManager::State {
     aabbs.pop_back();
     boxes.pop_back();
     frame_ready = false;
+    moved_all = true;  // renumbered
   }
 };
 
@@ -291,6 +313,7 @@ void FclBroadphaseManager::registerObject(Object* obj) {
   st.boxes.emplace_back();
   st.read(k);
   st.frame_ready = false;
+  st.moved_all = true;  // a new object
 }
 
 void FclBroadphaseManager::unregisterObject(Object* obj) {
@@ -305,14 +328,14 @@ void FclBroadphaseManager::update() {
   State& st = *state_;
   for (std::uint32_t k = 0; k < st.objects.size(); ++k) st.read(k);
   st.frame_ready = false;
+  st.moved_all = true;  // any box may have changed: the detector finds which
 }
 
 void FclBroadphaseManager::update(Object* updated_obj) {
   State& st = *state_;
   const auto it = st.index.find(updated_obj);
   if (it == st.index.end()) return;
-  st.read(it->second);
-  st.frame_ready = false;
+  st.reread(it->second);
 }
 
 void FclBroadphaseManager::update(const std::vector<Object*>& updated_objs) {
@@ -326,6 +349,7 @@ void FclBroadphaseManager::clear() {
   st.aabbs.clear();
   st.boxes.clear();
   st.frame_ready = false;
+  st.moved_all = true;
 }
 
 void FclBroadphaseManager::getObjects(std::vector<Object*>& objs) const { objs = state_->objects; }

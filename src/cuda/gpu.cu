@@ -46,26 +46,38 @@ Outcome failure(cudaError_t e, const char* what) {
     if (viscd_e_ != cudaSuccess) return failure(viscd_e_, #call); \
   } while (0)
 
-// Device memory that only grows (by half again, so that a slowly growing N reallocates rarely).
-struct Buffer {
+// Where a growing buffer's memory comes from: the device, or pinned host memory.
+struct DeviceMemory {
+  static cudaError_t allocate(void** p, std::size_t bytes) { return cudaMalloc(p, bytes); }
+  static void release(void* p) { cudaFree(p); }
+};
+struct PinnedMemory {
+  static cudaError_t allocate(void** p, std::size_t bytes) { return cudaHostAlloc(p, bytes, cudaHostAllocDefault); }
+  static void release(void* p) { cudaFreeHost(p); }
+};
+
+// Memory that only grows (by half again, so that a slowly growing N reallocates rarely; when
+// that much is not to be had, exactly what was asked).
+template <class Memory>
+struct Growing {
   void* ptr = nullptr;
   std::size_t capacity = 0;
-  Buffer() = default;
-  Buffer(const Buffer&) = delete;
-  Buffer& operator=(const Buffer&) = delete;
-  ~Buffer() {
-    if (ptr) cudaFree(ptr);
+  Growing() = default;
+  Growing(const Growing&) = delete;
+  Growing& operator=(const Growing&) = delete;
+  ~Growing() {
+    if (ptr) Memory::release(ptr);
   }
   cudaError_t reserve(std::size_t bytes) {
     if (bytes <= capacity) return cudaSuccess;
     std::size_t want = std::max(bytes, capacity + capacity / 2);
-    if (ptr) cudaFree(ptr);
+    if (ptr) Memory::release(ptr);
     ptr = nullptr;
     capacity = 0;
-    if (cudaMalloc(&ptr, want) != cudaSuccess) {
+    if (Memory::allocate(&ptr, want) != cudaSuccess) {
       (void)cudaGetLastError();
       want = bytes;
-      const cudaError_t e = cudaMalloc(&ptr, want);
+      const cudaError_t e = Memory::allocate(&ptr, want);
       if (e != cudaSuccess) {
         ptr = nullptr;
         return e;
@@ -79,36 +91,8 @@ struct Buffer {
     return static_cast<T*>(ptr);
   }
 };
-
-// Pinned host memory that only grows, as Buffer.
-struct PinnedBuffer {
-  void* ptr = nullptr;
-  std::size_t capacity = 0;
-  PinnedBuffer() = default;
-  PinnedBuffer(const PinnedBuffer&) = delete;
-  PinnedBuffer& operator=(const PinnedBuffer&) = delete;
-  ~PinnedBuffer() {
-    if (ptr) cudaFreeHost(ptr);
-  }
-  cudaError_t reserve(std::size_t bytes) {
-    if (bytes <= capacity) return cudaSuccess;
-    const std::size_t want = std::max(bytes, capacity + capacity / 2);
-    if (ptr) cudaFreeHost(ptr);
-    ptr = nullptr;
-    capacity = 0;
-    const cudaError_t e = cudaHostAlloc(&ptr, want, cudaHostAllocDefault);
-    if (e != cudaSuccess) {
-      ptr = nullptr;
-      return e;
-    }
-    capacity = want;
-    return cudaSuccess;
-  }
-  template <class T>
-  [[nodiscard]] T* as() const {
-    return static_cast<T*>(ptr);
-  }
-};
+using Buffer = Growing<DeviceMemory>;
+using PinnedBuffer = Growing<PinnedMemory>;
 
 unsigned blocks(std::uint64_t threads) { return static_cast<unsigned>((threads + kBlock - 1) / kBlock); }
 

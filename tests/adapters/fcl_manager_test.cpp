@@ -249,6 +249,41 @@ TEST(FclBroadphaseManager, EveryCallAgainstNaive) {
   check_self_collide(ours, naive);
 }
 
+// Few objects named to update() each round, as a simulation reports its movers: the manager lists
+// them to its detector (FrameInput::moved), which keeps the rest. Every round's self collide
+// against Naive, with objects named that did not move, an unknown object named, an update() of
+// everything, and removals in between (which renumber: the next frame is not listed).
+TEST(FclBroadphaseManager, FewNamedUpdatesAgainstNaive) {
+  Scene scene(5, 1500, 20);
+  viscd::FclBroadphaseManager ours;
+  fcl::NaiveCollisionManagerd naive;
+  const std::vector<Object*> all = scene.pointers();
+  ours.registerObjects(all);
+  naive.registerObjects(all);
+  ours.setup();
+  naive.setup();
+  auto stranger = scene.make_object(0);
+  for (int round = 0; round < 24; ++round) {
+    SCOPED_TRACE(round);
+    check_self_collide(ours, naive);
+    std::vector<Object*> moved = scene.move(0.01);
+    moved.push_back(all[7]);             // named, not moved
+    moved.push_back(stranger.get());     // not registered: ignored
+    if (!moved.empty()) moved.push_back(moved.front());  // named twice
+    if (round % 2) {
+      ours.update(moved);
+    } else {
+      for (Object* o : moved) ours.update(o);
+    }
+    if (round == 9) ours.update();
+    if (round == 15) {
+      ours.unregisterObject(all[100]);
+      naive.unregisterObject(all[100]);
+    }
+  }
+  EXPECT_TRUE(ours.last_status().ok()) << ours.last_status().error();
+}
+
 TEST(FclBroadphaseManager, DistanceIsTheExactMinimumAndStopsEarly) {
   for (const unsigned seed : {3u, 4u, 5u}) {
     SCOPED_TRACE(seed);
