@@ -172,6 +172,16 @@ InputSpan<std::uint32_t> id_map_pixels(py::handle obj, const char* name, int& wi
   return in;
 }
 
+InputSpan<std::uint32_t> index_values(py::handle obj, const char* name) {
+  const py::array a = as_array(obj, name);
+  if (a.ndim() != 1) throw py::value_error(std::string(name) + ": expected shape (M,), got shape " + shape_text(a));
+  InputSpan<std::uint32_t> in;
+  const py::array u = a.size() == 0 ? py::array_t<std::uint32_t>(0) : uint32_array(a, name, in.copied);
+  in.owner = u;
+  in.span = {static_cast<const std::uint32_t*>(u.data()), static_cast<std::size_t>(u.size())};
+  return in;
+}
+
 InputSpan<std::uint8_t> flag_values(py::handle obj, const char* name) {
   py::array a = as_array(obj, name);
   if (a.ndim() != 1) throw py::value_error(std::string(name) + ": expected shape (N,), got shape " + shape_text(a));

@@ -39,6 +39,9 @@ struct InputSpan {
 /// (H, W) id map, object index + 1 per pixel (0 = background): uint32 as is, other integer
 /// dtypes converted as for filters. Writes W and H.
 [[nodiscard]] InputSpan<std::uint32_t> id_map_pixels(py::handle obj, const char* name, int& width, int& height);
+/// (M,) object indices: uint32 as is, other integer dtypes converted when every value fits; an
+/// empty array (any dtype) is M = 0.
+[[nodiscard]] InputSpan<std::uint32_t> index_values(py::handle obj, const char* name);
 /// (N,) flags: bool or uint8 as is; other real dtypes as value != 0.
 [[nodiscard]] InputSpan<std::uint8_t> flag_values(py::handle obj, const char* name);
 

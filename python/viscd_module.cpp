@@ -106,6 +106,9 @@ py::dict stats_dict(const FrameStats& s, double detect_ms) {
   d["layout_axis_bits"] = py::make_tuple(s.layout.axis_bits[0], s.layout.axis_bits[1], s.layout.axis_bits[2]);
   d["pairs"] = s.pairs;
   d["order_kept"] = s.order_kept;
+  d["followed_change"] = s.followed_change;
+  d["moved"] = s.moved;
+  d["replaced"] = s.replaced;
   py::dict stages;
   for (std::size_t k = 0; k < kStageCount; ++k) {
     const auto stage = static_cast<Stage>(k);
@@ -189,7 +192,7 @@ class PyDetector {
   }
 
   PyFrame detect(py::handle spheres, py::handle boxes, py::handle camera, py::handle filters, py::handle id_map,
-                 py::handle always_active) {
+                 py::handle always_active, py::handle moved) {
     BusyGuard busy(busy_);
     FrameInput in;
     PyFrame frame;
@@ -198,6 +201,7 @@ class PyDetector {
     InputSpan<Filter> filter_in;
     InputSpan<std::uint32_t> map_in;
     InputSpan<std::uint8_t> flag_in;
+    InputSpan<std::uint32_t> moved_in;
     if (!spheres.is_none()) {
       sphere_in = sphere_rows(spheres, "spheres");
       in.spheres = sphere_in.span;
@@ -218,6 +222,11 @@ class PyDetector {
       flag_in = flag_values(always_active, "always_active");
       in.always_active = flag_in.span;
     }
+    if (!moved.is_none()) {
+      moved_in = index_values(moved, "moved");
+      in.moved = moved_in.span;
+      in.moved_listed = true;
+    }
     Camera cam;
     if (!camera.is_none()) {
       if (!py::isinstance<Camera>(camera))
@@ -226,7 +235,8 @@ class PyDetector {
       cam = camera.cast<Camera>();
       in.camera = &cam;
     }
-    frame.input_copied = sphere_in.copied || box_in.copied || filter_in.copied || map_in.copied || flag_in.copied;
+    frame.input_copied =
+        sphere_in.copied || box_in.copied || filter_in.copied || map_in.copied || flag_in.copied || moved_in.copied;
     frame.result = take_result();
     Status status;
     {
@@ -428,7 +438,7 @@ void set3(float* dst, py::handle v, const char* name) {
 }
 
 constexpr const char* kDetectDoc =
-    R"(detect(spheres=None, boxes=None, camera=None, filters=None, id_map=None, always_active=None) -> Frame
+    R"(detect(spheres=None, boxes=None, camera=None, filters=None, id_map=None, always_active=None, moved=None) -> Frame
 
 Runs one frame: every overlapping pair among the active objects (all of them without a camera
 and without an id map), plus each active object's pairs with the static set.
@@ -447,6 +457,11 @@ Arguments (every array may also be a list; N objects, one row each):
   id_map         (H, W) uint32: your own visibility map, object index + 1 per pixel, 0 background;
                  the detector then renders nothing and counts pixels from it.
   always_active  (N,) bool or uint8: objects never culled.
+  moved          (M,) ascending indices of the objects whose bounds changed since the last frame
+                 (unrepeated, below N; otherwise ValueError); an empty array: nothing moved. With
+                 it the cpu backend compares and checks only these objects (follow_change): an
+                 object that changed but is missing from the list is the caller's error. None
+                 (default): the detector compares every object itself.
 
 Returns a Frame:
   pairs    (P, 2) uint32, sorted, i < j; a static object k appears as j = k | 0x80000000
@@ -587,7 +602,7 @@ PYBIND11_MODULE(_viscd, m) {
       .def_property_readonly(
           "stats", [](const PyFrame& f) { return stats_dict(f.result->stats, f.detect_ms); },
           "dict: objects, static_objects, active, has_camera, has_pixels, mean_pixels, bits, layout (text), "
-          "layout_order, layout_axis_bits, pairs, order_kept, stage_ms ({stage name: ms}), total_ms (sum of "
+          "layout_order, layout_axis_bits, pairs, order_kept, followed_change, moved, replaced, stage_ms ({stage name: ms}), total_ms (sum of "
           "stages), detect_ms (wall time of the C++ detect call).")
       .def_readonly("input_copied", &PyFrame::input_copied,
                     "True when an input array had to be converted (copied) before the frame ran; False when every "
@@ -614,7 +629,7 @@ PYBIND11_MODULE(_viscd, m) {
            py::arg("backend") = "cpu", detector_doc.c_str())
       .def("detect", &PyDetector::detect, py::arg("spheres") = py::none(), py::arg("boxes") = py::none(),
            py::arg("camera") = py::none(), py::arg("filters") = py::none(), py::arg("id_map") = py::none(),
-           py::arg("always_active") = py::none(), kDetectDoc)
+           py::arg("always_active") = py::none(), py::arg("moved") = py::none(), kDetectDoc)
       .def("set_static", &PyDetector::set_static, py::arg("spheres") = py::none(), py::arg("boxes") = py::none(),
            py::arg("filters") = py::none(),
            "set_static(spheres=None, boxes=None, filters=None)\n\n"

@@ -74,7 +74,8 @@ class Frame:
     @property
     def stats(self) -> dict[str, Any]:
         """objects, static_objects, active, has_camera, has_pixels, mean_pixels, bits, layout,
-        layout_order, layout_axis_bits, pairs, order_kept, stage_ms {stage: ms}, total_ms, detect_ms."""
+        layout_order, layout_axis_bits, pairs, order_kept, followed_change, moved, replaced,
+        stage_ms {stage: ms}, total_ms, detect_ms."""
     @property
     def input_copied(self) -> bool:
         """True when an input array was converted (copied) before the frame ran."""
@@ -117,6 +118,7 @@ class Detector:
         filters: Optional[npt.ArrayLike] = None,
         id_map: Optional[npt.ArrayLike] = None,
         always_active: Optional[npt.ArrayLike] = None,
+        moved: Optional[npt.ArrayLike] = None,
     ) -> Frame:
         """Runs one frame: (N, 4) float32 spheres or (N, 6) float32 boxes in, a Frame out."""
     def set_static(
