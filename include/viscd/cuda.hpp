@@ -6,7 +6,11 @@
 /// width m, Karras build, bottom-up fit, traversal with a pair buffer that counts, grows and re-runs (never drops a
 /// pair), CUB sort of the pairs. Counting, culling, the filters' pre-pass, states and shading run on the host, as in
 /// the cpu backend. Spheres and boxes, static sets, filters, always-active objects and the caller's id map, like every
-/// backend.
+/// backend. That is make_cuda_detector(), a Detector fed from host arrays.
+///
+/// CudaBroadphase (make_cuda_broadphase()) is the same broadphase for objects that already live on
+/// the GPU: device arrays in and out, the frame enqueued on the caller's stream without host
+/// synchronisation, capturable in a CUDA graph (docs/gpu.md, "Device-resident frames").
 ///
 /// Built when CMake finds nvcc (VISCD_ENABLE_CUDA, default ON); needs an NVIDIA GPU of compute
 /// capability 9.0 (Hopper) at run time, for which the build compiles its code (configure with
