@@ -37,7 +37,7 @@ struct Row {
   std::uint32_t active = 0;
   double wall = 0, upload = 0, codes = 0, sort = 0, build = 0, fit = 0, query = 0, pair_sort = 0, download = 0,
          splat = 0, count = 0, map_download = 0;
-  double pageable_upload = 0;  // the same bytes as the upload, copied from pageable memory (the former path)
+  double pageable_upload = 0;      // the same bytes as the upload, copied from pageable memory (the former path)
   double layout = 0, outside = 0;  // detect(): the host's layout stage; wall time outside every stage
   double stream_gpu = 0, stream_enqueue = 0, graph_gpu = 0, graph_launch = 0;  // device part
   [[nodiscard]] double on_gpu() const { return codes + sort + build + fit + query + pair_sort; }
@@ -247,7 +247,8 @@ int main(int argc, char** argv) {
     for (std::uint32_t n : device_sizes) rows.push_back(measure_device(n, frames, warmup));
   const char* head =
       "part,objects,active,pairs,detect_ms,on_gpu_ms,upload_ms,codes_ms,sort_ms,build_ms,fit_ms,query_ms,pair_sort_ms,"
-      "download_ms,splat_ms,count_ms,map_download_ms,pageable_upload_ms,layout_ms,outside_stages_ms,stream_gpu_ms,stream_enqueue_ms,graph_gpu_ms,"
+      "download_ms,splat_ms,count_ms,map_download_ms,pageable_upload_ms,layout_ms,outside_stages_ms,stream_gpu_ms,"
+      "stream_enqueue_ms,graph_gpu_ms,"
       "graph_launch_ms";
   std::printf("%s\n", head);
   std::ofstream file;
@@ -257,12 +258,13 @@ int main(int argc, char** argv) {
   }
   for (const Row& r : rows) {
     char line[768];
-    std::snprintf(line, sizeof line,
-                  "%s,%u,%u,%llu,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,"
-                  "%.4f,%.4f",
-                  r.part.c_str(), r.objects, r.active, static_cast<unsigned long long>(r.pairs), r.wall, r.on_gpu(),
-                  r.upload, r.codes, r.sort, r.build, r.fit, r.query, r.pair_sort, r.download, r.splat, r.count,
-                  r.map_download, r.pageable_upload, r.layout, r.outside, r.stream_gpu, r.stream_enqueue, r.graph_gpu, r.graph_launch);
+    std::snprintf(
+        line, sizeof line,
+        "%s,%u,%u,%llu,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,"
+        "%.4f,%.4f",
+        r.part.c_str(), r.objects, r.active, static_cast<unsigned long long>(r.pairs), r.wall, r.on_gpu(), r.upload,
+        r.codes, r.sort, r.build, r.fit, r.query, r.pair_sort, r.download, r.splat, r.count, r.map_download,
+        r.pageable_upload, r.layout, r.outside, r.stream_gpu, r.stream_enqueue, r.graph_gpu, r.graph_launch);
     std::printf("%s\n", line);
     if (file) file << line << "\n";
   }

@@ -50,7 +50,8 @@ int main(int argc, char** argv) {
   const std::string tool_footer = app.get_footer();
   auto own_footers = [&](auto& self, CLI::App& parent) -> void {
     for (CLI::App* sub : parent.get_subcommands([](CLI::App*) { return true; })) {
-      if (sub->get_footer() == tool_footer) sub->footer("\n`viscd --help` shows examples of every command. Docs: docs/usage.md");
+      if (sub->get_footer() == tool_footer)
+        sub->footer("\n`viscd --help` shows examples of every command. Docs: docs/usage.md");
       self(self, *sub);
     }
   };

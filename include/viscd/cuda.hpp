@@ -64,9 +64,9 @@ static_assert(sizeof(CudaReport) == 24);
 
 /// Where a frame writes its results: device memory the caller owns.
 struct CudaResults {
-  Pair* pairs = nullptr;       ///< room for `capacity` pairs (i < j): deterministic order, see enqueue()
-  std::uint64_t capacity = 0;  ///< may be 0: the frame then only counts (and writes states)
-  CudaReport* report = nullptr;  ///< required
+  Pair* pairs = nullptr;          ///< room for `capacity` pairs (i < j): deterministic order, see enqueue()
+  std::uint64_t capacity = 0;     ///< may be 0: the frame then only counts (and writes states)
+  CudaReport* report = nullptr;   ///< required
   ObjectState* states = nullptr;  ///< optional, count entries: colliding, or free (no object is culled)
 };
 
@@ -89,11 +89,10 @@ class CudaBroadphase {
   /// Enqueues a frame on `stream` (a cudaStream_t; null for the legacy default stream): the
   /// objects' bounds and Morton layout, codes, CUB radix sort, Karras build, fit, a traversal
   /// that counts each leaf's pairs and keeps its first four, a scan, and a pass that writes them
-  /// (a copy, or a second traversal for a leaf with more), then the report. Checks the arguments on the host (pointers, alignment, sizes; invalid_input naming
-  /// the field) and the objects on the device (CudaReport::invalid). When the buffers are short it
-  /// grows them first (which waits for the device), or fails while the stream is capturing.
-  [[nodiscard]] virtual Status enqueue(const CudaObjects& objects, const CudaResults& results,
-                                       CUstream_st* stream) = 0;
+  /// (a copy, or a second traversal for a leaf with more), then the report. Checks the arguments on the host (pointers,
+  /// alignment, sizes; invalid_input naming the field) and the objects on the device (CudaReport::invalid). When the
+  /// buffers are short it grows them first (which waits for the device), or fails while the stream is capturing.
+  [[nodiscard]] virtual Status enqueue(const CudaObjects& objects, const CudaResults& results, CUstream_st* stream) = 0;
   /// Device memory held, in bytes.
   [[nodiscard]] virtual std::uint64_t memory_bytes() const = 0;
 };

@@ -70,9 +70,7 @@ class CudaDetector final : public PipelineDetector {
   [[nodiscard]] const cuda::Times& times() const { return times_; }
   [[nodiscard]] const cuda::SplatTimes& splat_times() const { return splat_times_; }
   void set_chunk_limit(unsigned long long limit) { gpu_.set_chunk_limit(limit); }
-  [[nodiscard]] std::uint64_t backend_memory_bytes() const override {
-    return gpu_.bytes();
-  }
+  [[nodiscard]] std::uint64_t backend_memory_bytes() const override { return gpu_.bytes(); }
 
  private:
   // Stage 1 on the GPU; the map's ids (and, for shading, depths and then normals) and the
@@ -113,8 +111,8 @@ class CudaDetector final : public PipelineDetector {
     const bool all = n == objects.size();
     const bool boxes = objects.is_box();
     cuda::Staging st;
-    const cuda::Outcome staged = gpu_.staging(static_cast<std::uint32_t>(n), boxes, !all,
-                                              static_cast<std::uint32_t>(filters.size()), st);
+    const cuda::Outcome staged =
+        gpu_.staging(static_cast<std::uint32_t>(n), boxes, !all, static_cast<std::uint32_t>(filters.size()), st);
     if (!staged.ok()) return to_status(staged, objects.size(), config_);
     auto* spheres = reinterpret_cast<Sphere*>(st.spheres);
     auto* packed_boxes = reinterpret_cast<Box*>(st.boxes);
@@ -147,9 +145,8 @@ class CudaDetector final : public PipelineDetector {
         s->pairs->resize(count);
         const auto* from = reinterpret_cast<const Pair*>(words);
         Pair* to = s->pairs->data();
-        for_chunks(count, ranges_for(count, s->threads), [&](std::size_t b, std::size_t e, std::size_t) {
-          std::copy(from + b, from + e, to + b);
-        });
+        for_chunks(count, ranges_for(count, s->threads),
+                   [&](std::size_t b, std::size_t e, std::size_t) { std::copy(from + b, from + e, to + b); });
       }
     } sink{&pairs, threads};
     if (!std::exchange(splatted_, false)) splat_times_ = cuda::SplatTimes{};
@@ -176,7 +173,8 @@ class CudaDetector final : public PipelineDetector {
 
 // The device-resident frame (viscd/cuda.hpp): the arguments checked on the host, the frame
 // enqueued by cuda::DeviceFrame.
-static_assert(sizeof(CudaReport) == sizeof(cuda::Report) && offsetof(CudaReport, pairs) == offsetof(cuda::Report, pairs) &&
+static_assert(sizeof(CudaReport) == sizeof(cuda::Report) &&
+              offsetof(CudaReport, pairs) == offsetof(cuda::Report, pairs) &&
               offsetof(CudaReport, invalid) == offsetof(cuda::Report, invalid) &&
               offsetof(CudaReport, first_invalid) == offsetof(cuda::Report, first_invalid) &&
               offsetof(CudaReport, bits) == offsetof(cuda::Report, bits) &&
@@ -199,9 +197,11 @@ class CudaBroadphaseImpl final : public CudaBroadphase {
     const std::uint32_t n = objects.count;
     if (Status s = check_count(n); !s) return s;
     if (n > 0 && (objects.spheres == nullptr) == (objects.boxes == nullptr))
-      return invalid(objects.spheres ? "CudaObjects: spheres and boxes are both given; give one kind"
-                                     : "CudaObjects: count is " + std::to_string(n) + " but neither spheres nor boxes is given");
-    if (results.report == nullptr) return invalid("CudaResults::report is null; the frame needs somewhere to write its count");
+      return invalid(objects.spheres
+                         ? "CudaObjects: spheres and boxes are both given; give one kind"
+                         : "CudaObjects: count is " + std::to_string(n) + " but neither spheres nor boxes is given");
+    if (results.report == nullptr)
+      return invalid("CudaResults::report is null; the frame needs somewhere to write its count");
     if (results.capacity > 0 && results.pairs == nullptr)
       return invalid("CudaResults::pairs is null with a capacity of " + std::to_string(results.capacity));
     if (objects.static_from != 0xFFFFFFFFu && objects.static_from > n)
@@ -255,7 +255,8 @@ class CudaBroadphaseImpl final : public CudaBroadphase {
   static Status failure(const cuda::Outcome& o, std::size_t objects) {
     if (o.out_of_memory)
       return Status::failure(ErrorKind::out_of_memory, "CudaBroadphase: " + std::to_string(objects) +
-                                                           " objects need more GPU memory than is free (" + o.error + ")");
+                                                           " objects need more GPU memory than is free (" + o.error +
+                                                           ")");
     return Status::failure(ErrorKind::backend_failure, "CudaBroadphase: " + o.error);
   }
 

@@ -70,10 +70,10 @@ struct Outcome {
 /// Pinned host memory for a broadphase's input (Gpu::staging()): the host packs the frame here and
 /// the upload runs at the bus's speed rather than through the driver's pageable bounce buffer.
 struct Staging {
-  float* spheres = nullptr;         ///< 4 floats an object
-  float* boxes = nullptr;           ///< 6 floats an object, when asked for
-  std::uint32_t* ids = nullptr;     ///< an object's frame index, when asked for
-  std::uint32_t* filters = nullptr; ///< 2 words a frame index, when asked for
+  float* spheres = nullptr;          ///< 4 floats an object
+  float* boxes = nullptr;            ///< 6 floats an object, when asked for
+  std::uint32_t* ids = nullptr;      ///< an object's frame index, when asked for
+  std::uint32_t* filters = nullptr;  ///< 2 words a frame index, when asked for
 };
 
 /// Receives the sorted pairs: `count` pairs of (i, j), 2 count words in pinned host memory that

@@ -267,8 +267,8 @@ TEST(FclBroadphaseManager, FewNamedUpdatesAgainstNaive) {
     SCOPED_TRACE(round);
     check_self_collide(ours, naive);
     std::vector<Object*> moved = scene.move(0.01);
-    moved.push_back(all[7]);             // named, not moved
-    moved.push_back(stranger.get());     // not registered: ignored
+    moved.push_back(all[7]);                             // named, not moved
+    moved.push_back(stranger.get());                     // not registered: ignored
     if (!moved.empty()) moved.push_back(moved.front());  // named twice
     if (round % 2) {
       ours.update(moved);

@@ -21,8 +21,8 @@
 namespace viscd {
 namespace {
 
-#define VISCD_BROADPHASE_OR_SKIP(name, config)                                             \
-  auto name##_made = make_cuda_broadphase(config);                                         \
+#define VISCD_BROADPHASE_OR_SKIP(name, config)                                          \
+  auto name##_made = make_cuda_broadphase(config);                                      \
   if (!name##_made) GTEST_SKIP() << "no cuda broadphase here: " << name##_made.error(); \
   CudaBroadphase& name = *name##_made.value()
 
@@ -111,7 +111,8 @@ std::vector<Pair> sorted(std::vector<Pair> p) {
 
 std::vector<Box> cubes_of(const std::vector<Sphere>& spheres) {
   std::vector<Box> boxes;
-  for (const Sphere& s : spheres) boxes.push_back(Box{{s.x - s.r, s.y - s.r, s.z - s.r}, {s.x + s.r, s.y + s.r, s.z + s.r}});
+  for (const Sphere& s : spheres)
+    boxes.push_back(Box{{s.x - s.r, s.y - s.r, s.z - s.r}, {s.x + s.r, s.y + s.r, s.z + s.r}});
   return boxes;
 }
 
