@@ -170,6 +170,14 @@ void check_object_collide(Manager& ours, Manager& naive, Object* query) {
   EXPECT_EQ(got.colliding, want.colliding);
 }
 
+// The same objects in both managers, set up.
+void register_both(Manager& ours, Manager& naive, const std::vector<Object*>& all) {
+  ours.registerObjects(all);
+  naive.registerObjects(all);
+  ours.setup();
+  naive.setup();
+}
+
 void check_distance(double got, double want) { EXPECT_NEAR(got, want, 1e-9 * std::max(1.0, std::abs(want))); }
 
 TEST(FclBroadphaseManager, EveryCallAgainstNaive) {
@@ -177,10 +185,7 @@ TEST(FclBroadphaseManager, EveryCallAgainstNaive) {
   viscd::FclBroadphaseManager ours;
   fcl::NaiveCollisionManagerd naive;
   const std::vector<Object*> all = scene.pointers();
-  ours.registerObjects(all);
-  naive.registerObjects(all);
-  ours.setup();
-  naive.setup();
+  register_both(ours, naive, all);
   EXPECT_EQ(ours.size(), all.size());
   EXPECT_FALSE(ours.empty());
   std::vector<Object*> listed;
@@ -258,10 +263,7 @@ TEST(FclBroadphaseManager, FewNamedUpdatesAgainstNaive) {
   viscd::FclBroadphaseManager ours;
   fcl::NaiveCollisionManagerd naive;
   const std::vector<Object*> all = scene.pointers();
-  ours.registerObjects(all);
-  naive.registerObjects(all);
-  ours.setup();
-  naive.setup();
+  register_both(ours, naive, all);
   auto stranger = scene.make_object(0);
   for (int round = 0; round < 24; ++round) {
     SCOPED_TRACE(round);
