@@ -5,6 +5,7 @@
 #include <limits>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -80,112 +81,102 @@ struct Keyword {
   std::function<py::object(const Config&, const GlOptions&)> get;
 };
 
-const char* bits_text(Bits b) {
-  switch (b) {
-    case Bits::b16: return "16";
-    case Bits::b32: return "32";
-    case Bits::b64: return "64";
-    default: return "adaptive";
-  }
+// Keywords that are one field of Config or GlOptions, of a plain type.
+template <class Options, class Field>
+Keyword field_keyword(std::string_view name, std::string_view type, std::string_view default_text,
+                      std::string_view help, Field Options::*field, long long lo = 0,
+                      long long hi = std::numeric_limits<int>::max()) {
+  constexpr bool gl = std::is_same_v<Options, GlOptions>;
+  auto set = [=](py::handle v, const std::string& k, Config& c, GlOptions& g) {
+    Options& o = [&]() -> Options& {
+      if constexpr (gl)
+        return g;
+      else
+        return c;
+    }();
+    if constexpr (std::is_same_v<Field, bool>)
+      o.*field = bool_value(v, k);
+    else if constexpr (std::is_same_v<Field, float>)
+      o.*field = float_value(v, k);
+    else
+      o.*field = static_cast<Field>(int_value(v, k, lo, hi));
+  };
+  auto get = [=](const Config& c, const GlOptions& g) -> py::object {
+    if constexpr (gl)
+      return py::cast(g.*field);
+    else
+      return py::cast(c.*field);
+  };
+  return {name, gl, type, default_text, help, set, get};
 }
 
 const std::vector<Keyword>& keywords() {
-  constexpr long long kIntMax = std::numeric_limits<int>::max();
   using C = const Config&;
   using G = const GlOptions&;
   static const std::vector<Keyword> table = {
-      {"lambda_", false, "float", "200.0", "culling threshold in screen pixels (also \"lambda\" via **dict)",
-       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.lambda = float_value(v, k); },
-       [](C c, G) { return py::cast(c.lambda); }},
-      {"pixels_for_32_bits", false, "float", "100.0", "adaptive Morton width: m = 16 below this mean pixel count,",
-       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.pixels_for_32_bits = float_value(v, k); },
-       [](C c, G) { return py::cast(c.pixels_for_32_bits); }},
-      {"pixels_for_64_bits", false, "float", "400.0", "32 below this one, else 64",
-       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.pixels_for_64_bits = float_value(v, k); },
-       [](C c, G) { return py::cast(c.pixels_for_64_bits); }},
+      field_keyword("lambda_", "float", "200.0", "culling threshold in screen pixels (also \"lambda\" via **dict)",
+                    &Config::lambda),
+      field_keyword("pixels_for_32_bits", "float", "100.0",
+                    "adaptive Morton width: m = 16 below this mean pixel count,", &Config::pixels_for_32_bits),
+      field_keyword("pixels_for_64_bits", "float", "400.0", "32 below this one, else 64", &Config::pixels_for_64_bits),
       {"bits", false, "\"adaptive\" | 16 | 32 | 64", "\"adaptive\"", "Morton code width (pairs are exact for each)",
        [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.bits = bits_value(v, k); },
        [](C c, G) -> py::object {
          if (c.bits == Bits::adaptive) return py::str("adaptive");
-         return py::int_(std::stoi(bits_text(c.bits)));
+         return py::int_(static_cast<int>(c.bits));
        }},
       {"layout", false, "\"extended\" | \"plain\"", "\"extended\"", "Morton bit layout over the axes",
        [](py::handle v, const std::string& k, Config& c, GlOptions&) {
          c.layout = choice_value(v, k, {"extended", "plain"}) == 0 ? Layout::extended : Layout::plain;
        },
        [](C c, G) { return py::str(c.layout == Layout::extended ? "extended" : "plain"); }},
-      {"culling", false, "bool", "True", "cull objects below lambda_ pixels (with a camera or an id map)",
-       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.culling = bool_value(v, k); },
-       [](C c, G) { return py::cast(c.culling); }},
-      {"map_width", false, "int", "0", "visibility map width; 0 x 0 = the camera's screen",
-       [=](py::handle v, const std::string& k, Config& c, GlOptions&) {
-         c.map_width = static_cast<int>(int_value(v, k, 0, kIntMax));
-       },
-       [](C c, G) { return py::cast(c.map_width); }},
-      {"map_height", false, "int", "0", "visibility map height",
-       [=](py::handle v, const std::string& k, Config& c, GlOptions&) {
-         c.map_height = static_cast<int>(int_value(v, k, 0, kIntMax));
-       },
-       [](C c, G) { return py::cast(c.map_height); }},
-      {"shade", false, "bool", "False", "produce Frame.image (needs a camera)",
-       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.shade = bool_value(v, k); },
-       [](C c, G) { return py::cast(c.shade); }},
-      {"report_pixels", false, "bool", "False", "count pixels (Frame.pixels) even when no stage needs them",
-       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.report_pixels = bool_value(v, k); },
-       [](C c, G) { return py::cast(c.report_pixels); }},
-      {"contact_events", false, "bool", "False", "fill Frame.began / Frame.ended",
-       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.contact_events = bool_value(v, k); },
-       [](C c, G) { return py::cast(c.contact_events); }},
-      {"pair_memory_cap", false, "int", "0", "bytes pairs may take (8 per pair); 0 = no cap; beyond: PairCapError",
-       [](py::handle v, const std::string& k, Config& c, GlOptions&) {
-         c.pair_memory_cap = static_cast<std::size_t>(int_value(v, k, 0, std::numeric_limits<long long>::max()));
-       },
-       [](C c, G) { return py::cast(c.pair_memory_cap); }},
-      {"threads", false, "int", "0", "cpu worker threads; 0 = all hardware threads, 1 = serial",
-       [=](py::handle v, const std::string& k, Config& c, GlOptions&) {
-         c.threads = static_cast<int>(int_value(v, k, 0, kIntMax));
-       },
-       [](C c, G) { return py::cast(c.threads); }},
-      {"keep_order", false, "bool", "True", "cpu: keep the last frame's object order while it stays good",
-       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.keep_order = bool_value(v, k); },
-       [](C c, G) { return py::cast(c.keep_order); }},
-      {"follow_change", false, "bool", "True", "cpu: keep resting objects in trees across frames (cost follows change)",
-       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.follow_change = bool_value(v, k); },
-       [](C c, G) { return py::cast(c.follow_change); }},
-      {"rest_margin", false, "float", "0.0", "cpu: how far an object may stray and still rest (0: bit for bit)",
-       [](py::handle v, const std::string& k, Config& c, GlOptions&) { c.rest_margin = float_value(v, k); },
-       [](C c, G) { return py::cast(c.rest_margin); }},
+      field_keyword("culling", "bool", "True", "cull objects below lambda_ pixels (with a camera or an id map)",
+                    &Config::culling),
+      field_keyword("map_width", "int", "0", "visibility map width; 0 x 0 = the camera's screen", &Config::map_width),
+      field_keyword("map_height", "int", "0", "visibility map height", &Config::map_height),
+      field_keyword("shade", "bool", "False", "produce Frame.image (needs a camera)", &Config::shade),
+      field_keyword("report_pixels", "bool", "False", "count pixels (Frame.pixels) even when no stage needs them",
+                    &Config::report_pixels),
+      field_keyword("contact_events", "bool", "False", "fill Frame.began / Frame.ended", &Config::contact_events),
+      field_keyword("pair_memory_cap", "int", "0",
+                    "bytes pairs may take (8 per pair); 0 = no cap; beyond: PairCapError", &Config::pair_memory_cap, 0,
+                    std::numeric_limits<long long>::max()),
+      field_keyword("threads", "int", "0", "cpu worker threads; 0 = all hardware threads, 1 = serial",
+                    &Config::threads),
+      field_keyword("keep_order", "bool", "True", "cpu: keep the last frame's object order while it stays good",
+                    &Config::keep_order),
+      field_keyword("follow_change", "bool", "True",
+                    "cpu: keep resting objects in trees across frames (cost follows change)", &Config::follow_change),
+      field_keyword("rest_margin", "float", "0.0", "cpu: how far an object may stray and still rest (0: bit for bit)",
+                    &Config::rest_margin),
       {"simd", false, "\"best\" | \"sse2\" | \"scalar\"", "\"best\"", "widest SIMD kernels the cpu backend may use",
        [](py::handle v, const std::string& k, Config& c, GlOptions&) {
          static constexpr Simd kSimd[] = {Simd::best, Simd::sse2, Simd::scalar};
          c.simd = kSimd[choice_value(v, k, {"best", "sse2", "scalar"})];
        },
-       [](C c, G) { return py::str(c.simd == Simd::best ? "best" : c.simd == Simd::sse2 ? "sse2" : "scalar"); }},
+       [](C c, G) {
+         return py::str(c.simd == Simd::best ? "best" : c.simd == Simd::sse2 ? "sse2" : "scalar");
+       }},
       {"gl_geometry", true, "\"impostor\" | \"mesh\" | \"splat\"", "\"impostor\"", "how spheres are drawn into the map",
        [](py::handle v, const std::string& k, Config&, GlOptions& g) {
          const std::size_t choice = choice_value(v, k, {"impostor", "mesh", "splat"});
          g.geometry = choice == 0 ? GlGeometry::impostor : choice == 1 ? GlGeometry::mesh : GlGeometry::splat;
        },
        [](C, G g) {
-         return py::str(g.geometry == GlGeometry::impostor ? "impostor" : g.geometry == GlGeometry::mesh ? "mesh" : "splat");
+         return py::str(g.geometry == GlGeometry::impostor ? "impostor"
+                        : g.geometry == GlGeometry::mesh   ? "mesh"
+                                                           : "splat");
        }},
       {"gl_counter", true, "\"ssbo\" | \"atomic_uint\"", "\"ssbo\"", "how pixels are counted",
        [](py::handle v, const std::string& k, Config&, GlOptions& g) {
          g.counter = choice_value(v, k, {"ssbo", "atomic_uint"}) == 0 ? GlCounter::ssbo : GlCounter::atomic_uint;
        },
        [](C, G g) { return py::str(g.counter == GlCounter::ssbo ? "ssbo" : "atomic_uint"); }},
-      {"gl_debug", true, "bool", "False", "a debug context: any GL error fails detect()",
-       [](py::handle v, const std::string& k, Config&, GlOptions& g) { g.debug = bool_value(v, k); },
-       [](C, G g) { return py::cast(g.debug); }},
-      {"gl_initial_pair_capacity", true, "int", "65536", "pairs the pair buffer holds before it first grows",
-       [](py::handle v, const std::string& k, Config&, GlOptions& g) {
-         g.initial_pair_capacity =
-             static_cast<std::uint32_t>(int_value(v, k, 1, std::numeric_limits<std::uint32_t>::max()));
-       },
-       [](C, G g) { return py::cast(g.initial_pair_capacity); }},
-      {"gl_sync_layout", true, "bool", "False", "m and the layout from this frame (one mid-frame readback)",
-       [](py::handle v, const std::string& k, Config&, GlOptions& g) { g.sync_layout = bool_value(v, k); },
-       [](C, G g) { return py::cast(g.sync_layout); }},
+      field_keyword("gl_debug", "bool", "False", "a debug context: any GL error fails detect()", &GlOptions::debug),
+      field_keyword("gl_initial_pair_capacity", "int", "65536", "pairs the pair buffer holds before it first grows",
+                    &GlOptions::initial_pair_capacity, 1, std::numeric_limits<std::uint32_t>::max()),
+      field_keyword("gl_sync_layout", "bool", "False", "m and the layout from this frame (one mid-frame readback)",
+                    &GlOptions::sync_layout),
   };
   return table;
 }
@@ -235,7 +226,8 @@ const char* keywords_doc() {
         out += "  backend=\"gl\" only (viscd::GlOptions):\n";
         gl_heading = true;
       }
-      std::string line = "    " + std::string(k.name) + ": " + std::string(k.type) + " = " + std::string(k.default_text);
+      std::string line =
+          "    " + std::string(k.name) + ": " + std::string(k.type) + " = " + std::string(k.default_text);
       if (line.size() < 44) line.resize(44, ' ');
       out += line + "  " + std::string(k.help) + "\n";
     }

@@ -46,8 +46,7 @@ py::array from_dlpack(py::handle obj, const char* name) {
 // through numpy.from_dlpack.
 py::array as_array(py::handle obj, const char* name) {
   if (py::isinstance<py::array>(obj)) return py::reinterpret_borrow<py::array>(obj);
-  if (py::hasattr(obj, "__dlpack__") && !py::hasattr(obj, "__array_interface__") &&
-      !PyObject_CheckBuffer(obj.ptr()))
+  if (py::hasattr(obj, "__dlpack__") && !py::hasattr(obj, "__array_interface__") && !PyObject_CheckBuffer(obj.ptr()))
     return from_dlpack(obj, name);
   py::array a = py::array::ensure(obj);  // clears NumPy's error on failure and returns null
   if (!a) throw py::value_error(std::string(name) + ": expected an array of numbers, got " + type_text(obj));

@@ -375,23 +375,13 @@ class PyDetector {
 
   [[nodiscard]] const Detector& detector() const { return *detector_; }
 
-  // Reads of the detector's state wait for no frame: under the busy rule, a read while another
-  // thread's call runs (with the GIL released) raises instead of racing with it.
-  [[nodiscard]] std::uint64_t memory_bytes() {
+  // Reads of the detector's state (config, memory_bytes, static_count, static_kind) wait for no
+  // frame: under the busy rule, a read while another thread's call runs (with the GIL released)
+  // raises instead of racing with it.
+  template <class Read>
+  [[nodiscard]] auto read(Read&& f) {
     BusyGuard busy(busy_);
-    return detector_->memory_bytes();
-  }
-  [[nodiscard]] Config config() {
-    BusyGuard busy(busy_);
-    return detector_->config();
-  }
-  [[nodiscard]] std::size_t static_count() {
-    BusyGuard busy(busy_);
-    return detector_->static_count();
-  }
-  [[nodiscard]] ShapeKind static_kind() {
-    BusyGuard busy(busy_);
-    return detector_->static_kind();
+    return f(static_cast<const Detector&>(*detector_));
   }
 
  private:
@@ -602,7 +592,8 @@ PYBIND11_MODULE(_viscd, m) {
       .def_property_readonly(
           "stats", [](const PyFrame& f) { return stats_dict(f.result->stats, f.detect_ms); },
           "dict: objects, static_objects, active, has_camera, has_pixels, mean_pixels, bits, layout (text), "
-          "layout_order, layout_axis_bits, pairs, order_kept, followed_change, moved, replaced, stage_ms ({stage name: ms}), total_ms (sum of "
+          "layout_order, layout_axis_bits, pairs, order_kept, followed_change, moved, replaced, stage_ms ({stage name: "
+          "ms}), total_ms (sum of "
           "stages), detect_ms (wall time of the C++ detect call).")
       .def_readonly("input_copied", &PyFrame::input_copied,
                     "True when an input array had to be converted (copied) before the frame ran; False when every "
@@ -647,9 +638,14 @@ PYBIND11_MODULE(_viscd, m) {
       .def("remove_static", &PyDetector::remove_static, py::arg("k"),
            "remove_static(k)\n\nRemoves the static object in slot k; the slot is free for a later add.")
       .def("clear_static", &PyDetector::clear_static, "clear_static()\n\nEmpties the static set.")
-      .def_property_readonly("static_count", &PyDetector::static_count, "Objects in the static set.")
       .def_property_readonly(
-          "static_kind", [](PyDetector& d) { return d.static_kind() == ShapeKind::box ? "box" : "sphere"; },
+          "static_count", [](PyDetector& d) { return d.read([](const Detector& x) { return x.static_count(); }); },
+          "Objects in the static set.")
+      .def_property_readonly(
+          "static_kind",
+          [](PyDetector& d) {
+            return d.read([](const Detector& x) { return x.static_kind() == ShapeKind::box ? "box" : "sphere"; });
+          },
           "'sphere' or 'box': the static set's kind ('sphere' while empty).")
       .def("ray_cast", &PyDetector::ray_cast, py::arg("origin"), py::arg("direction"),
            py::arg("max_t") = std::numeric_limits<double>::infinity(), py::arg("filter") = py::none(),
@@ -674,7 +670,7 @@ PYBIND11_MODULE(_viscd, m) {
            "frame.stats (the gl backend\n"
            "reports them one frame late). cpu and reference: does nothing.")
       .def_property_readonly(
-          "config", [](PyDetector& d) { return config_dict(d.config()); },
+          "config", [](PyDetector& d) { return config_dict(d.read([](const Detector& x) { return x.config(); })); },
           "The settings as a dict of the keywords Detector() takes.")
       .def("set_config", &PyDetector::set_config,
            "set_config(**config)\n\nChanges settings (the Detector's keywords, gl_* excepted); takes effect at the "
@@ -683,7 +679,7 @@ PYBIND11_MODULE(_viscd, m) {
           "backend", [](const PyDetector& d) { return std::string(d.detector().name()); },
           "'reference', 'cpu', 'gl' or 'cuda'.")
       .def_property_readonly(
-          "memory_bytes", &PyDetector::memory_bytes,
+          "memory_bytes", [](PyDetector& d) { return d.read([](const Detector& x) { return x.memory_bytes(); }); },
           "Working memory the backend holds now, in bytes.")
       .def("__repr__",
            [](const PyDetector& d) { return "<viscd.Detector backend='" + std::string(d.detector().name()) + "'>"; });

@@ -103,7 +103,7 @@ void CpuDetector::prepare_queries() {
   const std::lock_guard<std::mutex> lock(lazy_mutex_);
   if (query_tree_built_.load(std::memory_order_relaxed)) return;
   const ExecutorScope scope(config_.executor);
-  const int threads = resolve_threads(config_.threads, config_.executor ? config_.executor->concurrency() : 0);
+  const int threads = frame_threads();
   FrameStats unused;
   broadphase_.build(rest_.objects().spheres, last_active(), q_bits_, config_.layout, threads, unused);
   query_tree_built_.store(true, std::memory_order_release);
@@ -219,7 +219,7 @@ const BucketBroadphase& CpuDetector::unpaired_tree() {
     const std::lock_guard<std::mutex> lock(lazy_mutex_);
     if (unpaired_built_.load(std::memory_order_relaxed)) return unpaired_tree_;
     const ExecutorScope scope(config_.executor);
-    const int threads = resolve_threads(config_.threads, config_.executor ? config_.executor->concurrency() : 0);
+    const int threads = frame_threads();
     const std::size_t n = unpaired_spheres_.size();
     if (iota_.size() < n) {
       const std::size_t old = iota_.size();

@@ -49,14 +49,14 @@ Status PipelineDetector::draw_frame(const CameraRig& cam, const Camera&, const F
 
 void PipelineDetector::for_chunks_of(std::size_t n, const std::function<void(std::size_t, std::size_t)>& f) {
   const ExecutorScope scope(config_.executor);
-  const int threads = resolve_threads(config_.threads, config_.executor ? config_.executor->concurrency() : 0);
+  const int threads = frame_threads();
   for_chunks(n, ranges_for(n, threads), [&](std::size_t b, std::size_t e, std::size_t) { f(b, e); });
 }
 
 Status PipelineDetector::validate_objects(const Shapes& objects) {
   const std::size_t n = objects.size();
   const ExecutorScope scope(config_.executor);
-  const int threads = resolve_threads(config_.threads, config_.executor ? config_.executor->concurrency() : 0);
+  const int threads = frame_threads();
   std::atomic<bool> all_valid{true};
   for_chunks(n, ranges_for(n, threads), [&](std::size_t b, std::size_t e, std::size_t) {
     const bool ok = objects.is_box() ? boxes_all_valid(objects.boxes.subspan(b, e - b))
@@ -78,7 +78,7 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
                                " backend reads the caller's visibility map from FrameInput::id_map");
   // Every parallel stage of this frame runs on the caller's executor, or on viscd's pool.
   const ExecutorScope scope(config_.executor);
-  const int threads = resolve_threads(config_.threads, config_.executor ? config_.executor->concurrency() : 0);
+  const int threads = frame_threads();
   // The moving objects, then the static set's: drawn, always active, never paired with each other
   // (appended here, or kept by the backend: handles_static()).
   const bool own_static = handles_static();

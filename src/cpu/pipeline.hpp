@@ -10,6 +10,7 @@
 #include "core/backend.hpp"
 #include "core/frame_rules.hpp"
 #include "core/with_static.hpp"
+#include "cpu/parallel.hpp"
 #include "cpu/visibility.hpp"
 
 namespace viscd::detail {
@@ -23,6 +24,11 @@ class PipelineDetector : public Backend {
 
  protected:
   explicit PipelineDetector(const Config& config) : Backend(config) {}
+  /// The frame's thread count: Config::threads, 0 meaning the caller's executor's concurrency (or
+  /// the hardware's). Call it inside an ExecutorScope of config_.executor.
+  [[nodiscard]] int frame_threads() const {
+    return resolve_threads(config_.threads, config_.executor ? config_.executor->concurrency() : 0);
+  }
   [[nodiscard]] Status run_frame(const FrameInput& input, FrameResult& out) final;
   /// The objects checked in ranges on the frame's threads (a pass over every shape each frame).
   [[nodiscard]] Status validate_objects(const Shapes& objects) final;

@@ -150,13 +150,12 @@ class CudaDetector final : public PipelineDetector {
       }
     } sink{&pairs, threads};
     if (!std::exchange(splatted_, false)) splat_times_ = cuda::SplatTimes{};
-    cuda::Times t;
     const std::size_t cap = pairs_within_cap(config_.pair_memory_cap);
-    const cuda::Outcome o = gpu_.broadphase(in, to_grid(layout, extent.bounds), cap, &Sink::take, &sink, t);
-    times_ = t;
+    const cuda::Outcome o = gpu_.broadphase(in, to_grid(layout, extent.bounds), cap, &Sink::take, &sink, times_);
     if (o.over_limit) return check_pair_cap(o.pairs, config_.pair_memory_cap);
     if (!o.ok()) return to_status(o, objects.size(), config_);
     // GPU times by stage; the packing on the host and the upload count as the codes' stage.
+    const cuda::Times& t = times_;
     stats.ms(Stage::codes) = host_ms + t.upload + t.codes;
     stats.ms(Stage::sort) = t.sort;
     stats.ms(Stage::build) = t.build;

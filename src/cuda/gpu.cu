@@ -442,15 +442,15 @@ constexpr unsigned kKept = 4;
 
 // The traversal's output, by pass.
 struct QueryOut {
-  std::uint64_t* keys = nullptr;               // append
-  unsigned long long* count = nullptr;         // append: every pair counted
-  int id_bits = 0;                             // append
-  unsigned long long* counts = nullptr;        // count
-  std::uint8_t* states = nullptr;              // count; may be null
-  uint2* kept = nullptr;                       // count (written), write (read)
+  std::uint64_t* keys = nullptr;                // append
+  unsigned long long* count = nullptr;          // append: every pair counted
+  int id_bits = 0;                              // append
+  unsigned long long* counts = nullptr;         // count
+  std::uint8_t* states = nullptr;               // count; may be null
+  uint2* kept = nullptr;                        // count (written), write (read)
   const unsigned long long* offsets = nullptr;  // write
-  uint2* pairs = nullptr;                      // write
-  std::uint64_t capacity = 0;                  // append, write
+  uint2* pairs = nullptr;                       // write
+  std::uint64_t capacity = 0;                   // append, write
 };
 
 // One thread a leaf p: the leaves q > p whose boxes meet its own, then the exact test, the static
@@ -472,7 +472,8 @@ __global__ void query(std::uint32_t n, const float4* __restrict__ sorted, const 
   if constexpr (kPass == Pass::write) {
     const unsigned long long c = out.counts[p];
     if (c <= kKept) {
-      for (unsigned k = 0; k < c && slot + k < out.capacity; ++k) out.pairs[slot + k] = out.kept[kKept * std::uint64_t{p} + k];
+      for (unsigned k = 0; k < c && slot + k < out.capacity; ++k)
+        out.pairs[slot + k] = out.kept[kKept * std::uint64_t{p} + k];
       return;
     }
   }
@@ -577,7 +578,8 @@ struct Gpu::Impl {
           &boxes,    &id_map, &filters,    &keys[0],  &keys[1],  &values[0], &values[1],  &nodes,       &parent,
           &arrivals, &sorted, &leaf_boxes, &frame_id, &pairs[0], &pairs[1],  &pair_count, &temp})
       b += x->capacity;
-    for (const PinnedBuffer* x : {&staged_spheres, &staged_boxes, &staged_ids, &staged_filters, &staged_pairs}) b += x->capacity;
+    for (const PinnedBuffer* x : {&staged_spheres, &staged_boxes, &staged_ids, &staged_filters, &staged_pairs})
+      b += x->capacity;
     return b;
   }
 };
@@ -919,7 +921,8 @@ __global__ void plan_grid(unsigned parts, const Partial* partial, std::uint32_t 
     extent[a] = fmaxf(0.0f, hi[a] - lo[a]);
   }
   const float mean = all.valid ? static_cast<float>(all.diameters / static_cast<double>(all.valid)) : 0.0f;
-  const detail::rule::Layout l = plain ? detail::rule::plain_layout(bits) : detail::rule::extended_layout(bits, extent, mean);
+  const detail::rule::Layout l =
+      plain ? detail::rule::plain_layout(bits) : detail::rule::extended_layout(bits, extent, mean);
   Grid g;
   for (int a = 0; a < 3; ++a) {
     detail::rule::axis_grid(l.axis_bits[a], lo[a], hi[a], g.lo[a], g.scale[a], g.max_cell[a]);
@@ -964,21 +967,27 @@ struct DeviceFrame::Impl {
   Buffer proxies, partial, grid, keys[2], values[2], nodes, parent, arrivals, sorted, leaf_boxes, frame_id, counts,
       offsets, kept, temp;
   std::size_t sort_temp = 0, scan_temp = 0;
+  std::uint32_t sized_n = 0xFFFFFFFFu;  // the frame size the two above were asked for
+  int sized_bits = 0;
 
-  // The temporary storage CUB needs for n objects at `bits` (no device work).
+  // The temporary storage CUB needs for n objects at `bits` (no device work), asked again only
+  // when the size changes: every frame of a steady N skips it.
   Outcome temp_sizes(std::uint32_t n, int bits) {
+    if (n == sized_n && bits == sized_bits) return {};
     cub::DoubleBuffer<std::uint64_t> k(nullptr, nullptr);
     cub::DoubleBuffer<std::uint32_t> v(nullptr, nullptr);
     VISCD_CUDA(cub::DeviceRadixSort::SortPairs(nullptr, sort_temp, k, v, static_cast<int>(n), 0, bits));
     VISCD_CUDA(cub::DeviceScan::ExclusiveSum(nullptr, scan_temp, static_cast<unsigned long long*>(nullptr),
                                              static_cast<unsigned long long*>(nullptr), static_cast<int>(n)));
+    sized_n = n;
+    sized_bits = bits;
     return {};
   }
   // Whether every buffer holds a frame of n objects.
   bool holds(std::uint32_t n, bool boxes) const {
     const std::size_t m = std::max<std::size_t>(n, 2);
-    return (!boxes || proxies.capacity >= 16 * m) && keys[0].capacity >= 8 * m && kept.capacity >= 8 * kKept * m && counts.capacity >= 8 * m &&
-           temp.capacity >= std::max(sort_temp, scan_temp) && grid.capacity >= sizeof(Grid);
+    return (!boxes || proxies.capacity >= 16 * m) && keys[0].capacity >= 8 * m && kept.capacity >= 8 * kKept * m &&
+           counts.capacity >= 8 * m && temp.capacity >= std::max(sort_temp, scan_temp) && grid.capacity >= sizeof(Grid);
   }
   Outcome reserve(std::uint32_t n, bool boxes, int bits) {
     if (Outcome o = temp_sizes(n, bits); !o.ok()) return o;
@@ -1010,8 +1019,9 @@ DeviceFrame::~DeviceFrame() = default;
 std::uint64_t DeviceFrame::bytes() const {
   const Impl& m = *impl_;
   std::uint64_t b = 0;
-  for (const Buffer* x : {&m.proxies, &m.partial, &m.grid, &m.keys[0], &m.keys[1], &m.values[0], &m.values[1], &m.nodes,
-                          &m.parent, &m.arrivals, &m.sorted, &m.leaf_boxes, &m.frame_id, &m.counts, &m.offsets, &m.kept, &m.temp})
+  for (const Buffer* x :
+       {&m.proxies, &m.partial, &m.grid, &m.keys[0], &m.keys[1], &m.values[0], &m.values[1], &m.nodes, &m.parent,
+        &m.arrivals, &m.sorted, &m.leaf_boxes, &m.frame_id, &m.counts, &m.offsets, &m.kept, &m.temp})
     b += x->capacity;
   return b;
 }
@@ -1038,8 +1048,8 @@ Outcome DeviceFrame::enqueue(const DeviceInput& in, const DeviceOutput& out, voi
   }
   const unsigned parts = prepare_blocks(n);
   const float4* centres = boxes ? m.proxies.as<float4>() : reinterpret_cast<const float4*>(in.spheres);
-  prepare<<<parts, kBlock, 0, stream>>>(n, reinterpret_cast<const float4*>(in.spheres), in.boxes, m.proxies.as<float4>(),
-                                        m.partial.as<Partial>());
+  prepare<<<parts, kBlock, 0, stream>>>(n, reinterpret_cast<const float4*>(in.spheres), in.boxes,
+                                        m.proxies.as<float4>(), m.partial.as<Partial>());
   VISCD_CUDA(cudaGetLastError());
   plan_grid<<<1, kBlock, 0, stream>>>(parts, m.partial.as<Partial>(), n, in.bits, in.plain_layout, m.grid.as<Grid>(),
                                       out.report);
@@ -1055,14 +1065,15 @@ Outcome DeviceFrame::enqueue(const DeviceInput& in, const DeviceOutput& out, voi
   cub::DoubleBuffer<std::uint64_t> keys(m.keys[0].as<std::uint64_t>(), m.keys[1].as<std::uint64_t>());
   cub::DoubleBuffer<std::uint32_t> values(m.values[0].as<std::uint32_t>(), m.values[1].as<std::uint32_t>());
   std::size_t temp_bytes = m.temp.capacity;
-  VISCD_CUDA(cub::DeviceRadixSort::SortPairs(m.temp.ptr, temp_bytes, keys, values, static_cast<int>(n), 0, in.bits,
-                                             stream));
+  VISCD_CUDA(
+      cub::DeviceRadixSort::SortPairs(m.temp.ptr, temp_bytes, keys, values, static_cast<int>(n), 0, in.bits, stream));
   karras_build<<<blocks(n - 1), kBlock, 0, stream>>>(static_cast<int>(n), in.bits, keys.Current(), m.nodes.as<Node>(),
                                                      m.parent.as<std::uint32_t>(), m.arrivals.as<std::uint32_t>());
   VISCD_CUDA(cudaGetLastError());
   fit<<<blocks(n), kBlock, 0, stream>>>(n, centres, boxes ? in.boxes : nullptr, nullptr, values.Current(),
                                         m.sorted.as<float4>(), m.leaf_boxes.as<float>(), m.frame_id.as<std::uint32_t>(),
-                                        m.nodes.as<Node>(), m.parent.as<std::uint32_t>(), m.arrivals.as<std::uint32_t>());
+                                        m.nodes.as<Node>(), m.parent.as<std::uint32_t>(),
+                                        m.arrivals.as<std::uint32_t>());
   VISCD_CUDA(cudaGetLastError());
   const auto* filters = reinterpret_cast<const uint2*>(in.filters);
   QueryOut counting;
