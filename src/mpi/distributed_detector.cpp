@@ -1,0 +1,604 @@
+// DistributedDetector: regions, ghosts, the local frame and the ownership rule (docs/mpi.md).
+#include <algorithm>
+#include <climits>
+#include <cstdint>
+#include <cstring>
+#include <new>
+#include <string>
+#include <type_traits>
+#include <unordered_map>
+#include <vector>
+
+#include "core/geometry.hpp"
+#include "core/stopwatch.hpp"
+#include "mpi/comm.hpp"
+#include "mpi/global_ids.hpp"
+#include "viscd/assert.hpp"
+#include "viscd/mpi.hpp"
+
+namespace viscd::mpi {
+namespace {
+
+using viscd::detail::Aabb;
+using viscd::detail::overlaps;
+
+/// What a rank holds; `none` for a rank without objects of that role.
+enum class Kind : std::uint8_t { none = 0, sphere = 1, box = 2 };
+
+const char* kind_name(Kind k) { return k == Kind::sphere ? "spheres" : "boxes"; }
+
+/// An object as it travels to another rank: its shape, global id and filter.
+template <class Shape>
+struct Record;
+template <>
+struct Record<Sphere> {
+  Sphere shape;
+  std::uint64_t id = 0;
+  Filter filter;
+};
+template <>
+struct Record<Box> {
+  Box shape;
+  std::uint64_t id = 0;
+  Filter filter;
+};
+static_assert(sizeof(Record<Sphere>) == 32 && sizeof(Record<Box>) == 40);
+
+/// The box the exchange tests. For a sphere the conservative box the trees use: every sphere the
+/// float overlap test can accept with it overlaps that box. For a box, the box.
+Aabb bounds(const Sphere& s) { return viscd::detail::conservative_box(s); }
+Aabb bounds(const Box& b) { return Aabb{{b.min[0], b.min[1], b.min[2]}, {b.max[0], b.max[1], b.max[2]}}; }
+
+bool same_bits(const Sphere& a, const Sphere& b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+bool same_bits(const Box& a, const Box& b) { return std::memcmp(&a, &b, sizeof a) == 0; }
+
+/// What every rank tells every other at the start of a frame.
+struct Header {
+  Aabb region;  ///< the box around this rank's moving objects (empty when it has none)
+  std::uint32_t moving = 0, statics = 0;
+  Kind moving_kind = Kind::none, static_kind = Kind::none;
+  std::uint8_t ids_changed = 0;  ///< this rank's ids (moving or static) differ from its last frame's
+  std::uint8_t has_filters = 0;  ///< this rank gives filters (moving or static)
+};
+static_assert(sizeof(Header) == 36);
+
+/// A static object of another rank, held in the local detector's static set.
+struct GhostStatic {
+  std::uint32_t slot = 0;
+  Filter filter;
+  Sphere sphere;
+  Box box;
+  bool seen = false;
+};
+
+}  // namespace
+
+struct DistributedDetector::State {
+  MPI_Comm comm = MPI_COMM_NULL;
+  Status broken;  // why the detector cannot run (MPI not initialized, no communicator)
+  int rank = 0, size = 1;
+  std::unique_ptr<Detector> local;
+  detail::ByteTypes types;
+
+  // This rank's static set as given, and whether the local detector holds it yet.
+  Kind static_kind = Kind::none;
+  std::vector<Sphere> static_spheres;
+  std::vector<Box> static_boxes;
+  std::vector<std::uint64_t> static_ids;
+  std::vector<Filter> static_filters;
+  bool statics_pending = true;
+  // The local detector's static set: slots 0..static_ids.size()-1 hold this rank's own, in order;
+  // later slots hold other ranks' static objects near this rank's moving ones.
+  std::vector<std::uint64_t> slot_id;
+  std::unordered_map<std::uint64_t, GhostStatic> ghost_statics;
+
+  // The last frame's ids, to see when they must be checked again.
+  std::vector<std::uint64_t> last_ids;
+  bool ids_known = false;
+
+  // Frame buffers, kept for their capacity.
+  std::vector<Header> headers;
+  std::vector<std::vector<std::uint32_t>> send_index;
+  std::vector<Sphere> spheres;
+  std::vector<Box> boxes;
+  std::vector<Filter> filters;
+  std::vector<std::uint8_t> always_active;
+  std::vector<std::uint64_t> ghost_ids;
+  FrameResult frame;
+};
+
+namespace {
+
+using State = DistributedDetector::State;
+
+/// Local checks of one rank's frame, and its header.
+template <class Shape>
+Status check_input(const DistributedInput& in, std::span<const Shape> own, Header& h) {
+  const std::size_t n = own.size();
+  const char* what = std::is_same_v<Shape, Sphere> ? "spheres" : "boxes";
+  if (!in.spheres.empty() && !in.boxes.empty())
+    return Status::failure(ErrorKind::invalid_input, "a frame holds spheres or boxes, not both");
+  if (in.ids.size() != n)
+    return Status::failure(ErrorKind::invalid_input, std::to_string(in.ids.size()) + " ids for " + std::to_string(n) +
+                                                         " " + what + " (one global id per object)");
+  if (!in.filters.empty() && in.filters.size() != n)
+    return Status::failure(ErrorKind::invalid_input, std::to_string(in.filters.size()) + " filters for " +
+                                                         std::to_string(n) + " " + what + " (none, or one per object)");
+  if (!in.always_active.empty() && in.always_active.size() != n)
+    return Status::failure(ErrorKind::invalid_input, std::to_string(in.always_active.size()) +
+                                                         " always_active flags for " + std::to_string(n) + " " + what +
+                                                         " (none, or one per object)");
+  if constexpr (std::is_same_v<Shape, Sphere>) {
+    if (Status s = validate_spheres(own); !s) return s;
+  } else {
+    if (Status s = validate_boxes(own); !s) return s;
+  }
+  for (const Shape& o : own) h.region.grow(bounds(o));
+  h.moving = static_cast<std::uint32_t>(n);
+  if (n > 0) h.moving_kind = std::is_same_v<Shape, Sphere> ? Kind::sphere : Kind::box;
+  return {};
+}
+
+/// The kind every rank agrees on (none when no rank holds an object), or the first disagreement.
+/// Every rank computes it from the same headers, so every rank fails alike without a message.
+Status common_kind(const std::vector<Header>& headers, Kind& kind) {
+  kind = Kind::none;
+  int from = -1;
+  for (std::size_t r = 0; r < headers.size(); ++r)
+    for (const Kind k : {headers[r].moving_kind, headers[r].static_kind}) {
+      if (k == Kind::none) continue;
+      if (kind == Kind::none) {
+        kind = k;
+        from = static_cast<int>(r);
+      } else if (k != kind) {
+        return Status::failure(ErrorKind::invalid_input, "rank " + std::to_string(from) + " gives " + kind_name(kind) +
+                                                             " and rank " + std::to_string(r) + " " + kind_name(k) +
+                                                             ": every rank's moving and static objects must be of one "
+                                                             "kind");
+      }
+    }
+  return {};
+}
+
+/// Brings the local detector's static set up to date: this rank's own (when they changed) and the
+/// static ghosts received this frame (added, moved, removed by global id).
+template <class Shape>
+Status update_static_set(State& st, std::span<const Record<Shape>> ghosts) {
+  Detector& det = *st.local;
+  if (st.statics_pending) {
+    Status s = std::is_same_v<Shape, Sphere> ? det.set_static_spheres(st.static_spheres, st.static_filters)
+                                             : det.set_static_boxes(st.static_boxes, st.static_filters);
+    if (!s) return s;
+    st.slot_id = st.static_ids;
+    st.ghost_statics.clear();
+    st.statics_pending = false;
+  }
+  for (auto& [id, g] : st.ghost_statics) g.seen = false;
+  for (const Record<Shape>& rec : ghosts) {
+    auto it = st.ghost_statics.find(rec.id);
+    if (it != st.ghost_statics.end()) {
+      GhostStatic& g = it->second;
+      g.seen = true;
+      const bool same_filter = g.filter.group == rec.filter.group && g.filter.mask == rec.filter.mask;
+      bool same_shape = false;
+      if constexpr (std::is_same_v<Shape, Sphere>)
+        same_shape = same_bits(g.sphere, rec.shape);
+      else
+        same_shape = same_bits(g.box, rec.shape);
+      if (same_shape && same_filter) continue;
+      if (same_filter) {
+        Status s;
+        if constexpr (std::is_same_v<Shape, Sphere>)
+          s = det.move_static_sphere(g.slot, g.sphere = rec.shape);
+        else
+          s = det.move_static_box(g.slot, g.box = rec.shape);
+        if (!s) return s;
+        continue;
+      }
+      if (Status s = det.remove_static(g.slot); !s) return s;
+      st.ghost_statics.erase(it);
+    }
+    Result<std::uint32_t> slot = [&] {
+      if constexpr (std::is_same_v<Shape, Sphere>)
+        return det.add_static_sphere(rec.shape, rec.filter);
+      else
+        return det.add_static_box(rec.shape, rec.filter);
+    }();
+    if (!slot) return slot.status();
+    GhostStatic g;
+    g.slot = slot.value();
+    g.filter = rec.filter;
+    if constexpr (std::is_same_v<Shape, Sphere>)
+      g.sphere = rec.shape;
+    else
+      g.box = rec.shape;
+    g.seen = true;
+    if (st.slot_id.size() <= g.slot) st.slot_id.resize(g.slot + 1);
+    st.slot_id[g.slot] = rec.id;
+    st.ghost_statics.emplace(rec.id, g);
+  }
+  for (auto it = st.ghost_statics.begin(); it != st.ghost_statics.end();) {
+    if (it->second.seen) {
+      ++it;
+      continue;
+    }
+    if (Status s = det.remove_static(it->second.slot); !s) return s;
+    it = st.ghost_statics.erase(it);
+  }
+  return {};
+}
+
+/// Which of `shapes` go to which rank: those whose bounds meet that rank's moving region.
+template <class Shape>
+void select_ghosts(const State& st, std::span<const Shape> shapes, std::vector<std::vector<std::uint32_t>>& to) {
+  const auto k = static_cast<std::size_t>(st.size);
+  to.resize(k);
+  for (auto& v : to) v.clear();
+  Aabb others;  // the box around every other rank's region: most objects of a rank meet none
+  for (std::size_t r = 0; r < k; ++r)
+    if (static_cast<int>(r) != st.rank && st.headers[r].moving > 0) others.grow(st.headers[r].region);
+  for (std::size_t i = 0; i < shapes.size(); ++i) {
+    const Aabb b = bounds(shapes[i]);
+    if (!overlaps(b, others)) continue;
+    for (std::size_t r = 0; r < k; ++r)
+      if (static_cast<int>(r) != st.rank && st.headers[r].moving > 0 && overlaps(b, st.headers[r].region))
+        to[r].push_back(static_cast<std::uint32_t>(i));
+  }
+}
+
+/// Packs the selected objects into records grouped by destination rank, and their counts.
+template <class Shape>
+void pack(const std::vector<std::vector<std::uint32_t>>& to, std::span<const Shape> shapes,
+          std::span<const std::uint64_t> ids, std::span<const Filter> filters, std::vector<Record<Shape>>& out,
+          std::vector<std::uint64_t>& counts) {
+  out.clear();
+  counts.assign(to.size(), 0);
+  for (std::size_t r = 0; r < to.size(); ++r) {
+    counts[r] = to[r].size();
+    for (const std::uint32_t i : to[r]) {
+      Record<Shape> rec;
+      rec.shape = shapes[i];
+      rec.id = ids[i];
+      if (!filters.empty()) rec.filter = filters[i];
+      out.push_back(rec);
+    }
+  }
+}
+
+std::uint64_t sum(const std::vector<std::uint64_t>& v) {
+  std::uint64_t s = 0;
+  for (const auto x : v) s += x;
+  return s;
+}
+
+/// The frame after the headers: id check, ghost exchange, local frame, ownership rule.
+template <class Shape>
+Status run_frame(State& st, std::span<const Shape> own, const DistributedInput& in, DistributedResult& out,
+                 detail::Traffic& traffic, double& exchange_ms, double& detect_ms) {
+  viscd::detail::Stopwatch clock;
+  const std::size_t n_own = own.size();
+  bool any_filters = false, any_statics = false;
+  for (const Header& h : st.headers) {
+    any_filters = any_filters || h.has_filters != 0;
+    any_statics = any_statics || h.statics > 0;
+  }
+
+  // Moving ghosts, then static ghosts (only while some rank has static objects).
+  std::vector<Record<Shape>> send, ghosts, static_send, static_ghosts;
+  std::vector<std::uint64_t> counts;
+  std::vector<int> recv_counts;
+  Status local;
+  try {
+    select_ghosts(st, own, st.send_index);
+    pack(st.send_index, own, in.ids, in.filters, send, counts);
+  } catch (const std::bad_alloc&) {
+    local = Status::failure(ErrorKind::out_of_memory,
+                            "out of memory selecting ghosts of " + std::to_string(n_own) + " objects");
+  }
+  if (Status s = detail::agree(st.comm, local, true); !s) return s;
+  out.stats.ghosts_sent = static_cast<std::uint32_t>(sum(counts));
+  if (Status s = detail::all_to_all<Record<Shape>>(st.comm, st.types, send, counts, ghosts, recv_counts, traffic); !s)
+    return s;
+  out.stats.ghosts_received = static_cast<std::uint32_t>(ghosts.size());
+  if (any_statics) {
+    try {
+      std::span<const Shape> mine;
+      if constexpr (std::is_same_v<Shape, Sphere>)
+        mine = st.static_spheres;
+      else
+        mine = st.static_boxes;
+      select_ghosts(st, mine, st.send_index);
+      pack(st.send_index, mine, std::span<const std::uint64_t>(st.static_ids),
+           std::span<const Filter>(st.static_filters), static_send, counts);
+    } catch (const std::bad_alloc&) {
+      local = Status::failure(ErrorKind::out_of_memory, "out of memory selecting static ghosts");
+    }
+    if (Status s = detail::agree(st.comm, local, true); !s) return s;
+    out.stats.static_ghosts_sent = static_cast<std::uint32_t>(sum(counts));
+    if (Status s = detail::all_to_all<Record<Shape>>(st.comm, st.types, static_send, counts, static_ghosts, recv_counts,
+                                                     traffic);
+        !s)
+      return s;
+    out.stats.static_ghosts_received = static_cast<std::uint32_t>(static_ghosts.size());
+  }
+  exchange_ms += clock.lap();
+
+  // The local frame over own + ghost objects.
+  const std::size_t n = n_own + ghosts.size();
+  FrameResult& frame = st.frame;
+  try {
+    if (n > INT32_MAX)
+      local = Status::failure(ErrorKind::unsupported_input,
+                              std::to_string(n) + " objects with ghosts on one rank (at most 2^31 - 1)");
+    if (local) local = update_static_set<Shape>(st, static_ghosts);
+    if (local && n > 0) {
+      FrameInput fi;
+      std::span<const Shape> shapes = own;
+      if (!ghosts.empty()) {
+        std::vector<Shape>* all = nullptr;
+        if constexpr (std::is_same_v<Shape, Sphere>)
+          all = &st.spheres;
+        else
+          all = &st.boxes;
+        all->assign(own.begin(), own.end());
+        for (const auto& g : ghosts) all->push_back(g.shape);
+        shapes = *all;
+      }
+      if constexpr (std::is_same_v<Shape, Sphere>)
+        fi.spheres = shapes;
+      else
+        fi.boxes = shapes;
+      if (any_filters) {
+        st.filters.assign(in.filters.begin(), in.filters.end());
+        st.filters.resize(n_own);  // Filter{} for an own object when this rank gave none
+        for (const auto& g : ghosts) st.filters.push_back(g.filter);
+        fi.filters = st.filters;
+      }
+      if (!in.always_active.empty()) {
+        st.always_active.assign(in.always_active.begin(), in.always_active.end());
+        st.always_active.resize(n, 0);
+        fi.always_active = st.always_active;
+      }
+      local = st.local->detect(fi, frame);
+    }
+  } catch (const std::bad_alloc&) {
+    local = Status::failure(ErrorKind::out_of_memory,
+                            "out of memory building the local frame of " + std::to_string(n) + " objects");
+  }
+  detect_ms += clock.lap();
+  if (Status s = detail::agree(st.comm, local, true); !s) return s;
+
+  // The ownership rule: a pair of two moving objects is this rank's when it owns the one with the
+  // smaller id; a pair with a static object when it owns the moving one.
+  out.pairs.clear();
+  out.state.clear();
+  out.local = {};
+  const auto id_of = [&](std::uint32_t i) { return i < n_own ? in.ids[i] : st.ghost_ids[i - n_own]; };
+  try {
+    st.ghost_ids.resize(ghosts.size());
+    for (std::size_t g = 0; g < ghosts.size(); ++g) st.ghost_ids[g] = ghosts[g].id;
+    // A rank without objects ran no local frame: nothing to keep (it still agrees below).
+    if (n == 0) frame.pairs.clear();
+    for (const Pair& p : frame.pairs) {
+      const bool i_own = p.i < n_own;
+      if (is_static_index(p.j)) {
+        if (!i_own) continue;
+        const std::uint64_t a = in.ids[p.i], b = st.slot_id[static_slot(p.j)];
+        out.pairs.push_back({std::min(a, b), std::max(a, b)});
+        continue;
+      }
+      const bool j_own = p.j < n_own;
+      if (!i_own && !j_own) continue;
+      const std::uint64_t a = id_of(p.i), b = id_of(p.j);
+      if (i_own != j_own && (i_own ? a > b : b > a)) continue;  // the other rank owns the smaller id
+      out.pairs.push_back({std::min(a, b), std::max(a, b)});
+    }
+    if (!std::is_sorted(out.pairs.begin(), out.pairs.end())) std::sort(out.pairs.begin(), out.pairs.end());
+    if (n > 0) out.state.assign(frame.state.begin(), frame.state.begin() + static_cast<std::ptrdiff_t>(n_own));
+    if (n > 0) out.local = frame.stats;
+  } catch (const std::bad_alloc&) {
+    local = Status::failure(ErrorKind::out_of_memory, "out of memory keeping the pairs");
+  }
+  return detail::agree(st.comm, local, true);
+}
+
+}  // namespace
+
+DistributedDetector::DistributedDetector(MPI_Comm comm, const Config& config)
+    : DistributedDetector(comm, make_cpu_detector(config)) {}
+
+DistributedDetector::DistributedDetector(MPI_Comm comm, std::unique_ptr<Detector> local)
+    : state_(std::make_unique<State>()) {
+  VISCD_ASSERT(local != nullptr, "DistributedDetector needs a local detector");
+  State& st = *state_;
+  st.local = std::move(local);
+  int initialized = 0, finalized = 0;
+  MPI_Initialized(&initialized);
+  MPI_Finalized(&finalized);
+  if (!initialized || finalized) {
+    st.broken = Status::failure(ErrorKind::backend_failure,
+                                "MPI is not initialized: call MPI_Init (in Python: from mpi4py import MPI) before "
+                                "making a DistributedDetector");
+    return;
+  }
+  if (Status s = detail::mpi_status(MPI_Comm_dup(comm, &st.comm), "MPI_Comm_dup"); !s) {
+    st.broken = s;
+    st.comm = MPI_COMM_NULL;
+    return;
+  }
+  MPI_Comm_set_errhandler(st.comm, MPI_ERRORS_RETURN);
+  MPI_Comm_rank(st.comm, &st.rank);
+  MPI_Comm_size(st.comm, &st.size);
+}
+
+DistributedDetector::~DistributedDetector() {
+  if (!state_ || state_->comm == MPI_COMM_NULL) return;
+  int finalized = 0;
+  MPI_Finalized(&finalized);
+  if (!finalized) MPI_Comm_free(&state_->comm);
+}
+
+int DistributedDetector::rank() const { return state_->rank; }
+int DistributedDetector::size() const { return state_->size; }
+const Detector& DistributedDetector::local() const { return *state_->local; }
+
+Status DistributedDetector::set_static_spheres(std::span<const Sphere> spheres, std::span<const std::uint64_t> ids,
+                                               std::span<const Filter> filters) {
+  if (ids.size() != spheres.size())
+    return Status::failure(ErrorKind::invalid_input, std::to_string(ids.size()) + " ids for " +
+                                                         std::to_string(spheres.size()) + " static spheres");
+  if (!filters.empty() && filters.size() != spheres.size())
+    return Status::failure(ErrorKind::invalid_input, std::to_string(filters.size()) + " filters for " +
+                                                         std::to_string(spheres.size()) + " static spheres");
+  if (Status s = validate_spheres(spheres); !s) return Status::failure(s.kind(), "static " + s.error());
+  State& st = *state_;
+  st.static_spheres.assign(spheres.begin(), spheres.end());
+  st.static_boxes.clear();
+  st.static_ids.assign(ids.begin(), ids.end());
+  st.static_filters.assign(filters.begin(), filters.end());
+  st.static_kind = spheres.empty() ? Kind::none : Kind::sphere;
+  st.statics_pending = true;
+  return {};
+}
+
+Status DistributedDetector::set_static_boxes(std::span<const Box> boxes, std::span<const std::uint64_t> ids,
+                                             std::span<const Filter> filters) {
+  if (ids.size() != boxes.size())
+    return Status::failure(ErrorKind::invalid_input,
+                           std::to_string(ids.size()) + " ids for " + std::to_string(boxes.size()) + " static boxes");
+  if (!filters.empty() && filters.size() != boxes.size())
+    return Status::failure(ErrorKind::invalid_input, std::to_string(filters.size()) + " filters for " +
+                                                         std::to_string(boxes.size()) + " static boxes");
+  if (Status s = validate_boxes(boxes); !s) return Status::failure(s.kind(), "static " + s.error());
+  State& st = *state_;
+  st.static_boxes.assign(boxes.begin(), boxes.end());
+  st.static_spheres.clear();
+  st.static_ids.assign(ids.begin(), ids.end());
+  st.static_filters.assign(filters.begin(), filters.end());
+  st.static_kind = boxes.empty() ? Kind::none : Kind::box;
+  st.statics_pending = true;
+  return {};
+}
+
+void DistributedDetector::clear_static() {
+  State& st = *state_;
+  st.static_spheres.clear();
+  st.static_boxes.clear();
+  st.static_ids.clear();
+  st.static_filters.clear();
+  st.static_kind = Kind::none;
+  st.statics_pending = true;
+}
+
+Status DistributedDetector::detect(const DistributedInput& in, DistributedResult& out) {
+  State& st = *state_;
+  if (!st.broken) return st.broken;
+  viscd::detail::Stopwatch clock, total;
+  out.stats = {};
+  detail::Traffic traffic;
+  double exchange_ms = 0, detect_ms = 0;
+  const bool boxes = !in.boxes.empty();
+
+  // Local checks, then every rank's header.
+  Header h;
+  Status local;
+  try {
+    local = boxes ? check_input<Box>(in, in.boxes, h) : check_input<Sphere>(in, in.spheres, h);
+    h.statics = static_cast<std::uint32_t>(st.static_ids.size());
+    h.static_kind = st.static_kind;
+    h.has_filters = static_cast<std::uint8_t>(!in.filters.empty() || !st.static_filters.empty());
+    const bool same_ids = st.ids_known && !st.statics_pending && st.last_ids.size() == in.ids.size() &&
+                          std::equal(in.ids.begin(), in.ids.end(), st.last_ids.begin());
+    h.ids_changed = static_cast<std::uint8_t>(!same_ids);
+    if (local && !same_ids) {
+      st.last_ids.assign(in.ids.begin(), in.ids.end());
+      st.ids_known = false;  // known again once the check passes
+    }
+  } catch (const std::bad_alloc&) {
+    local = Status::failure(ErrorKind::out_of_memory, "out of memory checking the frame's input");
+  }
+  if (Status s = detail::agree(st.comm, local, true); !s) return s;
+  st.headers.resize(static_cast<std::size_t>(st.size));
+  {
+    MPI_Datatype type = MPI_DATATYPE_NULL;
+    if (Status s = st.types.get(sizeof(Header), type); !s) return s;
+    if (Status s = detail::mpi_status(MPI_Allgather(&h, 1, type, st.headers.data(), 1, type, st.comm), "MPI_Allgather");
+        !s)
+      return s;
+    traffic.sent += sizeof(Header) * static_cast<std::uint64_t>(st.size - 1);
+    traffic.received += sizeof(Header) * static_cast<std::uint64_t>(st.size - 1);
+  }
+  Kind kind = Kind::none;
+  if (Status s = common_kind(st.headers, kind); !s) return s;
+  bool check_ids = false;
+  for (const Header& hr : st.headers) check_ids = check_ids || hr.ids_changed != 0;
+  if (check_ids) {
+    if (Status s = detail::check_global_ids(st.comm, st.types, in.ids, st.static_ids, traffic); !s) return s;
+    out.stats.ids_checked = true;
+  }
+  st.ids_known = true;
+  exchange_ms += clock.lap();
+
+  Status s = kind == Kind::box ? run_frame<Box>(st, in.boxes, in, out, traffic, exchange_ms, detect_ms)
+                               : run_frame<Sphere>(st, in.spheres, in, out, traffic, exchange_ms, detect_ms);
+  if (!s) return s;
+  out.stats.objects = h.moving;
+  out.stats.static_objects = h.statics;
+  out.stats.bytes_sent = traffic.sent;
+  out.stats.bytes_received = traffic.received;
+  out.stats.pairs = out.pairs.size();
+  out.stats.exchange_ms = exchange_ms;
+  out.stats.detect_ms = detect_ms;
+  out.stats.total_ms = total.lap();
+  return {};
+}
+
+Status DistributedDetector::gather_pairs(const DistributedResult& result, std::vector<GlobalPair>& all, int root) {
+  State& st = *state_;
+  if (!st.broken) return st.broken;
+  all.clear();
+  Status local;
+  if (root < 0 || root >= st.size)
+    return Status::failure(ErrorKind::invalid_input, "gather_pairs: root " + std::to_string(root) +
+                                                         " is not a rank of " + std::to_string(st.size));
+  if (result.pairs.size() > INT_MAX)
+    local = Status::failure(ErrorKind::unsupported_input, "more than 2^31 - 1 pairs on one rank to gather");
+  if (Status s = detail::agree(st.comm, local, true); !s) return s;
+  const int count = static_cast<int>(result.pairs.size());
+  std::vector<int> counts(st.rank == root ? static_cast<std::size_t>(st.size) : 0), displs(counts.size());
+  if (Status s =
+          detail::mpi_status(MPI_Gather(&count, 1, MPI_INT, counts.data(), 1, MPI_INT, root, st.comm), "MPI_Gather");
+      !s)
+    return s;
+  if (st.rank == root) {
+    std::uint64_t total = 0;
+    for (std::size_t r = 0; r < counts.size(); ++r) {
+      displs[r] = static_cast<int>(std::min<std::uint64_t>(total, INT_MAX));
+      total += static_cast<std::uint64_t>(counts[r]);
+    }
+    if (total > INT_MAX) {
+      local = Status::failure(ErrorKind::unsupported_input,
+                              std::to_string(total) + " pairs to gather on one rank (at most 2^31 - 1)");
+    } else {
+      try {
+        all.resize(total);
+      } catch (const std::bad_alloc&) {
+        local =
+            Status::failure(ErrorKind::out_of_memory, "out of memory gathering " + std::to_string(total) + " pairs");
+      }
+    }
+  }
+  if (Status s = detail::agree(st.comm, local, true); !s) return s;
+  MPI_Datatype type = MPI_DATATYPE_NULL;
+  if (Status s = st.types.get(sizeof(GlobalPair), type); !s) return s;
+  if (Status s = detail::mpi_status(
+          MPI_Gatherv(result.pairs.data(), count, type, all.data(), counts.data(), displs.data(), type, root, st.comm),
+          "MPI_Gatherv");
+      !s)
+    return s;
+  // Each rank's share is sorted and the shares are disjoint: one sort puts them in order.
+  if (st.rank == root) std::sort(all.begin(), all.end());
+  return {};
+}
+
+}  // namespace viscd::mpi
