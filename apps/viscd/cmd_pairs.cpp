@@ -8,8 +8,10 @@
 #include "detector_choice.hpp"
 #include "exit_codes.hpp"
 #include "input_files.hpp"
+#include "mpi_session.hpp"
 #include "options.hpp"
 #include "outputs.hpp"
+#include "pairs_mpi.hpp"
 #include "static_objects.hpp"
 #include "viscd/io.hpp"
 
@@ -42,6 +44,16 @@ int run_pairs(const PairsArgs& a) {
   if (!a.id_map.empty()) inputs.push_back({"--id-map", a.id_map});
   if (!a.stats.empty()) outputs.push_back({"--stats", a.stats});
   if (Status s = check_outputs(inputs, outputs); !s) return usage_fail(s.error());
+  if (MpiSession::active()) {  // under mpirun: the ranks share the objects (docs/mpi.md)
+    if (!a.camera.empty() || !a.id_map.empty())
+      return usage_fail("under mpirun culling is off (docs/mpi.md, \"Limits\"): --camera and --id-map are not taken");
+    auto request = detector_request(a.pipeline);
+    if (!request) return usage_fail(request.error());
+#ifdef VISCD_HAVE_MPI
+    return run_pairs_across_ranks(
+        {a.spheres, a.boxes, a.static_objects, a.out, a.stats, a.validate_hash, config.value(), request.value()});
+#endif
+  }
 
   auto table = read_moving_objects(a.spheres, a.boxes);
   if (!table) return fail(table.error());
@@ -105,21 +117,24 @@ int run_pairs(const PairsArgs& a) {
               format_layout(frame.stats.layout).c_str(), hash);
   std::printf("wrote %s%s%s\n", printable(a.out, 200).c_str(), a.stats.empty() ? "" : " and ",
               printable(a.stats, 200).c_str());
-  if (!a.validate_hash.empty()) {
-    char expected[32];
-    std::snprintf(expected, sizeof expected, "%016" PRIx64, hash);
-    std::string given = a.validate_hash;
-    for (char& ch : given) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-    if (given != expected) {
-      std::fprintf(stderr, "viscd: hash mismatch: expected %s, got %s\n", given.c_str(), expected);
-      return kExitHashMismatch;
-    }
-    std::printf("hash matches\n");
-  }
+  if (!a.validate_hash.empty()) return check_pairs_hash(a.validate_hash, hash);
   return kExitOk;
 }
 
 }  // namespace
+
+int check_pairs_hash(const std::string& validate_hash, std::uint64_t hash) {
+  char expected[32];
+  std::snprintf(expected, sizeof expected, "%016" PRIx64, hash);
+  std::string given = validate_hash;
+  for (char& ch : given) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  if (given != expected) {
+    std::fprintf(stderr, "viscd: hash mismatch: expected %s, got %s\n", given.c_str(), expected);
+    return kExitHashMismatch;
+  }
+  std::printf("hash matches\n");
+  return kExitOk;
+}
 
 void add_pairs_command(CLI::App& app, int& rc) {
   auto args = std::make_shared<PairsArgs>();

@@ -8,10 +8,32 @@
 
 #include "commands.hpp"
 #include "exit_codes.hpp"
+#include "mpi_session.hpp"
 #include "viscd/io.hpp"
 #include "viscd/version.hpp"
 
 int main(int argc, char** argv) {
+  // Under mpirun: MPI for the whole run, rank 0 speaks (docs/mpi.md). Only `pairs` spreads over
+  // ranks; any other command would run K copies of itself.
+  viscd::app::MpiSession mpi(argc, argv);
+  const int ranks = viscd::app::MpiSession::active() ? viscd::app::MpiSession::size() : viscd::app::launched_ranks();
+  if (ranks > 1) {
+    const bool pairs = argc > 1 && std::string_view(argv[1]) == "pairs";
+    if (!viscd::app::MpiSession::active()) {
+      std::fprintf(stderr,
+                   "viscd: error: started as %d MPI ranks, but this viscd was built without MPI "
+                   "(install libopenmpi-dev and rebuild; docs/mpi.md)\n",
+                   ranks);
+      return viscd::app::kExitUsage;
+    }
+    if (!pairs) {
+      std::fprintf(stderr,
+                   "viscd: error: under mpirun only `viscd pairs` spreads over the ranks (%d here); run "
+                   "other commands as one process\n",
+                   ranks);
+      return viscd::app::kExitUsage;
+    }
+  }
   CLI::App app{
       "viscd finds every colliding pair among very many moving spheres (or boxes) each frame, and skips the\n"
       "objects the viewer cannot meaningfully see (Sung, IEEE Access 2023): objects covering fewer\n"
