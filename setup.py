@@ -59,7 +59,10 @@ class CMakeBuild(build_ext):
         configure += shlex.split(os.environ.get("VISCD_CMAKE_ARGS", ""))
         jobs = str(os.cpu_count() or 2)
         self._run(configure)
-        self._run(["cmake", "--build", str(build_dir), "--target", "viscd_python", "--parallel", jobs])
+        # viscd._viscd_mpi (DistributedDetector) comes along where CMake found MPI and mpi4py.
+        cache = (build_dir / "CMakeCache.txt").read_text()
+        targets = ["viscd_python"] + (["viscd_python_mpi"] if "VISCD_PYTHON_MPI:INTERNAL=ON" in cache else [])
+        self._run(["cmake", "--build", str(build_dir), "--target", *targets, "--parallel", jobs])
         suffix = sysconfig.get_config_var("EXT_SUFFIX") or ".so"
         built = build_dir / "python" / "viscd" / f"_viscd{suffix}"
         if not built.exists():
@@ -68,6 +71,8 @@ class CMakeBuild(build_ext):
         dest = Path(self.get_ext_fullpath(ext.name))
         dest.parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(built, dest)
+        if "viscd_python_mpi" in targets:
+            shutil.copy2(built.with_name(f"_viscd_mpi{suffix}"), dest.with_name(f"_viscd_mpi{suffix}"))
 
     @staticmethod
     def _run(command: list) -> None:

@@ -103,3 +103,19 @@ def static_index(k):
     a = _np.asarray(k, dtype=_np.uint32)
     result = a | _np.uint32(STATIC_BIT)
     return int(result) if result.ndim == 0 else result
+
+
+def __getattr__(name):
+    """``viscd.DistributedDetector`` (docs/mpi.md), loaded on first use so that ``import viscd``
+    neither loads MPI nor starts it. Needs viscd built with MPI and mpi4py (Debian: libopenmpi-dev,
+    python3-mpi4py)."""
+    if name in ("DistributedDetector", "DistributedFrame"):
+        try:
+            from . import _viscd_mpi
+        except ImportError as e:
+            raise ImportError(
+                "viscd.DistributedDetector needs viscd built with MPI and mpi4py (Debian: libopenmpi-dev, "
+                f"python3-mpi4py; docs/mpi.md): {e}"
+            ) from e
+        return getattr(_viscd_mpi, name)
+    raise AttributeError(f"module 'viscd' has no attribute {name!r}")

@@ -158,6 +158,41 @@ class Detector:
     @property
     def memory_bytes(self) -> int: ...
 
+class DistributedFrame:
+    """One rank's share of a frame (DistributedDetector.detect())."""
+    @property
+    def pairs(self) -> npt.NDArray[np.uint64]: ...
+    @property
+    def state(self) -> npt.NDArray[np.uint8]: ...
+    @property
+    def stats(self) -> dict[str, Any]: ...
+
+class DistributedDetector:
+    """Every overlapping pair over the ranks of an mpi4py communicator (docs/mpi.md); loaded on first
+    use. Every call but set_static and clear_static is collective."""
+    def __init__(self, comm: Any, **config: Any) -> None: ...
+    def detect(
+        self,
+        spheres: Optional[npt.ArrayLike] = None,
+        boxes: Optional[npt.ArrayLike] = None,
+        ids: Optional[npt.ArrayLike] = None,
+        filters: Optional[npt.ArrayLike] = None,
+        always_active: Optional[npt.ArrayLike] = None,
+    ) -> DistributedFrame: ...
+    def set_static(
+        self,
+        spheres: Optional[npt.ArrayLike] = None,
+        boxes: Optional[npt.ArrayLike] = None,
+        ids: Optional[npt.ArrayLike] = None,
+        filters: Optional[npt.ArrayLike] = None,
+    ) -> None: ...
+    def clear_static(self) -> None: ...
+    def gather_pairs(self, frame: DistributedFrame, root: int = 0) -> Optional[npt.NDArray[np.uint64]]: ...
+    @property
+    def rank(self) -> int: ...
+    @property
+    def size(self) -> int: ...
+
 def pairs_within(points: npt.ArrayLike, r: Union[float, npt.ArrayLike], *, threads: int = 0) -> _UInt32Array:
     """(P, 2) uint32 pairs i < j, sorted, with |p_i - p_j| <= r (or <= r_i + r_j for (N,) radii)."""
 

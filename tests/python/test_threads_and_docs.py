@@ -133,3 +133,12 @@ def test_reads_during_a_frame_in_another_thread_raise(rng):
     worker.join()
     assert refused, "no read ever met the running frame"
     assert det.memory_bytes > 0 and det.static_count == 0
+
+
+def test_import_loads_no_mpi():
+    """viscd.DistributedDetector is loaded on first use: importing viscd (even with *) starts no MPI."""
+    import subprocess
+    import sys
+
+    code = "from viscd import *; import sys; assert 'mpi4py' not in sys.modules and 'viscd._viscd_mpi' not in sys.modules"
+    subprocess.run([sys.executable, "-c", code], check=True)
