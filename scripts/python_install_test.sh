@@ -40,6 +40,14 @@ assert metadata.metadata("viscd")["License"] == "MIT"
 print(f"python: viscd {viscd.__version__} installed at {where.parent}")
 PY
 "$vpy" -m pytest -q -p no:cacheprovider "$root/tests/python"
+# viscd.DistributedDetector from the install, on two ranks, where MPI and mpi4py were there to build it.
+if "$vpy" -c "import viscd._viscd_mpi" 2>/dev/null && command -v mpirun >/dev/null; then
+  echo "python: the installed DistributedDetector under mpirun -np 2"
+  OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1 \
+    mpirun -np 2 "$vpy" -m pytest -q -p no:cacheprovider "$root/tests/python_mpi"
+else
+  echo "python: no viscd._viscd_mpi in this install (MPI or mpi4py missing): DistributedDetector not tested here"
+fi
 
 echo "python: pip wheel --no-build-isolation $root"
 "$vpy" -m pip wheel --no-build-isolation --no-index --no-deps --quiet -w "$work/wheel" "$root"

@@ -14,6 +14,7 @@ packages=(
   python3-matplotlib
   pybind11-dev python3-dev python3-numpy python3-pytest python3-scipy
   python3-pip python3-venv python3-setuptools python3-wheel
+  libopenmpi-dev openmpi-bin python3-mpi4py
   clang libclang-rt-14-dev
 )
 

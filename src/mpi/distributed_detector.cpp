@@ -11,6 +11,7 @@
 
 #include "core/geometry.hpp"
 #include "core/stopwatch.hpp"
+#include "cpu/parallel.hpp"
 #include "mpi/comm.hpp"
 #include "mpi/global_ids.hpp"
 #include "viscd/assert.hpp"
@@ -44,17 +45,31 @@ struct Record<Box> {
 };
 static_assert(sizeof(Record<Sphere>) == 32 && sizeof(Record<Box>) == 40);
 
-/// The box the exchange tests. For a sphere the conservative box the trees use: every sphere the
-/// float overlap test can accept with it overlaps that box. For a box, the box.
-Aabb bounds(const Sphere& s) { return viscd::detail::conservative_box(s); }
-Aabb bounds(const Box& b) { return Aabb{{b.min[0], b.min[1], b.min[2]}, {b.max[0], b.max[1], b.max[2]}}; }
+/// The box the exchange tests for an object: for a box the box; for a sphere its box widened by
+/// the rank's `margin` (widen()), which holds the conservative box the trees use
+/// (viscd::detail::conservative_box()): every sphere the float overlap test can accept with it
+/// meets that box, so a rank whose region misses it holds nothing the object overlaps.
+Aabb bounds(const Sphere& s, float margin) {
+  const float h = s.r + margin;
+  return Aabb{{s.x - h, s.y - h, s.z - h}, {s.x + h, s.y + h, s.z + h}};
+}
+Aabb bounds(const Box& b, float) { return Aabb{{b.min[0], b.min[1], b.min[2]}, {b.max[0], b.max[1], b.max[2]}}; }
+
+/// The margin for a rank's spheres whose plain boxes (c +- r) span `raw` with radii up to `rmax`:
+/// conservative_half_extent() adds at most (|c| + r) 2^-19 + 1e-21 to r; four times that (2^-17)
+/// also covers the roundings of c +- r and of the sums here.
+float widen(const Aabb& raw, float rmax) {
+  const float m = std::max({std::fabs(raw.lo.x), std::fabs(raw.lo.y), std::fabs(raw.lo.z), std::fabs(raw.hi.x),
+                            std::fabs(raw.hi.y), std::fabs(raw.hi.z)});
+  return (m + rmax) * 0x1p-17f + 1e-20f;
+}
 
 bool same_bits(const Sphere& a, const Sphere& b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 bool same_bits(const Box& a, const Box& b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
 /// What every rank tells every other at the start of a frame.
 struct Header {
-  Aabb region;  ///< the box around this rank's moving objects (empty when it has none)
+  Aabb region;  ///< the box around this rank's moving objects' bounds() (empty when it has none)
   std::uint32_t moving = 0, statics = 0;
   Kind moving_kind = Kind::none, static_kind = Kind::none;
   std::uint8_t ids_changed = 0;  ///< this rank's ids (moving or static) differ from its last frame's
@@ -86,6 +101,7 @@ struct DistributedDetector::State {
   std::vector<Box> static_boxes;
   std::vector<std::uint64_t> static_ids;
   std::vector<Filter> static_filters;
+  float static_margin = 0;  // bounds() margin of the static spheres
   bool statics_pending = true;
   // The local detector's static set: slots 0..static_ids.size()-1 hold this rank's own, in order;
   // later slots hold other ranks' static objects near this rank's moving ones.
@@ -95,10 +111,22 @@ struct DistributedDetector::State {
   // The last frame's ids, to see when they must be checked again.
   std::vector<std::uint64_t> last_ids;
   bool ids_known = false;
+  // Whether this rank's ids are first_id, first_id + 1, ... (then pairs need no lookup of them).
+  bool ids_consecutive = false;
+  std::uint64_t first_id = 0;
+
+  // The local detector's threads: its executor, or viscd's pool with Config::threads of them.
+  Executor* executor = nullptr;
+  int threads = 1;
 
   // Frame buffers, kept for their capacity.
   std::vector<Header> headers;
-  std::vector<std::vector<std::uint32_t>> send_index;
+  float margin = 0;                                                  // this frame's bounds() margin
+  std::vector<std::vector<std::uint32_t>> send_index;                // per rank
+  std::vector<std::vector<std::vector<std::uint32_t>>> chunk_index;  // per chunk, per rank
+  std::vector<std::vector<GlobalPair>> chunk_cross;  // kept pairs with a ghost or static object, per chunk
+  std::vector<std::size_t> own_count;                // own pairs before each chunk
+  std::vector<GlobalPair> cross;
   std::vector<Sphere> spheres;
   std::vector<Box> boxes;
   std::vector<Filter> filters;
@@ -111,9 +139,36 @@ namespace {
 
 using State = DistributedDetector::State;
 
-/// Local checks of one rank's frame, and its header.
+/// The box around `shapes`' bounds(), on `threads`; `margin` is the sphere margin it used.
 template <class Shape>
-Status check_input(const DistributedInput& in, std::span<const Shape> own, Header& h) {
+Aabb measure(std::span<const Shape> shapes, int threads, float& margin) {
+  const std::size_t chunks = viscd::detail::ranges_for(shapes.size(), threads);
+  std::vector<Aabb> part(chunks);
+  std::vector<float> rmax(chunks, 0);
+  viscd::detail::for_chunks(shapes.size(), chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
+    Aabb a;
+    float rm = 0;
+    for (std::size_t i = b; i < e; ++i) {
+      a.grow(bounds(shapes[i], 0));
+      if constexpr (std::is_same_v<Shape, Sphere>) rm = std::max(rm, shapes[i].r);
+    }
+    part[c] = a;
+    rmax[c] = rm;
+  });
+  Aabb raw;
+  float rm = 0;
+  for (std::size_t c = 0; c < chunks; ++c) raw.grow(part[c]), rm = std::max(rm, rmax[c]);
+  margin = 0;
+  if (!std::is_same_v<Shape, Sphere> || shapes.empty()) return raw;
+  margin = widen(raw, rm);
+  return Aabb{{raw.lo.x - margin, raw.lo.y - margin, raw.lo.z - margin},
+              {raw.hi.x + margin, raw.hi.y + margin, raw.hi.z + margin}};
+}
+
+/// Local checks of one rank's frame, and its header. With one rank the local detector checks the
+/// shapes itself (the messages are the same: there are no ghosts), and no region is needed.
+template <class Shape>
+Status check_input(const State& st, const DistributedInput& in, std::span<const Shape> own, Header& h, float& margin) {
   const std::size_t n = own.size();
   const char* what = std::is_same_v<Shape, Sphere> ? "spheres" : "boxes";
   if (!in.spheres.empty() && !in.boxes.empty())
@@ -128,14 +183,15 @@ Status check_input(const DistributedInput& in, std::span<const Shape> own, Heade
     return Status::failure(ErrorKind::invalid_input, std::to_string(in.always_active.size()) +
                                                          " always_active flags for " + std::to_string(n) + " " + what +
                                                          " (none, or one per object)");
+  h.moving = static_cast<std::uint32_t>(n);
+  if (n > 0) h.moving_kind = std::is_same_v<Shape, Sphere> ? Kind::sphere : Kind::box;
+  if (st.size == 1) return {};
   if constexpr (std::is_same_v<Shape, Sphere>) {
     if (Status s = validate_spheres(own); !s) return s;
   } else {
     if (Status s = validate_boxes(own); !s) return s;
   }
-  for (const Shape& o : own) h.region.grow(bounds(o));
-  h.moving = static_cast<std::uint32_t>(n);
-  if (n > 0) h.moving_kind = std::is_same_v<Shape, Sphere> ? Kind::sphere : Kind::box;
+  h.region = measure(own, st.threads, margin);
   return {};
 }
 
@@ -228,22 +284,34 @@ Status update_static_set(State& st, std::span<const Record<Shape>> ghosts) {
   return {};
 }
 
-/// Which of `shapes` go to which rank: those whose bounds meet that rank's moving region.
+/// Which of `shapes` go to which rank: those whose bounds() with `margin` meet that rank's moving
+/// region; st.send_index[r] lists them for rank r, ascending. On the local detector's threads.
 template <class Shape>
-void select_ghosts(const State& st, std::span<const Shape> shapes, std::vector<std::vector<std::uint32_t>>& to) {
+void select_ghosts(State& st, std::span<const Shape> shapes, float margin) {
   const auto k = static_cast<std::size_t>(st.size);
-  to.resize(k);
-  for (auto& v : to) v.clear();
+  st.send_index.resize(k);
+  for (auto& v : st.send_index) v.clear();
   Aabb others;  // the box around every other rank's region: most objects of a rank meet none
   for (std::size_t r = 0; r < k; ++r)
     if (static_cast<int>(r) != st.rank && st.headers[r].moving > 0) others.grow(st.headers[r].region);
-  for (std::size_t i = 0; i < shapes.size(); ++i) {
-    const Aabb b = bounds(shapes[i]);
-    if (!overlaps(b, others)) continue;
+  if (shapes.empty() || others.lo.x > others.hi.x) return;
+  const std::size_t chunks = viscd::detail::ranges_for(shapes.size(), st.threads);
+  st.chunk_index.resize(chunks);
+  viscd::detail::for_chunks(shapes.size(), chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
+    auto& to = st.chunk_index[c];
+    to.resize(k);
+    for (auto& v : to) v.clear();
+    for (std::size_t i = b; i < e; ++i) {
+      const Aabb box = bounds(shapes[i], margin);
+      if (!overlaps(box, others)) continue;
+      for (std::size_t r = 0; r < k; ++r)
+        if (static_cast<int>(r) != st.rank && st.headers[r].moving > 0 && overlaps(box, st.headers[r].region))
+          to[r].push_back(static_cast<std::uint32_t>(i));
+    }
+  });
+  for (std::size_t c = 0; c < std::min(chunks, shapes.size()); ++c)
     for (std::size_t r = 0; r < k; ++r)
-      if (static_cast<int>(r) != st.rank && st.headers[r].moving > 0 && overlaps(b, st.headers[r].region))
-        to[r].push_back(static_cast<std::uint32_t>(i));
-  }
+      st.send_index[r].insert(st.send_index[r].end(), st.chunk_index[c][r].begin(), st.chunk_index[c][r].end());
 }
 
 /// Packs the selected objects into records grouped by destination rank, and their counts.
@@ -289,7 +357,7 @@ Status run_frame(State& st, std::span<const Shape> own, const DistributedInput& 
   std::vector<int> recv_counts;
   Status local;
   try {
-    select_ghosts(st, own, st.send_index);
+    select_ghosts(st, own, st.margin);
     pack(st.send_index, own, in.ids, in.filters, send, counts);
   } catch (const std::bad_alloc&) {
     local = Status::failure(ErrorKind::out_of_memory,
@@ -307,7 +375,7 @@ Status run_frame(State& st, std::span<const Shape> own, const DistributedInput& 
         mine = st.static_spheres;
       else
         mine = st.static_boxes;
-      select_ghosts(st, mine, st.send_index);
+      select_ghosts(st, mine, st.static_margin);
       pack(st.send_index, mine, std::span<const std::uint64_t>(st.static_ids),
            std::span<const Filter>(st.static_filters), static_send, counts);
     } catch (const std::bad_alloc&) {
@@ -373,28 +441,82 @@ Status run_frame(State& st, std::span<const Shape> own, const DistributedInput& 
   out.pairs.clear();
   out.state.clear();
   out.local = {};
-  const auto id_of = [&](std::uint32_t i) { return i < n_own ? in.ids[i] : st.ghost_ids[i - n_own]; };
+  const bool consecutive = st.ids_consecutive;
+  const std::uint64_t first_id = st.first_id;
+  const auto id_of = [&](std::uint32_t i) {
+    if (i >= n_own) return st.ghost_ids[i - n_own];
+    return consecutive ? first_id + i : in.ids[i];
+  };
   try {
     st.ghost_ids.resize(ghosts.size());
     for (std::size_t g = 0; g < ghosts.size(); ++g) st.ghost_ids[g] = ghosts[g].id;
     // A rank without objects ran no local frame: nothing to keep (it still agrees below).
     if (n == 0) frame.pairs.clear();
-    for (const Pair& p : frame.pairs) {
+    // In parallel chunks: pairs of two own objects (in the local order, which is the ids' order
+    // when a rank lists its objects by ascending id) apart from those with a ghost or a static
+    // object; each part sorted, then merged.
+    // Two passes over the chunks: the first counts the own pairs and collects the others (few),
+    // the second writes the own pairs straight into place.
+    const std::size_t m = frame.pairs.size(), chunks = viscd::detail::ranges_for(m, st.threads);
+    st.chunk_cross.resize(chunks);
+    st.own_count.assign(chunks + 1, 0);
+    for (std::size_t c = 0; c < chunks; ++c) st.chunk_cross[c].clear();
+    st.cross.clear();
+    enum class Keep { no, both_own, cross };
+    const auto keep = [&](const Pair& p, GlobalPair& g) {
       const bool i_own = p.i < n_own;
-      if (is_static_index(p.j)) {
-        if (!i_own) continue;
-        const std::uint64_t a = in.ids[p.i], b = st.slot_id[static_slot(p.j)];
-        out.pairs.push_back({std::min(a, b), std::max(a, b)});
-        continue;
+      const bool j_static = is_static_index(p.j), j_own = !j_static && p.j < n_own;
+      if (!i_own && !j_own) return Keep::no;  // two ghosts, or a ghost and a static object
+      const std::uint64_t a = id_of(p.i), b = j_static ? st.slot_id[static_slot(p.j)] : id_of(p.j);
+      g = {std::min(a, b), std::max(a, b)};
+      if (i_own && j_own) return Keep::both_own;
+      if (!j_static && (i_own ? a > b : b > a)) return Keep::no;  // the other rank owns the smaller id
+      return Keep::cross;
+    };
+    // Without ghosts and static objects every pair is this rank's: no counting pass.
+    const bool all_own = n == n_own && st.slot_id.empty();
+    if (all_own) {
+      const std::size_t used = std::max<std::size_t>(1, std::min(chunks, m));  // as for_chunks() splits
+      for (std::size_t c = 0; c < chunks; ++c)
+        st.own_count[c + 1] = c < used ? viscd::detail::chunk_of(m, c, used).end : m;
+    } else {
+      viscd::detail::for_chunks(m, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
+        std::size_t own_pairs = 0;
+        GlobalPair g;
+        for (std::size_t q = b; q < e; ++q) {
+          const Keep k = keep(frame.pairs[q], g);
+          own_pairs += k == Keep::both_own;
+          if (k == Keep::cross) st.chunk_cross[c].push_back(g);
+        }
+        st.own_count[c + 1] = own_pairs;
+      });
+      for (std::size_t c = 0; c < chunks; ++c) {
+        st.own_count[c + 1] += st.own_count[c];
+        st.cross.insert(st.cross.end(), st.chunk_cross[c].begin(), st.chunk_cross[c].end());
       }
-      const bool j_own = p.j < n_own;
-      if (!i_own && !j_own) continue;
-      const std::uint64_t a = id_of(p.i), b = id_of(p.j);
-      if (i_own != j_own && (i_own ? a > b : b > a)) continue;  // the other rank owns the smaller id
-      out.pairs.push_back({std::min(a, b), std::max(a, b)});
     }
-    if (!std::is_sorted(out.pairs.begin(), out.pairs.end())) std::sort(out.pairs.begin(), out.pairs.end());
-    if (n > 0) out.state.assign(frame.state.begin(), frame.state.begin() + static_cast<std::ptrdiff_t>(n_own));
+    out.pairs.resize(st.own_count[chunks]);
+    viscd::detail::for_chunks(m, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
+      GlobalPair* to = out.pairs.data() + st.own_count[c];
+      GlobalPair g;
+      for (std::size_t q = b; q < e; ++q)
+        if (keep(frame.pairs[q], g) == Keep::both_own) *to++ = g;
+    });
+    // Consecutive ids keep the local order (i < j gives id_i < id_j): sorted already.
+    if (!consecutive && !std::is_sorted(out.pairs.begin(), out.pairs.end()))
+      std::sort(out.pairs.begin(), out.pairs.end());
+    if (!st.cross.empty()) {
+      std::sort(st.cross.begin(), st.cross.end());
+      const auto middle = static_cast<std::ptrdiff_t>(out.pairs.size());
+      out.pairs.insert(out.pairs.end(), st.cross.begin(), st.cross.end());
+      std::inplace_merge(out.pairs.begin(), out.pairs.begin() + middle, out.pairs.end());
+      st.cross.clear();
+    }
+    if (n > 0 && n == n_own) {
+      out.state.swap(frame.state);  // no ghosts: every state is this rank's (the frame's buffer comes back next time)
+    } else if (n > 0) {
+      out.state.assign(frame.state.begin(), frame.state.begin() + static_cast<std::ptrdiff_t>(n_own));
+    }
     if (n > 0) out.local = frame.stats;
   } catch (const std::bad_alloc&) {
     local = Status::failure(ErrorKind::out_of_memory, "out of memory keeping the pairs");
@@ -427,6 +549,9 @@ DistributedDetector::DistributedDetector(MPI_Comm comm, std::unique_ptr<Detector
     return;
   }
   MPI_Comm_set_errhandler(st.comm, MPI_ERRORS_RETURN);
+  const Config& config = st.local->config();
+  st.executor = config.executor;
+  st.threads = viscd::detail::resolve_threads(config.threads, config.executor ? config.executor->concurrency() : 0);
   MPI_Comm_rank(st.comm, &st.rank);
   MPI_Comm_size(st.comm, &st.size);
 }
@@ -457,6 +582,7 @@ Status DistributedDetector::set_static_spheres(std::span<const Sphere> spheres, 
   st.static_ids.assign(ids.begin(), ids.end());
   st.static_filters.assign(filters.begin(), filters.end());
   st.static_kind = spheres.empty() ? Kind::none : Kind::sphere;
+  (void)measure(std::span<const Sphere>(st.static_spheres), 1, st.static_margin);
   st.statics_pending = true;
   return {};
 }
@@ -493,6 +619,7 @@ void DistributedDetector::clear_static() {
 Status DistributedDetector::detect(const DistributedInput& in, DistributedResult& out) {
   State& st = *state_;
   if (!st.broken) return st.broken;
+  const viscd::detail::ExecutorScope scope(st.executor);
   viscd::detail::Stopwatch clock, total;
   out.stats = {};
   detail::Traffic traffic;
@@ -503,7 +630,8 @@ Status DistributedDetector::detect(const DistributedInput& in, DistributedResult
   Header h;
   Status local;
   try {
-    local = boxes ? check_input<Box>(in, in.boxes, h) : check_input<Sphere>(in, in.spheres, h);
+    local = boxes ? check_input<Box>(st, in, in.boxes, h, st.margin)
+                  : check_input<Sphere>(st, in, in.spheres, h, st.margin);
     h.statics = static_cast<std::uint32_t>(st.static_ids.size());
     h.static_kind = st.static_kind;
     h.has_filters = static_cast<std::uint8_t>(!in.filters.empty() || !st.static_filters.empty());
@@ -513,6 +641,10 @@ Status DistributedDetector::detect(const DistributedInput& in, DistributedResult
     if (local && !same_ids) {
       st.last_ids.assign(in.ids.begin(), in.ids.end());
       st.ids_known = false;  // known again once the check passes
+      st.first_id = in.ids.empty() ? 0 : in.ids[0];
+      st.ids_consecutive = true;
+      for (std::size_t i = 0; i < in.ids.size() && st.ids_consecutive; ++i)
+        st.ids_consecutive = in.ids[i] == st.first_id + i;
     }
   } catch (const std::bad_alloc&) {
     local = Status::failure(ErrorKind::out_of_memory, "out of memory checking the frame's input");

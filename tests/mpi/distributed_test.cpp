@@ -71,7 +71,7 @@ int slab_of(float x, float lo, float hi, int k) {
   return std::clamp(r, 0, k - 1);
 }
 
-enum class Layout { uniform, flat, boundaries, huge, by_index };
+enum class Layout { uniform, flat, boundaries, huge, by_index, blocks };
 
 Scene make_scene(Layout layout, std::size_t n, std::size_t n_static, bool boxes, bool filters, std::uint64_t seed) {
   const int k = world_size();
@@ -101,11 +101,14 @@ Scene make_scene(Layout layout, std::size_t n, std::size_t n_static, bool boxes,
   std::vector<Sphere> moving(n), fixed(n_static);
   for (std::size_t i = 0; i < n; ++i) moving[i] = shape(i);
   for (auto& f : fixed) f = {u(rng), u(rng), u(rng), rad(rng) * 2};
-  const auto all_ids = shuffled_ids(n + n_static, 0, rng);
+  auto all_ids = shuffled_ids(n + n_static, 0, rng);
+  if (layout == Layout::blocks)  // ids counting up, each rank a block of them: the consecutive-id path
+    for (std::size_t i = 0; i < all_ids.size(); ++i) all_ids[i] = 1000 + i;
   s.ids.assign(all_ids.begin(), all_ids.begin() + static_cast<std::ptrdiff_t>(n));
   s.static_ids.assign(all_ids.begin() + static_cast<std::ptrdiff_t>(n), all_ids.end());
   for (std::size_t i = 0; i < n; ++i)
     s.owner.push_back(layout == Layout::by_index ? static_cast<int>(i % static_cast<std::size_t>(k))
+                      : layout == Layout::blocks ? static_cast<int>(i * static_cast<std::size_t>(k) / n)
                                                  : slab_of(moving[i].x, 0, 100, k));
   for (std::size_t i = 0; i < n_static; ++i) s.static_owner.push_back(slab_of(fixed[i].x, 0, 100, k));
   if (boxes) {
@@ -245,6 +248,8 @@ TEST(DistributedDetector, EqualsOneProcess) {
       {"one huge box over every rank", Layout::huge, 800, 0, true, false},
       {"owners by index: every region overlaps", Layout::by_index, 700, 0, false, false},
       {"filters", Layout::uniform, 1500, 0, false, true},
+      {"ids counting up, a block per rank", Layout::blocks, 1500, 0, false, false},
+      {"ids counting up, boxes and static boxes", Layout::blocks, 1200, 200, true, true},
       {"static objects per rank", Layout::uniform, 1000, 300, false, false},
       {"static boxes with filters", Layout::uniform, 1000, 300, true, true},
       {"fewer objects than ranks", Layout::uniform, 2, 0, false, false},
