@@ -7,7 +7,8 @@
 // The world: spheres of radius 0.5 uniform in a box of density 0.2 per unit volume (about 0.4
 // pairs per object), cut into K slabs along x, rank r owning slab r. Every frame moves every
 // object by a small random step that keeps it in its slab, so each frame rebuilds. Each row holds
-// medians over frames of the slowest rank's whole call and of its exchange and local frame, the
+// medians over frames of the slowest rank's whole call, its exchange (checks, region, ghost
+// selection and the MPI calls), those MPI calls alone (communication) and its local frame, the
 // ghosts a rank receives per own object (halo share, mean over ranks) and the bytes a rank sends
 // (mean). With one rank the plain cpu detector runs the same frames, interleaved, for the
 // overhead of the distributed call.
@@ -54,8 +55,8 @@ int run(const Options& o) {
   MPI_Comm_size(MPI_COMM_WORLD, &k);
   if (rank == 0)
     std::printf(
-        "mode,ranks,objects,objects_per_rank,frame_ms,exchange_ms,detect_ms,halo_share,bytes_sent_per_rank,"
-        "plain_ms,pairs\n");
+        "mode,ranks,objects,objects_per_rank,frame_ms,exchange_ms,communication_ms,detect_ms,halo_share,"
+        "bytes_sent_per_rank,plain_ms,pairs\n");
   for (const std::uint64_t n_arg : o.objects) {
     const std::uint64_t total = o.mode == "weak" ? n_arg * static_cast<std::uint64_t>(k) : n_arg;
     const std::uint64_t first = total * static_cast<std::uint64_t>(rank) / static_cast<std::uint64_t>(k);
@@ -81,7 +82,7 @@ int run(const Options& o) {
     in.ids = ids;
     mpi::DistributedResult out;
     FrameResult plain_out;
-    std::vector<double> frame, exchange, detect, plain_ms, halo, bytes;
+    std::vector<double> frame, exchange, comm, detect, plain_ms, halo, bytes;
     std::uint64_t pairs = 0;
     for (int f = 0; f < o.warmup + o.frames; ++f) {
       for (auto& sp : spheres) {
@@ -101,22 +102,23 @@ int run(const Options& o) {
         p = ms_since(t0);
       }
       const double t = max_over_ranks(out.stats.total_ms), e = max_over_ranks(out.stats.exchange_ms),
-                   d = max_over_ranks(out.stats.detect_ms);
+                   d = max_over_ranks(out.stats.detect_ms), c = max_over_ranks(out.stats.communication_ms);
       const double h =
           mean_over_ranks(mine > 0 ? static_cast<double>(out.stats.ghosts_received) / static_cast<double>(mine) : 0);
       const double b = mean_over_ranks(static_cast<double>(out.stats.bytes_sent));
       std::uint64_t mp = out.pairs.size();
       MPI_Allreduce(&mp, &pairs, 1, MPI_UINT64_T, MPI_SUM, MPI_COMM_WORLD);
       if (f < o.warmup) continue;
-      frame.push_back(t), exchange.push_back(e), detect.push_back(d), halo.push_back(h), bytes.push_back(b);
+      frame.push_back(t), exchange.push_back(e), comm.push_back(c), detect.push_back(d), halo.push_back(h),
+          bytes.push_back(b);
       plain_ms.push_back(p);
     }
     if (rank == 0) {
       char row[512];
-      std::snprintf(row, sizeof row, "%s,%d,%llu,%llu,%.3f,%.3f,%.3f,%.4f,%.0f,%.3f,%llu\n", o.mode.c_str(), k,
+      std::snprintf(row, sizeof row, "%s,%d,%llu,%llu,%.3f,%.3f,%.3f,%.3f,%.4f,%.0f,%.3f,%llu\n", o.mode.c_str(), k,
                     static_cast<unsigned long long>(total), static_cast<unsigned long long>(total / k), median(frame),
-                    median(exchange), median(detect), median(halo), median(bytes), k == 1 ? median(plain_ms) : 0.0,
-                    static_cast<unsigned long long>(pairs));
+                    median(exchange), median(comm), median(detect), median(halo), median(bytes),
+                    k == 1 ? median(plain_ms) : 0.0, static_cast<unsigned long long>(pairs));
       std::fputs(row, stdout);
       std::fflush(stdout);
       if (!o.csv.empty())

@@ -102,6 +102,7 @@ py::dict rank_stats(const mpi::RankStats& r) {
   d["pairs"] = r.pairs;
   d["ids_checked"] = r.ids_checked;
   d["exchange_ms"] = r.exchange_ms;
+  d["communication_ms"] = r.communication_ms;
   d["detect_ms"] = r.detect_ms;
   d["total_ms"] = r.total_ms;
   return d;

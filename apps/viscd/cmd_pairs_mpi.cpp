@@ -112,6 +112,7 @@ nlohmann::json rank_json(const mpi::RankStats& r) {
           {"bytes_received", r.bytes_received},
           {"pairs", r.pairs},
           {"exchange_ms", r.exchange_ms},
+          {"communication_ms", r.communication_ms},
           {"detect_ms", r.detect_ms},
           {"total_ms", r.total_ms}};
 }

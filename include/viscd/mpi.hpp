@@ -55,7 +55,8 @@ struct RankStats {
   std::uint64_t bytes_received = 0;          ///< payload bytes it received
   std::uint64_t pairs = 0;                   ///< pairs this rank reports (its share under the ownership rule)
   bool ids_checked = false;                  ///< the global ids were checked for repeats this frame
-  double exchange_ms = 0;                    ///< regions, id check and ghost exchange, wall
+  double exchange_ms = 0;                    ///< checks, region, id check, ghost selection and exchange, wall
+  double communication_ms = 0;               ///< of exchange_ms, the MPI calls that move data (waits included)
   double detect_ms = 0;                      ///< the local detector's frame over own + ghost objects, wall
   double total_ms = 0;                       ///< the whole detect() call, wall
 };

@@ -17,6 +17,13 @@
 
 namespace viscd::mpi::detail {
 
+/// splitmix64's finaliser: spreads ids that count up (the checking rank's hash, fingerprints).
+inline std::uint64_t mix64(std::uint64_t x) {
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+  return x ^ (x >> 31);
+}
+
 /// Ok for MPI_SUCCESS, else backend_failure naming the call and MPI's own text for the code.
 Status mpi_status(int rc, const char* call);
 
@@ -37,9 +44,23 @@ class ByteTypes {
   std::vector<std::pair<int, MPI_Datatype>> types_;
 };
 
-/// Bytes moved by this rank, for RankStats.
+/// Bytes moved by this rank and the wall time of the calls that moved them, for RankStats.
 struct Traffic {
   std::uint64_t sent = 0, received = 0;
+  double ms = 0;
+};
+
+/// Adds the wall time of its scope to a Traffic's ms.
+class TrafficTimer {
+ public:
+  explicit TrafficTimer(Traffic& t) : t_(t), start_(MPI_Wtime()) {}
+  ~TrafficTimer() { t_.ms += (MPI_Wtime() - start_) * 1e3; }
+  TrafficTimer(const TrafficTimer&) = delete;
+  TrafficTimer& operator=(const TrafficTimer&) = delete;
+
+ private:
+  Traffic& t_;
+  double start_;
 };
 
 /// Sends `send` (records grouped by destination rank, `send_counts[r]` of them for rank r) to
@@ -64,6 +85,7 @@ Status all_to_all(MPI_Comm comm, ByteTypes& types, std::span<const T> send, std:
     at += send_counts[r];
   }
   if (Status s = agree(comm, local, true); !s) return s;
+  const TrafficTimer timer(traffic);  // the counts, the agreement on them and the records
   if (Status s =
           mpi_status(MPI_Alltoall(counts.data(), 1, MPI_INT, recv_counts.data(), 1, MPI_INT, comm), "MPI_Alltoall");
       !s)

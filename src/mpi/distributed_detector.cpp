@@ -86,6 +86,46 @@ struct GhostStatic {
   bool seen = false;
 };
 
+/// What a frame needs to know of a rank's ids without keeping a copy: whether they count up
+/// (first, first + 1, ...; then pairs need no lookup) and, when they do not, a fingerprint that
+/// tells a changed list from last frame's (a 64-bit sum of mixed (index, id): a change that keeps
+/// it has odds of 2^-64, and would only skip one repeat check, never change a pair).
+struct IdSummary {
+  std::size_t count = 0;
+  bool consecutive = true;
+  std::uint64_t first = 0;
+  std::uint64_t fingerprint = 0;
+  [[nodiscard]] bool same(const IdSummary& o) const {
+    if (count != o.count || consecutive != o.consecutive) return false;
+    return consecutive ? first == o.first : fingerprint == o.fingerprint;
+  }
+};
+
+/// One pass over the ids, in parallel chunks.
+IdSummary summarise(std::span<const std::uint64_t> ids, int threads) {
+  IdSummary sum;
+  sum.count = ids.size();
+  sum.first = ids.empty() ? 0 : ids[0];
+  const std::size_t chunks = viscd::detail::ranges_for(ids.size(), threads);
+  std::vector<std::uint64_t> prints(chunks, 0);
+  std::vector<std::uint8_t> counting(chunks, 1);
+  viscd::detail::for_chunks(ids.size(), chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
+    std::uint64_t f = 0;
+    bool up = true;
+    for (std::size_t i = b; i < e; ++i) {
+      f += detail::mix64(ids[i] ^ detail::mix64(i));
+      up &= ids[i] == sum.first + i;
+    }
+    prints[c] = f;
+    counting[c] = up;
+  });
+  for (std::size_t c = 0; c < chunks; ++c) {
+    sum.fingerprint += prints[c];
+    sum.consecutive = sum.consecutive && counting[c] != 0;
+  }
+  return sum;
+}
+
 }  // namespace
 
 struct DistributedDetector::State {
@@ -109,11 +149,9 @@ struct DistributedDetector::State {
   std::unordered_map<std::uint64_t, GhostStatic> ghost_statics;
 
   // The last frame's ids, to see when they must be checked again.
-  std::vector<std::uint64_t> last_ids;
+  IdSummary ids;          // this frame's
+  IdSummary checked_ids;  // those of the last frame whose ids passed the check
   bool ids_known = false;
-  // Whether this rank's ids are first_id, first_id + 1, ... (then pairs need no lookup of them).
-  bool ids_consecutive = false;
-  std::uint64_t first_id = 0;
 
   // The local detector's threads: its executor, or viscd's pool with Config::threads of them.
   Executor* executor = nullptr;
@@ -139,30 +177,46 @@ namespace {
 
 using State = DistributedDetector::State;
 
-/// The box around `shapes`' bounds(), on `threads`; `margin` is the sphere margin it used.
+/// One pass over a rank's shapes, in parallel chunks: whether every one is valid (finite, within
+/// kMaxCoordinate, r >= 0, min <= max; validate_spheres() and validate_boxes() name the first bad
+/// one when not), and the box around their bounds(), widened by the sphere margin it returns in
+/// `margin`.
 template <class Shape>
-Aabb measure(std::span<const Shape> shapes, int threads, float& margin) {
+bool measure(std::span<const Shape> shapes, int threads, Aabb& region, float& margin) {
   const std::size_t chunks = viscd::detail::ranges_for(shapes.size(), threads);
   std::vector<Aabb> part(chunks);
   std::vector<float> rmax(chunks, 0);
+  std::vector<std::uint8_t> bad(chunks, 0);
   viscd::detail::for_chunks(shapes.size(), chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
     Aabb a;
     float rm = 0;
+    bool wrong = false;
+    const auto ok = [](float v) { return v >= -kMaxCoordinate && v <= kMaxCoordinate; };  // false for NaN
     for (std::size_t i = b; i < e; ++i) {
-      a.grow(bounds(shapes[i], 0));
-      if constexpr (std::is_same_v<Shape, Sphere>) rm = std::max(rm, shapes[i].r);
+      const Shape& o = shapes[i];
+      if constexpr (std::is_same_v<Shape, Sphere>) {
+        wrong |= !(ok(o.x) & ok(o.y) & ok(o.z) & ok(o.r) & (o.r >= 0));
+        rm = std::max(rm, o.r);
+      } else {
+        for (int k = 0; k < 3; ++k) wrong |= !(ok(o.min[k]) & ok(o.max[k]) & (o.min[k] <= o.max[k]));
+      }
+      a.grow(bounds(o, 0));
     }
     part[c] = a;
     rmax[c] = rm;
+    bad[c] = wrong;
   });
   Aabb raw;
   float rm = 0;
-  for (std::size_t c = 0; c < chunks; ++c) raw.grow(part[c]), rm = std::max(rm, rmax[c]);
+  bool valid = true;
+  for (std::size_t c = 0; c < chunks; ++c) raw.grow(part[c]), rm = std::max(rm, rmax[c]), valid = valid && !bad[c];
   margin = 0;
-  if (!std::is_same_v<Shape, Sphere> || shapes.empty()) return raw;
+  region = raw;
+  if (!valid || !std::is_same_v<Shape, Sphere> || shapes.empty()) return valid;
   margin = widen(raw, rm);
-  return Aabb{{raw.lo.x - margin, raw.lo.y - margin, raw.lo.z - margin},
-              {raw.hi.x + margin, raw.hi.y + margin, raw.hi.z + margin}};
+  region = Aabb{{raw.lo.x - margin, raw.lo.y - margin, raw.lo.z - margin},
+                {raw.hi.x + margin, raw.hi.y + margin, raw.hi.z + margin}};
+  return true;
 }
 
 /// Local checks of one rank's frame, and its header. With one rank the local detector checks the
@@ -186,13 +240,9 @@ Status check_input(const State& st, const DistributedInput& in, std::span<const 
   h.moving = static_cast<std::uint32_t>(n);
   if (n > 0) h.moving_kind = std::is_same_v<Shape, Sphere> ? Kind::sphere : Kind::box;
   if (st.size == 1) return {};
-  if constexpr (std::is_same_v<Shape, Sphere>) {
-    if (Status s = validate_spheres(own); !s) return s;
-  } else {
-    if (Status s = validate_boxes(own); !s) return s;
-  }
-  h.region = measure(own, st.threads, margin);
-  return {};
+  if (measure(own, st.threads, h.region, margin)) return {};
+  Status s = std::is_same_v<Shape, Sphere> ? validate_spheres(in.spheres) : validate_boxes(in.boxes);
+  return s ? Status::failure(ErrorKind::invalid_input, "invalid object (validation disagrees)") : s;
 }
 
 /// The kind every rank agrees on (none when no rank holds an object), or the first disagreement.
@@ -441,8 +491,8 @@ Status run_frame(State& st, std::span<const Shape> own, const DistributedInput& 
   out.pairs.clear();
   out.state.clear();
   out.local = {};
-  const bool consecutive = st.ids_consecutive;
-  const std::uint64_t first_id = st.first_id;
+  const bool consecutive = st.ids.consecutive;
+  const std::uint64_t first_id = st.ids.first;
   const auto id_of = [&](std::uint32_t i) {
     if (i >= n_own) return st.ghost_ids[i - n_own];
     return consecutive ? first_id + i : in.ids[i];
@@ -582,7 +632,8 @@ Status DistributedDetector::set_static_spheres(std::span<const Sphere> spheres, 
   st.static_ids.assign(ids.begin(), ids.end());
   st.static_filters.assign(filters.begin(), filters.end());
   st.static_kind = spheres.empty() ? Kind::none : Kind::sphere;
-  (void)measure(std::span<const Sphere>(st.static_spheres), 1, st.static_margin);
+  Aabb unused;
+  (void)measure(std::span<const Sphere>(st.static_spheres), 1, unused, st.static_margin);
   st.statics_pending = true;
   return {};
 }
@@ -635,17 +686,9 @@ Status DistributedDetector::detect(const DistributedInput& in, DistributedResult
     h.statics = static_cast<std::uint32_t>(st.static_ids.size());
     h.static_kind = st.static_kind;
     h.has_filters = static_cast<std::uint8_t>(!in.filters.empty() || !st.static_filters.empty());
-    const bool same_ids = st.ids_known && !st.statics_pending && st.last_ids.size() == in.ids.size() &&
-                          std::equal(in.ids.begin(), in.ids.end(), st.last_ids.begin());
+    st.ids = summarise(in.ids, st.threads);
+    const bool same_ids = st.ids_known && !st.statics_pending && st.ids.same(st.checked_ids);
     h.ids_changed = static_cast<std::uint8_t>(!same_ids);
-    if (local && !same_ids) {
-      st.last_ids.assign(in.ids.begin(), in.ids.end());
-      st.ids_known = false;  // known again once the check passes
-      st.first_id = in.ids.empty() ? 0 : in.ids[0];
-      st.ids_consecutive = true;
-      for (std::size_t i = 0; i < in.ids.size() && st.ids_consecutive; ++i)
-        st.ids_consecutive = in.ids[i] == st.first_id + i;
-    }
   } catch (const std::bad_alloc&) {
     local = Status::failure(ErrorKind::out_of_memory, "out of memory checking the frame's input");
   }
@@ -654,6 +697,7 @@ Status DistributedDetector::detect(const DistributedInput& in, DistributedResult
   {
     MPI_Datatype type = MPI_DATATYPE_NULL;
     if (Status s = st.types.get(sizeof(Header), type); !s) return s;
+    const detail::TrafficTimer timer(traffic);
     if (Status s = detail::mpi_status(MPI_Allgather(&h, 1, type, st.headers.data(), 1, type, st.comm), "MPI_Allgather");
         !s)
       return s;
@@ -665,9 +709,11 @@ Status DistributedDetector::detect(const DistributedInput& in, DistributedResult
   bool check_ids = false;
   for (const Header& hr : st.headers) check_ids = check_ids || hr.ids_changed != 0;
   if (check_ids) {
+    st.ids_known = false;  // until the check passes
     if (Status s = detail::check_global_ids(st.comm, st.types, in.ids, st.static_ids, traffic); !s) return s;
     out.stats.ids_checked = true;
   }
+  st.checked_ids = st.ids;
   st.ids_known = true;
   exchange_ms += clock.lap();
 
@@ -680,6 +726,7 @@ Status DistributedDetector::detect(const DistributedInput& in, DistributedResult
   out.stats.bytes_received = traffic.received;
   out.stats.pairs = out.pairs.size();
   out.stats.exchange_ms = exchange_ms;
+  out.stats.communication_ms = traffic.ms;
   out.stats.detect_ms = detect_ms;
   out.stats.total_ms = total.lap();
   return {};

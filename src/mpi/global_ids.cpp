@@ -17,13 +17,6 @@ struct IdEntry {
 static_assert(sizeof(IdEntry) == 16);
 constexpr std::uint32_t kStatic = 0x80000000u;
 
-/// splitmix64's finaliser: ids that count up spread evenly over the ranks.
-std::uint64_t mix(std::uint64_t x) {
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
-  return x ^ (x >> 31);
-}
-
 std::string name(const IdEntry& e) {
   return "rank " + std::to_string(e.rank) + ((e.index & kStatic) != 0 ? " static object " : " object ") +
          std::to_string(e.index & ~kStatic);
@@ -41,16 +34,16 @@ Status check_global_ids(MPI_Comm comm, ByteTypes& types, std::span<const std::ui
   std::vector<IdEntry> send;
   Status local;
   try {
-    for (const std::uint64_t id : moving) ++counts[mix(id) % k];
-    for (const std::uint64_t id : statics) ++counts[mix(id) % k];
+    for (const std::uint64_t id : moving) ++counts[mix64(id) % k];
+    for (const std::uint64_t id : statics) ++counts[mix64(id) % k];
     std::vector<std::uint64_t> at(k, 0);
     for (std::size_t r = 1; r < k; ++r) at[r] = at[r - 1] + counts[r - 1];
     send.resize(moving.size() + statics.size());
     const auto me = static_cast<std::uint32_t>(rank);
     for (std::size_t i = 0; i < moving.size(); ++i)
-      send[at[mix(moving[i]) % k]++] = {moving[i], me, static_cast<std::uint32_t>(i)};
+      send[at[mix64(moving[i]) % k]++] = {moving[i], me, static_cast<std::uint32_t>(i)};
     for (std::size_t i = 0; i < statics.size(); ++i)
-      send[at[mix(statics[i]) % k]++] = {statics[i], me, static_cast<std::uint32_t>(i) | kStatic};
+      send[at[mix64(statics[i]) % k]++] = {statics[i], me, static_cast<std::uint32_t>(i) | kStatic};
   } catch (const std::bad_alloc&) {
     local = Status::failure(ErrorKind::out_of_memory,
                             "out of memory checking " + std::to_string(moving.size() + statics.size()) + " global ids");

@@ -423,6 +423,15 @@ TEST(DistributedDetector, StatsCountGhostsAndBytes) {
   DistributedResult again;
   EXPECT_TRUE(det.detect(m.input(), again).ok());
   EXPECT_FALSE(again.stats.ids_checked);
+  // As many ids as before, one of them now another object's: seen, and checked again.
+  Share changed = m;
+  const int last = k - 1;
+  if (det.rank() == last && !changed.ids.empty())
+    changed.ids.back() = s.ids[0] == changed.ids.back() ? s.ids[1] : s.ids[0];
+  int any = det.rank() == last && !changed.ids.empty() ? 1 : 0, all = 0;
+  MPI_Allreduce(&any, &all, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+  if (all != 0)
+    expect_same_failure_everywhere(det.detect(changed.input(), again), ErrorKind::invalid_input, "given twice");
 }
 
 }  // namespace
