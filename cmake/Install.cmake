@@ -39,6 +39,16 @@ if(TARGET viscd_fcl)
   install(EXPORT viscdFclTargets NAMESPACE viscd:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/viscd)
 endif()
 
+# The distributed detector (docs/mpi.md): find_package(viscd COMPONENTS mpi) for viscd::mpi, which
+# names MPI's C target (viscdConfig finds MPI for it).
+if(TARGET viscd_mpi)
+  install(TARGETS viscd_mpi EXPORT viscdMpiTargets
+          ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+          LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
+          INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+  install(EXPORT viscdMpiTargets NAMESPACE viscd:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/viscd)
+endif()
+
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/viscdConfig.cmake.in
                               ${PROJECT_BINARY_DIR}/viscdConfig.cmake
                               INSTALL_DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/viscd)

@@ -142,6 +142,7 @@ struct DistributedDetector::State {
   std::vector<std::uint64_t> static_ids;
   std::vector<Filter> static_filters;
   float static_margin = 0;  // bounds() margin of the static spheres
+  Aabb static_region;       // the box around their bounds()
   bool statics_pending = true;
   // The local detector's static set: slots 0..static_ids.size()-1 hold this rank's own, in order;
   // later slots hold other ranks' static objects near this rank's moving ones.
@@ -159,9 +160,10 @@ struct DistributedDetector::State {
 
   // Frame buffers, kept for their capacity.
   std::vector<Header> headers;
-  float margin = 0;                                                  // this frame's bounds() margin
-  std::vector<std::vector<std::uint32_t>> send_index;                // per rank
-  std::vector<std::vector<std::vector<std::uint32_t>>> chunk_index;  // per chunk, per rank
+  float margin = 0;                                                              // this frame's bounds() margin
+  std::vector<std::vector<std::uint32_t>> send_index;                            // per rank
+  std::vector<std::uint32_t> near;                                               // ranks whose regions meet ours
+  std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> chunk_hits;  // (rank, object) per chunk
   std::vector<std::vector<GlobalPair>> chunk_cross;  // kept pairs with a ghost or static object, per chunk
   std::vector<std::size_t> own_count;                // own pairs before each chunk
   std::vector<GlobalPair> cross;
@@ -335,33 +337,36 @@ Status update_static_set(State& st, std::span<const Record<Shape>> ghosts) {
 }
 
 /// Which of `shapes` go to which rank: those whose bounds() with `margin` meet that rank's moving
-/// region; st.send_index[r] lists them for rank r, ascending. On the local detector's threads.
+/// region; st.send_index[r] lists them for rank r, ascending. `around` holds every shape's
+/// bounds, so only the ranks whose regions meet it are tested (a rank's neighbours, however many
+/// ranks there are). On the local detector's threads.
 template <class Shape>
-void select_ghosts(State& st, std::span<const Shape> shapes, float margin) {
+void select_ghosts(State& st, std::span<const Shape> shapes, float margin, const Aabb& around) {
   const auto k = static_cast<std::size_t>(st.size);
   st.send_index.resize(k);
   for (auto& v : st.send_index) v.clear();
-  Aabb others;  // the box around every other rank's region: most objects of a rank meet none
+  st.near.clear();
+  Aabb others;  // the box around the near regions: most objects of a rank meet none
   for (std::size_t r = 0; r < k; ++r)
-    if (static_cast<int>(r) != st.rank && st.headers[r].moving > 0) others.grow(st.headers[r].region);
-  if (shapes.empty() || others.lo.x > others.hi.x) return;
+    if (static_cast<int>(r) != st.rank && st.headers[r].moving > 0 && overlaps(st.headers[r].region, around)) {
+      st.near.push_back(static_cast<std::uint32_t>(r));
+      others.grow(st.headers[r].region);
+    }
+  if (shapes.empty() || st.near.empty()) return;
   const std::size_t chunks = viscd::detail::ranges_for(shapes.size(), st.threads);
-  st.chunk_index.resize(chunks);
+  st.chunk_hits.resize(chunks);
+  for (auto& h : st.chunk_hits) h.clear();
   viscd::detail::for_chunks(shapes.size(), chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
-    auto& to = st.chunk_index[c];
-    to.resize(k);
-    for (auto& v : to) v.clear();
+    auto& hits = st.chunk_hits[c];
     for (std::size_t i = b; i < e; ++i) {
       const Aabb box = bounds(shapes[i], margin);
       if (!overlaps(box, others)) continue;
-      for (std::size_t r = 0; r < k; ++r)
-        if (static_cast<int>(r) != st.rank && st.headers[r].moving > 0 && overlaps(box, st.headers[r].region))
-          to[r].push_back(static_cast<std::uint32_t>(i));
+      for (const std::uint32_t r : st.near)
+        if (overlaps(box, st.headers[r].region)) hits.push_back({r, static_cast<std::uint32_t>(i)});
     }
   });
-  for (std::size_t c = 0; c < std::min(chunks, shapes.size()); ++c)
-    for (std::size_t r = 0; r < k; ++r)
-      st.send_index[r].insert(st.send_index[r].end(), st.chunk_index[c][r].begin(), st.chunk_index[c][r].end());
+  for (const auto& hits : st.chunk_hits)
+    for (const auto& [r, i] : hits) st.send_index[r].push_back(i);
 }
 
 /// Packs the selected objects into records grouped by destination rank, and their counts.
@@ -407,7 +412,7 @@ Status run_frame(State& st, std::span<const Shape> own, const DistributedInput& 
   std::vector<int> recv_counts;
   Status local;
   try {
-    select_ghosts(st, own, st.margin);
+    select_ghosts(st, own, st.margin, st.headers[static_cast<std::size_t>(st.rank)].region);
     pack(st.send_index, own, in.ids, in.filters, send, counts);
   } catch (const std::bad_alloc&) {
     local = Status::failure(ErrorKind::out_of_memory,
@@ -425,7 +430,7 @@ Status run_frame(State& st, std::span<const Shape> own, const DistributedInput& 
         mine = st.static_spheres;
       else
         mine = st.static_boxes;
-      select_ghosts(st, mine, st.static_margin);
+      select_ghosts(st, mine, st.static_margin, st.static_region);
       pack(st.send_index, mine, std::span<const std::uint64_t>(st.static_ids),
            std::span<const Filter>(st.static_filters), static_send, counts);
     } catch (const std::bad_alloc&) {
@@ -632,8 +637,7 @@ Status DistributedDetector::set_static_spheres(std::span<const Sphere> spheres, 
   st.static_ids.assign(ids.begin(), ids.end());
   st.static_filters.assign(filters.begin(), filters.end());
   st.static_kind = spheres.empty() ? Kind::none : Kind::sphere;
-  Aabb unused;
-  (void)measure(std::span<const Sphere>(st.static_spheres), 1, unused, st.static_margin);
+  (void)measure(std::span<const Sphere>(st.static_spheres), 1, st.static_region, st.static_margin);
   st.statics_pending = true;
   return {};
 }
@@ -653,6 +657,7 @@ Status DistributedDetector::set_static_boxes(std::span<const Box> boxes, std::sp
   st.static_ids.assign(ids.begin(), ids.end());
   st.static_filters.assign(filters.begin(), filters.end());
   st.static_kind = boxes.empty() ? Kind::none : Kind::box;
+  (void)measure(std::span<const Box>(st.static_boxes), 1, st.static_region, st.static_margin);
   st.statics_pending = true;
   return {};
 }
@@ -664,6 +669,8 @@ void DistributedDetector::clear_static() {
   st.static_ids.clear();
   st.static_filters.clear();
   st.static_kind = Kind::none;
+  st.static_region = {};
+  st.static_margin = 0;
   st.statics_pending = true;
 }
 

@@ -5,6 +5,8 @@
 #  - examples/engine_loop.cpp (when viscd was built with the gl backend): the engine's own
 #    G-buffer and id texture, events, filters, a ray query, in the engine's context;
 #  - tests/install/tools/ with find_package(viscd COMPONENTS tools) and viscd::tools;
+#  - tests/install/mpi/ with find_package(viscd COMPONENTS mpi) and viscd::mpi on two ranks, when
+#    viscd was built with MPI;
 #  - tests/install/missing_component/: a component viscd does not have is not found.
 # Neither consumer may need nlohmann_json: it is disabled for them.
 # Usage: install_test.sh BUILD_DIR WORK_DIR
@@ -78,6 +80,16 @@ cmake -S "$here/missing_component" -B "$work/missing_quiet" "${consumer_flags[@]
   exit 1
 }
 echo "install test: a component viscd does not have is not found"
+
+# find_package(viscd COMPONENTS mpi) and viscd::mpi on two ranks, when viscd was built with MPI.
+if ls "$prefix"/lib*/cmake/viscd/viscdMpiTargets.cmake >/dev/null 2>&1 && command -v mpirun >/dev/null; then
+  cmake -S "$here/mpi" -B "$work/mpi_consumer" "${consumer_flags[@]}" >/dev/null
+  cmake --build "$work/mpi_consumer" >/dev/null
+  OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1 \
+    mpirun -np 2 "$work/mpi_consumer/mpi_consumer" | tee "$work/mpi_out.txt"
+  grep -q "2 ranks, 3 pairs, a chain" "$work/mpi_out.txt"
+  echo "install test: find_package(viscd COMPONENTS mpi) + viscd::mpi OK"
+fi
 
 # The installed tool finds what `viscd bench` needs in the prefix, not in the build tree.
 if [[ -x "$prefix/bin/viscd" ]]; then
