@@ -622,57 +622,53 @@ int DistributedDetector::rank() const { return state_->rank; }
 int DistributedDetector::size() const { return state_->size; }
 const Detector& DistributedDetector::local() const { return *state_->local; }
 
-Status DistributedDetector::set_static_spheres(std::span<const Sphere> spheres, std::span<const std::uint64_t> ids,
-                                               std::span<const Filter> filters) {
-  if (ids.size() != spheres.size())
-    return Status::failure(ErrorKind::invalid_input, std::to_string(ids.size()) + " ids for " +
-                                                         std::to_string(spheres.size()) + " static spheres");
-  if (!filters.empty() && filters.size() != spheres.size())
-    return Status::failure(ErrorKind::invalid_input, std::to_string(filters.size()) + " filters for " +
-                                                         std::to_string(spheres.size()) + " static spheres");
-  if (Status s = validate_spheres(spheres); !s) return Status::failure(s.kind(), "static " + s.error());
-  State& st = *state_;
-  st.static_spheres.assign(spheres.begin(), spheres.end());
+namespace {
+
+/// This rank's static set, replaced: checked, kept, its region measured; the local detector gets
+/// it at the next frame.
+template <class Shape>
+Status replace_static(State& st, std::span<const Shape> shapes, std::span<const std::uint64_t> ids,
+                      std::span<const Filter> filters) {
+  const char* what = std::is_same_v<Shape, Sphere> ? " static spheres" : " static boxes";
+  if (ids.size() != shapes.size())
+    return Status::failure(ErrorKind::invalid_input,
+                           std::to_string(ids.size()) + " ids for " + std::to_string(shapes.size()) + what);
+  if (!filters.empty() && filters.size() != shapes.size())
+    return Status::failure(ErrorKind::invalid_input,
+                           std::to_string(filters.size()) + " filters for " + std::to_string(shapes.size()) + what);
+  Status valid;
+  if constexpr (std::is_same_v<Shape, Sphere>)
+    valid = validate_spheres(shapes);
+  else
+    valid = validate_boxes(shapes);
+  if (!valid) return Status::failure(valid.kind(), "static " + valid.error());
+  st.static_spheres.clear();
   st.static_boxes.clear();
+  if constexpr (std::is_same_v<Shape, Sphere>)
+    st.static_spheres.assign(shapes.begin(), shapes.end());
+  else
+    st.static_boxes.assign(shapes.begin(), shapes.end());
   st.static_ids.assign(ids.begin(), ids.end());
   st.static_filters.assign(filters.begin(), filters.end());
-  st.static_kind = spheres.empty() ? Kind::none : Kind::sphere;
-  (void)measure(std::span<const Sphere>(st.static_spheres), 1, st.static_region, st.static_margin);
+  st.static_kind = shapes.empty() ? Kind::none : std::is_same_v<Shape, Sphere> ? Kind::sphere : Kind::box;
+  (void)measure(shapes, 1, st.static_region, st.static_margin);
   st.statics_pending = true;
   return {};
+}
+
+}  // namespace
+
+Status DistributedDetector::set_static_spheres(std::span<const Sphere> spheres, std::span<const std::uint64_t> ids,
+                                               std::span<const Filter> filters) {
+  return replace_static(*state_, spheres, ids, filters);
 }
 
 Status DistributedDetector::set_static_boxes(std::span<const Box> boxes, std::span<const std::uint64_t> ids,
                                              std::span<const Filter> filters) {
-  if (ids.size() != boxes.size())
-    return Status::failure(ErrorKind::invalid_input,
-                           std::to_string(ids.size()) + " ids for " + std::to_string(boxes.size()) + " static boxes");
-  if (!filters.empty() && filters.size() != boxes.size())
-    return Status::failure(ErrorKind::invalid_input, std::to_string(filters.size()) + " filters for " +
-                                                         std::to_string(boxes.size()) + " static boxes");
-  if (Status s = validate_boxes(boxes); !s) return Status::failure(s.kind(), "static " + s.error());
-  State& st = *state_;
-  st.static_boxes.assign(boxes.begin(), boxes.end());
-  st.static_spheres.clear();
-  st.static_ids.assign(ids.begin(), ids.end());
-  st.static_filters.assign(filters.begin(), filters.end());
-  st.static_kind = boxes.empty() ? Kind::none : Kind::box;
-  (void)measure(std::span<const Box>(st.static_boxes), 1, st.static_region, st.static_margin);
-  st.statics_pending = true;
-  return {};
+  return replace_static(*state_, boxes, ids, filters);
 }
 
-void DistributedDetector::clear_static() {
-  State& st = *state_;
-  st.static_spheres.clear();
-  st.static_boxes.clear();
-  st.static_ids.clear();
-  st.static_filters.clear();
-  st.static_kind = Kind::none;
-  st.static_region = {};
-  st.static_margin = 0;
-  st.statics_pending = true;
-}
+void DistributedDetector::clear_static() { (void)replace_static<Sphere>(*state_, {}, {}, {}); }
 
 Status DistributedDetector::detect(const DistributedInput& in, DistributedResult& out) {
   State& st = *state_;
