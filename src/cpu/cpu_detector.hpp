@@ -95,6 +95,7 @@ class CpuDetector final : public PipelineDetector {
   bool box_queries_ = false;  // the last frame's objects or static set are boxes: brute-force queries
   // The static set's map layer (ids: compact index + 1) and what it was drawn for.
   VisibilityMap static_layer_;
+  std::vector<std::vector<std::uint32_t>> hidden_;  // per task: moving pixels a static object hides (draw_frame)
   TiledRasterizer static_raster_;
   BoxRasterizer static_box_raster_;
   struct LayerKey {

@@ -110,7 +110,9 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     map_.resize(map.width, map.height, config_.shade);
     if (Status s = draw_frame(*rig, *camera, in, threads); !s) return s;  // static objects occlude
     stats.ms(Stage::visibility) = sw.lap();
-    if (own_static && !static_set_.empty() && !map_.has_counts) {
+    if (own_static && !static_set_.empty() && map_.has_counts && map_.counts.size() == n) {
+      counts_.assign(map_.counts.begin(), map_.counts.end());  // the moving objects', static occlusion taken off
+    } else if (own_static && !static_set_.empty()) {
       // Ids above n are the static layer's: counted together in the bin above the moving objects
       // and left out, so that counting costs the pixels and n, not the static count.
       (void)count_ids(map_.ids, n, threads, hist_, count_scratch_);

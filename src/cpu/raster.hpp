@@ -27,6 +27,9 @@ class TiledRasterizer {
   void run(const CameraRig& cam, std::span<const Sphere> spheres, int threads, VisibilityMap& map);
   /// Bytes of the binning buffers.
   [[nodiscard]] std::uint64_t memory_bytes() const;
+  /// After run(): whether tile t (row-major, kTile x kTile pixels, ceil(width / kTile) to a row)
+  /// holds no sphere's pixel: it is all background.
+  [[nodiscard]] bool tile_is_background(std::size_t t) const { return background_[t] != 0; }
   /// The tile kernel's instruction set (Config::simd; default: the best this CPU has). The
   /// kernels give the same map bit for bit; below SSE2 the SSE2 kernel runs.
   void set_simd(SimdLevel level) { simd_ = usable_simd_level(level); }
