@@ -65,9 +65,11 @@ class CpuDetector final : public PipelineDetector {
     return {};
   }
   /// The static set's layer is drawn once per camera, map size and set version (static_layer_),
-  /// and each frame's moving objects are drawn on their own and merged with it pixel by pixel:
-  /// the nearer wins, a tie goes to the moving object (its id is the smaller), so the map is the
-  /// one a single pass over both would draw, bit for bit.
+  /// and each frame's moving objects are drawn on their own. For a shaded image (or boxes) the
+  /// two are merged pixel by pixel: the nearer wins, a tie goes to the moving object (its id is
+  /// the smaller), so the map is the one a single pass over both would draw, bit for bit. For
+  /// counts alone, only the tiles holding a moving sphere are visited, and the moving pixels a
+  /// static object hides are taken off the rasterizer's counts (the map keeps the moving ones).
   Status draw_frame(const CameraRig& cam, const Camera& camera, const FrameInput& in, int threads) override;
   Status follow_change(const FrameInput& in, const Shapes& objects, std::span<const std::uint32_t> active,
                        std::span<const Filter> filters, int bits, int threads, std::vector<Pair>& pairs,
