@@ -4,8 +4,10 @@
 # (--system-site-packages), and the pytest suite runs against that install from a folder outside
 # the checkout. Then `pip wheel .` makes a wheel, whose contents are checked. scripts/test.sh runs
 # this after ctest (release preset). The build folder is build/pip-py3X (kept between runs). The
-# cuda backend is left out of this install unless VISCD_CMAKE_ARGS says otherwise: nvcc's part is
-# most of a fresh build's time here, and the build tree's module (ctest's python.pytest) has it.
+# cuda backend and viscd.DistributedDetector (MPI) are left out of this install unless
+# VISCD_CMAKE_ARGS says otherwise: they add minutes to a fresh build, and the build tree's module
+# has both (ctest's python.pytest and mpi.python1/3). With VISCD_CMAKE_ARGS=-DVISCD_ENABLE_CUDA=OFF
+# the installed DistributedDetector is tested under mpirun -np 2 too.
 # Usage: scripts/python_install_test.sh
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -16,7 +18,7 @@ trap 'rm -rf "$work"' EXIT
 echo "python: a virtual environment in $work"
 "$py" -m venv --system-site-packages "$work/venv"
 vpy="$work/venv/bin/python"
-export VISCD_CMAKE_ARGS="${VISCD_CMAKE_ARGS:--DVISCD_ENABLE_CUDA=OFF}"
+export VISCD_CMAKE_ARGS="${VISCD_CMAKE_ARGS:--DVISCD_ENABLE_CUDA=OFF -DVISCD_ENABLE_MPI=OFF}"
 echo "python: pip install --no-build-isolation $root (VISCD_CMAKE_ARGS=$VISCD_CMAKE_ARGS)"
 "$vpy" -m pip install --no-build-isolation --no-index --quiet "$root"
 

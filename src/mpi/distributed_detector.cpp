@@ -109,20 +109,20 @@ IdSummary summarise(std::span<const std::uint64_t> ids, int threads) {
   const std::size_t chunks = viscd::detail::ranges_for(ids.size(), threads);
   std::vector<std::uint64_t> prints(chunks, 0);
   std::vector<std::uint8_t> counting(chunks, 1);
+  // First whether they count up (a compare per id); the fingerprint only when they do not.
   viscd::detail::for_chunks(ids.size(), chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
-    std::uint64_t f = 0;
     bool up = true;
-    for (std::size_t i = b; i < e; ++i) {
-      f += detail::mix64(ids[i] ^ detail::mix64(i));
-      up &= ids[i] == sum.first + i;
-    }
-    prints[c] = f;
+    for (std::size_t i = b; i < e; ++i) up &= ids[i] == sum.first + i;
     counting[c] = up;
   });
-  for (std::size_t c = 0; c < chunks; ++c) {
-    sum.fingerprint += prints[c];
-    sum.consecutive = sum.consecutive && counting[c] != 0;
-  }
+  for (std::size_t c = 0; c < chunks; ++c) sum.consecutive = sum.consecutive && counting[c] != 0;
+  if (sum.consecutive) return sum;
+  viscd::detail::for_chunks(ids.size(), chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
+    std::uint64_t f = 0;
+    for (std::size_t i = b; i < e; ++i) f += detail::mix64(ids[i] ^ detail::mix64(i));
+    prints[c] = f;
+  });
+  for (std::size_t c = 0; c < chunks; ++c) sum.fingerprint += prints[c];
   return sum;
 }
 
