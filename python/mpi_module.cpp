@@ -8,6 +8,7 @@
 #include <pybind11/pybind11.h>
 
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -113,6 +114,25 @@ struct PyDistributedFrame {
   std::shared_ptr<mpi::DistributedResult> result;
 };
 
+/// One call at a time on a detector: its calls are collectives, which one thread must make in
+/// order. A second thread's call raises instead of interleaving MPI calls.
+class Busy {
+ public:
+  explicit Busy(bool& busy) : busy_(busy) {
+    if (busy_)
+      throw std::runtime_error(
+          "viscd.DistributedDetector is running a call in another thread; its calls are collective: make them "
+          "from one thread, in the same order on every rank");
+    busy_ = true;
+  }
+  ~Busy() { busy_ = false; }
+  Busy(const Busy&) = delete;
+  Busy& operator=(const Busy&) = delete;
+
+ private:
+  bool& busy_;
+};
+
 class PyDistributedDetector {
  public:
   PyDistributedDetector(py::handle comm, const py::kwargs& keywords) {
@@ -129,6 +149,7 @@ class PyDistributedDetector {
 
   PyDistributedFrame detect(py::handle spheres, py::handle boxes, py::handle ids, py::handle filters,
                             py::handle always_active) {
+    const Busy busy(busy_);
     const Objects o = objects_of(spheres, boxes, ids, filters, always_active);
     mpi::DistributedInput in;
     in.spheres = o.spheres.span;
@@ -147,15 +168,20 @@ class PyDistributedDetector {
   }
 
   void set_static(py::handle spheres, py::handle boxes, py::handle ids, py::handle filters) {
+    const Busy busy(busy_);
     const Objects o = objects_of(spheres, boxes, ids, filters, py::none());
     const Status s = boxes.is_none() ? detector_->set_static_spheres(o.spheres.span, span_of(o.ids), o.filters.span)
                                      : detector_->set_static_boxes(o.boxes.span, span_of(o.ids), o.filters.span);
     if (!s) raise_status(s);
   }
 
-  void clear_static() { detector_->clear_static(); }
+  void clear_static() {
+    const Busy busy(busy_);
+    detector_->clear_static();
+  }
 
   py::object gather_pairs(const PyDistributedFrame& frame, int root) {
+    const Busy busy(busy_);
     auto all = std::make_shared<std::vector<mpi::GlobalPair>>();
     Status s;
     {
@@ -172,6 +198,7 @@ class PyDistributedDetector {
 
  private:
   std::unique_ptr<mpi::DistributedDetector> detector_;
+  bool busy_ = false;
 };
 
 }  // namespace

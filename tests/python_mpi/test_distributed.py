@@ -103,3 +103,24 @@ def test_argument_errors_are_local_and_clear():
         det.set_static(spheres=np.zeros((1, 4), np.float32), ids=[-1])
     with pytest.raises(ValueError, match="integers"):
         det.set_static(spheres=np.zeros((1, 4), np.float32), ids=[1.5])
+
+
+def test_a_call_during_another_threads_frame_raises():
+    """Calls are collective and must come from one thread: a second thread's call raises instead of
+    interleaving MPI calls. (clear_static is local, so polling with it is safe on any rank.)"""
+    import threading
+
+    shapes, ids, owner = scene(300_000, 10)
+    mine = owner == rank
+    det = viscd.DistributedDetector(comm, threads=1)
+    worker = threading.Thread(target=lambda: det.detect(spheres=shapes[mine], ids=ids[mine]))
+    refused = 0
+    worker.start()
+    while worker.is_alive():
+        try:
+            det.clear_static()
+        except RuntimeError as e:
+            assert "another thread" in str(e)
+            refused += 1
+    worker.join()
+    assert refused > 0, "no call ever met the running frame"
