@@ -71,8 +71,11 @@ class CMakeBuild(build_ext):
         dest = Path(self.get_ext_fullpath(ext.name))
         dest.parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(built, dest)
+        mpi_module = dest.with_name(f"_viscd_mpi{suffix}")
         if "viscd_python_mpi" in targets:
-            shutil.copy2(built.with_name(f"_viscd_mpi{suffix}"), dest.with_name(f"_viscd_mpi{suffix}"))
+            shutil.copy2(built.with_name(f"_viscd_mpi{suffix}"), mpi_module)
+        elif mpi_module.exists():
+            mpi_module.unlink()  # from an earlier build with MPI: it would ship stale
 
     @staticmethod
     def _run(command: list) -> None:

@@ -6,8 +6,9 @@
 # this after ctest (release preset). The build folder is build/pip-py3X (kept between runs). The
 # cuda backend and viscd.DistributedDetector (MPI) are left out of this install unless
 # VISCD_CMAKE_ARGS says otherwise: they add minutes to a fresh build, and the build tree's module
-# has both (ctest's python.pytest and mpi.python1/3). With VISCD_CMAKE_ARGS=-DVISCD_ENABLE_CUDA=OFF
-# the installed DistributedDetector is tested under mpirun -np 2 too.
+# has both (ctest's python.pytest and mpi.python1/3). With
+# VISCD_CMAKE_ARGS="-DVISCD_ENABLE_CUDA=OFF -DVISCD_ENABLE_MPI=ON" the installed DistributedDetector
+# is tested under mpirun -np 2 too (name both: the build folder's cache keeps the last values).
 # Usage: scripts/python_install_test.sh
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
