@@ -8,10 +8,10 @@
 #include <pybind11/pybind11.h>
 
 #include <memory>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "busy_guard.hpp"
 #include "config_keywords.hpp"
 #include "input_arrays.hpp"
 #include "viscd/mpi.hpp"
@@ -114,24 +114,11 @@ struct PyDistributedFrame {
   std::shared_ptr<mpi::DistributedResult> result;
 };
 
-/// One call at a time on a detector: its calls are collectives, which one thread must make in
-/// order. A second thread's call raises instead of interleaving MPI calls.
-class Busy {
- public:
-  explicit Busy(bool& busy) : busy_(busy) {
-    if (busy_)
-      throw std::runtime_error(
-          "viscd.DistributedDetector is running a call in another thread; its calls are collective: make them "
-          "from one thread, in the same order on every rank");
-    busy_ = true;
-  }
-  ~Busy() { busy_ = false; }
-  Busy(const Busy&) = delete;
-  Busy& operator=(const Busy&) = delete;
-
- private:
-  bool& busy_;
-};
+/// Its calls are collectives, which one thread must make in order: a second thread's call raises
+/// instead of interleaving MPI calls.
+constexpr const char* kDistributedBusy =
+    "viscd.DistributedDetector is running a call in another thread; its calls are collective: make them from one "
+    "thread, in the same order on every rank";
 
 class PyDistributedDetector {
  public:
@@ -149,7 +136,7 @@ class PyDistributedDetector {
 
   PyDistributedFrame detect(py::handle spheres, py::handle boxes, py::handle ids, py::handle filters,
                             py::handle always_active) {
-    const Busy busy(busy_);
+    const BusyGuard busy(busy_, kDistributedBusy);
     const Objects o = objects_of(spheres, boxes, ids, filters, always_active);
     mpi::DistributedInput in;
     in.spheres = o.spheres.span;
@@ -168,7 +155,7 @@ class PyDistributedDetector {
   }
 
   void set_static(py::handle spheres, py::handle boxes, py::handle ids, py::handle filters) {
-    const Busy busy(busy_);
+    const BusyGuard busy(busy_, kDistributedBusy);
     const Objects o = objects_of(spheres, boxes, ids, filters, py::none());
     const Status s = boxes.is_none() ? detector_->set_static_spheres(o.spheres.span, span_of(o.ids), o.filters.span)
                                      : detector_->set_static_boxes(o.boxes.span, span_of(o.ids), o.filters.span);
@@ -176,12 +163,12 @@ class PyDistributedDetector {
   }
 
   void clear_static() {
-    const Busy busy(busy_);
+    const BusyGuard busy(busy_, kDistributedBusy);
     detector_->clear_static();
   }
 
   py::object gather_pairs(const PyDistributedFrame& frame, int root) {
-    const Busy busy(busy_);
+    const BusyGuard busy(busy_, kDistributedBusy);
     auto all = std::make_shared<std::vector<mpi::GlobalPair>>();
     Status s;
     {

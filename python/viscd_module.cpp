@@ -24,6 +24,7 @@
 #include <utility>
 #include <vector>
 
+#include "busy_guard.hpp"
 #include "config_keywords.hpp"
 #include "input_arrays.hpp"
 #include "viscd/viscd.hpp"
@@ -128,21 +129,8 @@ struct PyFrame {
 };
 
 // The Detector's "one call at a time" rule: a second thread's call raises instead of racing.
-class BusyGuard {
- public:
-  explicit BusyGuard(bool& busy) : busy_(busy) {
-    if (busy_)
-      throw std::runtime_error(
-          "viscd.Detector is running a frame in another thread; a Detector is not thread-safe: use one per thread");
-    busy_ = true;
-  }
-  ~BusyGuard() { busy_ = false; }
-  BusyGuard(const BusyGuard&) = delete;
-  BusyGuard& operator=(const BusyGuard&) = delete;
-
- private:
-  bool& busy_;
-};
+constexpr const char* kDetectorBusy =
+    "viscd.Detector is running a frame in another thread; a Detector is not thread-safe: use one per thread";
 
 Sphere sphere_of(py::handle obj, const char* name) {
   const auto v = float_values<4>(obj, name);
@@ -193,7 +181,7 @@ class PyDetector {
 
   PyFrame detect(py::handle spheres, py::handle boxes, py::handle camera, py::handle filters, py::handle id_map,
                  py::handle always_active, py::handle moved) {
-    BusyGuard busy(busy_);
+    BusyGuard busy(busy_, kDetectorBusy);
     FrameInput in;
     PyFrame frame;
     InputSpan<Sphere> sphere_in;
@@ -252,7 +240,7 @@ class PyDetector {
   }
 
   void set_static(py::handle spheres, py::handle boxes, py::handle filters) {
-    BusyGuard busy(busy_);
+    BusyGuard busy(busy_, kDetectorBusy);
     if (spheres.is_none() == boxes.is_none())
       throw py::value_error("set_static: give spheres or boxes (one of them); clear_static() empties the set");
     InputSpan<Filter> f;
@@ -269,7 +257,7 @@ class PyDetector {
   }
 
   std::uint32_t add_static_sphere(py::handle sphere, py::handle filter) {
-    BusyGuard busy(busy_);
+    BusyGuard busy(busy_, kDetectorBusy);
     Filter f;
     if (!filter.is_none()) f = filter_value(filter, "filter");
     const Result<std::uint32_t> r = detector_->add_static_sphere(sphere_of(sphere, "sphere"), f);
@@ -278,7 +266,7 @@ class PyDetector {
   }
 
   std::uint32_t add_static_box(py::handle box, py::handle filter) {
-    BusyGuard busy(busy_);
+    BusyGuard busy(busy_, kDetectorBusy);
     Filter f;
     if (!filter.is_none()) f = filter_value(filter, "filter");
     const Result<std::uint32_t> r = detector_->add_static_box(box_of(box, "box"), f);
@@ -287,7 +275,7 @@ class PyDetector {
   }
 
   void move_static(py::handle k, py::handle shape) {
-    BusyGuard busy(busy_);
+    BusyGuard busy(busy_, kDetectorBusy);
     const std::uint32_t slot = slot_of(k);
     const py::array a = py::array::ensure(shape);
     Status s;
@@ -303,17 +291,17 @@ class PyDetector {
   }
 
   void remove_static(py::handle k) {
-    BusyGuard busy(busy_);
+    BusyGuard busy(busy_, kDetectorBusy);
     if (Status s = detector_->remove_static(slot_of(k)); !s) raise_status(s);
   }
 
   void clear_static() {
-    BusyGuard busy(busy_);
+    BusyGuard busy(busy_, kDetectorBusy);
     detector_->clear_static();
   }
 
   py::object ray_cast(py::handle origin, py::handle direction, double max_t, py::handle filter) {
-    BusyGuard busy(busy_);
+    BusyGuard busy(busy_, kDetectorBusy);
     const Ray ray = ray_of(origin, direction, max_t);
     Filter storage;
     const Filter* f = optional_filter(filter, storage, "filter");
@@ -323,7 +311,7 @@ class PyDetector {
   }
 
   py::tuple ray_cast_all(py::handle origin, py::handle direction, double max_t, py::handle filter) {
-    BusyGuard busy(busy_);
+    BusyGuard busy(busy_, kDetectorBusy);
     const Ray ray = ray_of(origin, direction, max_t);
     Filter storage;
     const Filter* f = optional_filter(filter, storage, "filter");
@@ -339,7 +327,7 @@ class PyDetector {
   }
 
   py::array overlap(py::handle sphere, py::handle box, py::handle filter) {
-    BusyGuard busy(busy_);
+    BusyGuard busy(busy_, kDetectorBusy);
     if (sphere.is_none() == box.is_none()) throw py::value_error("overlap: give sphere or box (one of them)");
     Filter storage;
     const Filter* f = optional_filter(filter, storage, "filter");
@@ -353,7 +341,7 @@ class PyDetector {
   }
 
   void set_config(const py::kwargs& keywords) {
-    BusyGuard busy(busy_);
+    BusyGuard busy(busy_, kDetectorBusy);
     Config config = detector_->config();
     GlOptions gl;
     bool gl_given = false;
@@ -363,13 +351,13 @@ class PyDetector {
   }
 
   void wait_for_stage_times(PyFrame& frame) {
-    BusyGuard busy(busy_);
+    BusyGuard busy(busy_, kDetectorBusy);
     py::gil_scoped_release released;
     detector_->wait_for_stage_times(frame.result->stats);
   }
 
   void reset_events() {
-    BusyGuard busy(busy_);
+    BusyGuard busy(busy_, kDetectorBusy);
     detector_->reset_events();
   }
 
@@ -380,7 +368,7 @@ class PyDetector {
   // raises instead of racing with it.
   template <class Read>
   [[nodiscard]] auto read(Read&& f) {
-    BusyGuard busy(busy_);
+    BusyGuard busy(busy_, kDetectorBusy);
     return f(static_cast<const Detector&>(*detector_));
   }
 
