@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <cstring>
 #include <new>
+#include <numeric>
 #include <string>
 #include <type_traits>
 #include <unordered_map>
@@ -388,12 +389,6 @@ void pack(const std::vector<std::vector<std::uint32_t>>& to, std::span<const Sha
   }
 }
 
-std::uint64_t sum(const std::vector<std::uint64_t>& v) {
-  std::uint64_t s = 0;
-  for (const auto x : v) s += x;
-  return s;
-}
-
 /// The frame after the headers: id check, ghost exchange, local frame, ownership rule.
 template <class Shape>
 Status run_frame(State& st, std::span<const Shape> own, const DistributedInput& in, DistributedResult& out,
@@ -419,7 +414,7 @@ Status run_frame(State& st, std::span<const Shape> own, const DistributedInput& 
                             "out of memory selecting ghosts of " + std::to_string(n_own) + " objects");
   }
   if (Status s = detail::agree(st.comm, local, true); !s) return s;
-  out.stats.ghosts_sent = static_cast<std::uint32_t>(sum(counts));
+  out.stats.ghosts_sent = static_cast<std::uint32_t>(std::accumulate(counts.begin(), counts.end(), std::uint64_t{0}));
   if (Status s = detail::all_to_all<Record<Shape>>(st.comm, st.types, send, counts, ghosts, recv_counts, traffic); !s)
     return s;
   out.stats.ghosts_received = static_cast<std::uint32_t>(ghosts.size());
@@ -437,7 +432,8 @@ Status run_frame(State& st, std::span<const Shape> own, const DistributedInput& 
       local = Status::failure(ErrorKind::out_of_memory, "out of memory selecting static ghosts");
     }
     if (Status s = detail::agree(st.comm, local, true); !s) return s;
-    out.stats.static_ghosts_sent = static_cast<std::uint32_t>(sum(counts));
+    out.stats.static_ghosts_sent =
+        static_cast<std::uint32_t>(std::accumulate(counts.begin(), counts.end(), std::uint64_t{0}));
     if (Status s = detail::all_to_all<Record<Shape>>(st.comm, st.types, static_send, counts, static_ghosts, recv_counts,
                                                      traffic);
         !s)
