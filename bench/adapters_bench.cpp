@@ -7,6 +7,11 @@
 //           on viscd::FclBroadphaseManager and fcl::DynamicAABBTreeCollisionManager: setup +
 //           collide, then update + collide after every box moved, then 10 frames in which 1 % of
 //           the boxes move and update(vector) names them; medians over --reps (x 10 for the last).
+//   queries: --query-bodies boxes resting on a landscape (a height field of hills), each step 1 %
+//           of them moved (setAabb) and calculateOverlappingPairs, then --rays rays cast down
+//           through the broadphase's rayTest and as many aabbTest boxes, on viscd::BulletBroadphase
+//           and btDbvtBroadphase, interleaved step by step on the same moves and queries; medians
+//           over --query-steps of the microseconds per ray and per box, and the hits found.
 // Not a test: timings depend on the machine. Run: viscd_adapters_bench [--only bullet|fcl] ...
 #include <btBulletDynamicsCommon.h>
 #include <fcl/broadphase/broadphase_dynamic_AABB_tree.h>
@@ -206,6 +211,125 @@ void bench_bullet(int bodies, int steps) {
                 r.quarter_share_ms[1], r.quarter_share_ms[2], r.quarter_share_ms[3], r.mean_share_ms);
 }
 
+// Counts the proxies a rayTest reports. The fields set() fills are what btDbvtBroadphase's rayTest
+// reads (as btCollisionWorld's own ray callback fills them).
+struct CountRay final : btBroadphaseRayCallback {
+  std::size_t hits = 0;
+  void set(const btVector3& from, const btVector3& to) {
+    btVector3 dir = to - from;
+    dir.normalize();
+    for (int k = 0; k < 3; ++k) {
+      m_rayDirectionInverse[k] = dir[k] == btScalar(0) ? btScalar(BT_LARGE_FLOAT) : btScalar(1) / dir[k];
+      m_signs[k] = m_rayDirectionInverse[k] < 0;
+    }
+    m_lambda_max = dir.dot(to - from);
+  }
+  bool process(const btBroadphaseProxy*) override {
+    ++hits;
+    return true;
+  }
+};
+
+struct CountBox final : btBroadphaseAabbCallback {
+  std::size_t hits = 0;
+  bool process(const btBroadphaseProxy*) override {
+    ++hits;
+    return true;
+  }
+};
+
+// Boxes on a landscape: x, z uniform over a square, resting on hills y = h(x, z), sides 0.5-2 m;
+// each step 1 % of them shift a little (a few bodies awake). Rays fall from 50 m above onto the
+// ground with a small slant; query boxes of 1-4 m sit on the ground.
+void bench_queries(const std::vector<int>& counts, int rays, int steps) {
+  std::printf("queries: boxes on a landscape, 1 %% moving per step, %d rays and %d aabbTest boxes per step,\n", rays,
+              rays);
+  std::printf("medians over %d steps (the first left out), broadphases interleaved step by step\n", steps);
+  std::printf("%-10s %-26s %12s %12s %12s %12s %12s\n", "bodies", "broadphase", "us_per_ray", "us_per_box", "ray_hits",
+              "box_hits", "step_ms");
+  for (const int n : counts) {
+    const double side = std::sqrt(static_cast<double>(n)) * 3.0;
+    const auto ground = [&](double x, double z) { return 4.0 * std::sin(x * 0.05) * std::cos(z * 0.07); };
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> at(0, side), size(0.5, 2.0), nudge(-0.05, 0.05), slant(-0.2, 0.2);
+    std::vector<btVector3> lo(static_cast<std::size_t>(n)), hi(static_cast<std::size_t>(n));
+    for (std::size_t k = 0; k < lo.size(); ++k) {
+      const double x = at(rng), z = at(rng), sx = size(rng), sy = size(rng), sz = size(rng);
+      const double y = ground(x, z);
+      lo[k] = btVector3(btScalar(x), btScalar(y), btScalar(z));
+      hi[k] = btVector3(btScalar(x + sx), btScalar(y + sy), btScalar(z + sz));
+    }
+    struct Side {
+      std::string name;
+      std::unique_ptr<btBroadphaseInterface> bp;
+      std::vector<btBroadphaseProxy*> proxies;
+      std::vector<double> ray_us, box_us, step_ms;
+      std::size_t ray_hits = 0, box_hits = 0;
+    };
+    std::vector<Side> sides;
+    sides.push_back({"viscd::BulletBroadphase", std::make_unique<viscd::BulletBroadphase>(), {}, {}, {}, {}, 0, 0});
+    sides.push_back({"btDbvtBroadphase", std::make_unique<btDbvtBroadphase>(), {}, {}, {}, {}, 0, 0});
+    btDefaultCollisionConfiguration configuration;
+    btCollisionDispatcher dispatcher(&configuration);
+    for (Side& s : sides) {
+      for (std::size_t k = 0; k < lo.size(); ++k)
+        s.proxies.push_back(s.bp->createProxy(lo[k], hi[k], BOX_SHAPE_PROXYTYPE, nullptr, 1, -1, &dispatcher));
+      s.bp->calculateOverlappingPairs(&dispatcher);
+    }
+    std::vector<std::size_t> moved;
+    std::vector<std::pair<btVector3, btVector3>> ray_ends, boxes;
+    for (int step = 0; step < steps; ++step) {
+      moved.clear();
+      for (std::size_t k = 0; k < lo.size(); k += 100) {
+        const std::size_t m = (k + static_cast<std::size_t>(step) * 37) % lo.size();
+        const btVector3 d(btScalar(nudge(rng)), btScalar(nudge(rng)), btScalar(nudge(rng)));
+        lo[m] += d;
+        hi[m] += d;
+        moved.push_back(m);
+      }
+      ray_ends.clear();
+      boxes.clear();
+      for (int r = 0; r < rays; ++r) {
+        const double x = at(rng), z = at(rng);
+        ray_ends.emplace_back(btVector3(btScalar(x), 50, btScalar(z)),
+                              btVector3(btScalar(x + 60 * slant(rng)), -10, btScalar(z + 60 * slant(rng))));
+        const double bx = at(rng), bz = at(rng), s = 1 + 3 * at(rng) / side, y = ground(bx, bz);
+        boxes.emplace_back(btVector3(btScalar(bx), btScalar(y), btScalar(bz)),
+                           btVector3(btScalar(bx + s), btScalar(y + s), btScalar(bz + s)));
+      }
+      for (Side& s : sides) {
+        auto start = Clock::now();
+        for (const std::size_t m : moved) s.bp->setAabb(s.proxies[m], lo[m], hi[m], &dispatcher);
+        s.bp->calculateOverlappingPairs(&dispatcher);
+        const double step_ms = ms_since(start);
+        CountRay ray;
+        start = Clock::now();
+        for (const auto& [from, to] : ray_ends) {
+          ray.set(from, to);
+          s.bp->rayTest(from, to, ray);
+        }
+        const double ray_ms = ms_since(start);
+        CountBox box;
+        start = Clock::now();
+        for (const auto& [a, b] : boxes) s.bp->aabbTest(a, b, box);
+        const double box_ms = ms_since(start);
+        if (step == 0) continue;  // the first queries build what queries need
+        s.step_ms.push_back(step_ms);
+        s.ray_us.push_back(1000 * ray_ms / rays);
+        s.box_us.push_back(1000 * box_ms / rays);
+        s.ray_hits += ray.hits;
+        s.box_hits += box.hits;
+      }
+    }
+    for (Side& s : sides) {
+      std::printf("%-10d %-26s %12.3f %12.3f %12zu %12zu %12.3f\n", n, s.name.c_str(), median(s.ray_us),
+                  median(s.box_us), s.ray_hits, s.box_hits, median(s.step_ms));
+      for (btBroadphaseProxy* p : s.proxies) s.bp->destroyProxy(p, &dispatcher);
+    }
+    std::fflush(stdout);
+  }
+}
+
 bool count_pair(fcl::CollisionObjectd*, fcl::CollisionObjectd*, void* data) {
   ++*static_cast<std::size_t*>(data);
   return false;
@@ -298,14 +422,22 @@ void bench_fcl(int boxes, int reps) {
 int main(int argc, char** argv) {
   CLI::App app{"viscd's Bullet and FCL adapters against the engines' own broadphases"};
   std::string only;
-  int bodies = 10000, steps = 120, fcl_boxes = 100000, reps = 3;
-  app.add_option("--only", only, "run one part: bullet or fcl")->check(CLI::IsMember({"bullet", "fcl"}));
+  int bodies = 10000, steps = 120, fcl_boxes = 100000, reps = 3, rays = 500, query_steps = 21;
+  std::vector<int> query_bodies = {1000, 10000};
+  app.add_option("--only", only, "run one part: bullet, fcl or queries")
+      ->check(CLI::IsMember({"bullet", "fcl", "queries"}));
   app.add_option("--bodies", bodies, "falling boxes in the Bullet world")->check(CLI::Range(1, 10000000));
   app.add_option("--steps", steps, "Bullet steps (60 Hz)")->check(CLI::Range(6, 100000));
   app.add_option("--fcl-boxes", fcl_boxes, "boxes in the FCL self collision")->check(CLI::Range(2, 100000000));
   app.add_option("--reps", reps, "FCL runs per manager")->check(CLI::Range(1, 1000));
+  app.add_option("--query-bodies", query_bodies, "proxies in the query part, one run each (e.g. 1000,10000)")
+      ->delimiter(',')
+      ->check(CLI::Range(1, 10000000));
+  app.add_option("--rays", rays, "rays (and aabbTest boxes) per step in the query part")->check(CLI::Range(1, 1000000));
+  app.add_option("--query-steps", query_steps, "steps in the query part")->check(CLI::Range(2, 100000));
   CLI11_PARSE(app, argc, argv);
   if (only.empty() || only == "bullet") bench_bullet(bodies, steps);
   if (only.empty() || only == "fcl") bench_fcl(fcl_boxes, reps);
+  if (only.empty() || only == "queries") bench_queries(query_bodies, rays, query_steps);
   return 0;
 }

@@ -2,6 +2,8 @@
 // answered by the detector's queries on the last frame and the static set, plus the proxies the
 // last frame culled or left out, tested directly.
 
+#include <utility>
+
 #include "bullet_state.hpp"
 
 namespace viscd {
@@ -50,16 +52,20 @@ void BulletBroadphase::rayTest(const btVector3& rayFrom, const btVector3& rayTo,
     }
     return;
   }
-  st.hits.clear();
-  CollectHits collect(st.hits);
+  // Collected first and called after: the callback may then use the broadphase again (a call
+  // from inside it finds the lists taken and uses fresh ones).
+  std::vector<std::uint32_t> hits = std::exchange(st.hits, {});
+  std::vector<Proxy*> found = std::exchange(st.found, {});
+  hits.clear();
+  found.clear();
+  CollectHits collect(hits);
   st.detector->ray_cast(ray, collect);
-  // Collected first and called after: the callback may then use the broadphase again.
-  std::vector<Proxy*> found;
-  found.reserve(st.hits.size());
-  for (const std::uint32_t index : st.hits)
+  for (const std::uint32_t index : hits)
     if (Proxy* p = st.proxy_of(index); p && p->valid) found.push_back(p);
   st.visit_culled(hit, [&](Proxy* p) { found.push_back(p); });
   for (Proxy* p : found) rayCallback.process(p);
+  st.hits = std::move(hits);
+  st.found = std::move(found);
 }
 
 void BulletBroadphase::aabbTest(const btVector3& aabbMin, const btVector3& aabbMax,
@@ -68,18 +74,22 @@ void BulletBroadphase::aabbTest(const btVector3& aabbMin, const btVector3& aabbM
   Box query;
   if (!to_box(aabbMin, aabbMax, query)) return;
   const auto overlaps = [&](const Box& box) { return boxes_overlap(box, query); };
-  std::vector<Proxy*> found;
+  // Taken from the state for the call, as in rayTest().
+  std::vector<std::uint32_t> hits = std::exchange(st.hits, {});
+  std::vector<Proxy*> found = std::exchange(st.found, {});
+  found.clear();
   if (!st.frame_answers_queries()) {
     for (Proxy* p : st.proxies)
       if (p->valid && overlaps(p->box)) found.push_back(p);
   } else {
-    st.detector->overlap_box(query, st.hits);
-    found.reserve(st.hits.size());
-    for (const std::uint32_t index : st.hits)
+    st.detector->overlap_box(query, hits);
+    for (const std::uint32_t index : hits)
       if (Proxy* p = st.proxy_of(index); p && p->valid) found.push_back(p);
     st.visit_culled(overlaps, [&](Proxy* p) { found.push_back(p); });
   }
   for (Proxy* p : found) callback.process(p);
+  st.hits = std::move(hits);
+  st.found = std::move(found);
 }
 
 }  // namespace viscd

@@ -166,7 +166,8 @@ struct BulletBroadphase::State {
   FrameStats stats;
   Status status;
   int next_uid = 0;
-  std::vector<std::uint32_t> hits;
+  std::vector<std::uint32_t> hits;  // the queries' lists, reused from call to call
+  std::vector<Proxy*> found;
   std::vector<std::pair<btBroadphaseProxy*, btBroadphaseProxy*>> stale_pairs;
   std::unordered_set<std::uint64_t> want, have;
 

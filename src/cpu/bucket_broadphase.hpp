@@ -63,8 +63,7 @@ class BucketBroadphase {
   /// the stage times.
   void build(std::span<const Sphere> spheres, std::span<const std::uint32_t> active, int bits, Layout layout,
              int threads, FrameStats& stats, const Extras& extras = {});
-  /// Whether the last tree holds boxes (its queries then are not answered here: the detector
-  /// answers them by brute force).
+  /// Whether the last tree holds boxes (box lanes: its queries test the boxes themselves).
   [[nodiscard]] bool holds_boxes() const { return !extras_.boxes.empty(); }
 
   /// What the queries report of the tree's objects. A tree object's id is its index in the
@@ -146,10 +145,18 @@ class BucketBroadphase {
   template <class Hit>
   void ray_hits(const Ray& ray, const Objects& objects, const Filter* filter, double& t_hi, const float& max_t,
                 Hit&& hit) const;
-  /// Calls found(index) for each object whose sphere passes `filter` and `exact(sphere)`, among
-  /// those whose conservative box may meet `box`, until found() returns false; returns false then.
+  /// Calls found(index) for each object that passes `filter` and `exact(sphere)` (sphere lanes) or
+  /// `exact(box)` (box lanes), among those whose conservative box (or box) meets `box`, until
+  /// found() returns false; returns false then.
   template <class Exact, class Found>
   bool overlap_walk(const Aabb& box, const Objects& objects, const Filter* filter, Exact&& exact, Found&& found) const;
+  /// overlap_walk() for a sphere query: each object that overlaps `sphere` (overlap_exact() on
+  /// sphere lanes, sphere_box_exact() on box lanes).
+  template <class Found>
+  bool overlap_visit_boxes(const Sphere& sphere, const Objects& objects, const Filter* filter, Found&& found) const;
+  /// A box tree's rays widen its boxes by this much more than ray_box_margin() (RaySetup): the
+  /// tree's boxes are the objects' boxes, with no conservative margin around them.
+  [[nodiscard]] double box_ray_margin() const;
   /// Whether the object at sorted position p passes the query's filter (null: none).
   [[nodiscard]] bool passes(const Filter* filter, std::size_t p, const Objects& objects) const {
     if (filter == nullptr) return true;

@@ -48,6 +48,12 @@ struct alignas(32) BoxLanes {
   [[nodiscard]] Aabb box(std::uint32_t l) const {
     return Aabb{{lo_x[l], lo_y[l], lo_z[l]}, {hi_x[l], hi_y[l], hi_z[l]}};
   }
+  /// As ray_children() reads a node's children.
+  [[nodiscard]] Aabb child(std::uint32_t l) const { return box(l); }
+  /// Lane l as the object's Box.
+  [[nodiscard]] Box object(std::uint32_t l) const {
+    return Box{{lo_x[l], lo_y[l], lo_z[l]}, {hi_x[l], hi_y[l], hi_z[l]}};
+  }
 };
 
 /// Buckets needed for n objects.

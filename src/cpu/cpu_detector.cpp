@@ -107,11 +107,10 @@ Status CpuDetector::follow_change(const FrameInput& in, const Shapes& objects, s
   // Queries after the frame: its objects are the rest set's copy; trees and lists come on demand.
   followed_ = true;
   query_tree_built_.store(false);
-  query_objects_built_.store(false);
   q_bits_ = bits;
-  box_queries_ = objects.is_box() || (!static_set_.empty() && static_set_.kind() == ShapeKind::box);
   unpaired_ids_.clear();
   unpaired_spheres_.clear();
+  unpaired_boxes_.clear();
   unpaired_filters_.clear();
   unpaired_built_.store(false);
   q_filters_.assign(filters.begin(), filters.end());
@@ -138,42 +137,21 @@ void CpuDetector::prepare_queries() {
   const ExecutorScope scope(config_.executor);
   const int threads = frame_threads();
   FrameStats unused;
-  broadphase_.build(rest_.objects().spheres, last_active(), q_bits_, config_.layout, threads, unused);
-  query_tree_built_.store(true, std::memory_order_release);
-}
-
-QueryObjects CpuDetector::query_objects() {
-  if (!followed_) return PipelineDetector::query_objects();
-  const std::lock_guard<std::mutex> lock(lazy_mutex_);  // rare: box frames' brute-force queries
-  if (!query_objects_built_.load(std::memory_order_relaxed)) {
-    const Shapes objects = rest_.objects();
-    const StaticSet::Compact& stat = static_set_.compact();
-    const std::span<const std::uint32_t> active = last_active();
-    const bool boxes = objects.is_box() || (objects.empty() && stat.shapes.is_box());
-    const bool filtered = !q_filters_.empty() || stat.filtered;
-    q_spheres_.clear();
-    q_boxes_.clear();
-    q_ids_.assign(active.begin(), active.end());
-    q_filter_list_.clear();
-    for (const std::uint32_t k : active) {
-      if (boxes)
-        q_boxes_.push_back(objects.boxes[k]);
-      else
-        q_spheres_.push_back(objects.spheres[k]);
-      if (filtered) q_filter_list_.push_back(q_filters_.empty() ? Filter{} : q_filters_[k]);
-    }
-    for (std::size_t k = 0; k < stat.shapes.size(); ++k) {
-      if (boxes)
-        q_boxes_.push_back(stat.shapes.boxes[k]);
-      else
-        q_spheres_.push_back(stat.shapes.spheres[k]);
-      q_ids_.push_back(static_index(stat.slots[k]));
-      if (filtered) q_filter_list_.push_back(stat.filters[k]);
-    }
-    query_objects_built_.store(true, std::memory_order_relaxed);
+  const Shapes objects = rest_.objects();
+  const std::span<const std::uint32_t> active = last_active();
+  if (objects.is_box()) {
+    // Stages 4-6 order the active boxes' proxies (by object index, as the build reads them).
+    resize_with_headroom(proxies_, objects.size());
+    parallel_for(active.size(), threads,
+                 [&](std::size_t k) { proxies_[active[k]] = box_proxy(objects.boxes[active[k]]); });
+    BucketBroadphase::Extras extras;
+    extras.boxes = objects.boxes;
+    broadphase_.build(std::span<const Sphere>(proxies_.data(), objects.size()), active, q_bits_, config_.layout,
+                      threads, unused, extras);
+  } else {
+    broadphase_.build(objects.spheres, active, q_bits_, config_.layout, threads, unused);
   }
-  const bool boxes = !q_boxes_.empty() || rest_.objects().is_box();
-  return {boxes ? Shapes(q_boxes_) : Shapes(q_spheres_), q_ids_, q_filter_list_};
+  query_tree_built_.store(true, std::memory_order_release);
 }
 
 Status CpuDetector::broadphase(const Shapes& objects, std::span<const std::uint32_t> pairable,
@@ -185,7 +163,6 @@ Status CpuDetector::broadphase(const Shapes& objects, std::span<const std::uint3
   VISCD_ASSERT(static_from == ~0u, "the cpu backend's frames hold no static objects");
   (void)static_from;
   const std::size_t total = objects.size();
-  box_queries_ = objects.is_box() || (!static_set_.empty() && static_set_.kind() == ShapeKind::box);
   // Box frames: stages 4-6 order the boxes' proxies; stages 7-8 pack and test the boxes.
   std::span<const Sphere> spheres = objects.spheres;
   BucketBroadphase::Extras extras;
@@ -198,16 +175,17 @@ Status CpuDetector::broadphase(const Shapes& objects, std::span<const std::uint3
     proxies_.clear();
   }
   // The objects left out of the tree, kept for queries with their filters (the tree's own
-  // filters are kept in sorted order by the broadphase); no copy without filters. (Box frames'
-  // queries are brute force: nothing to keep.)
+  // filters are kept in sorted order by the broadphase); no copy without filters.
   unpaired_built_.store(false);
-  const std::size_t kept = objects.is_box() ? 0 : unpaired.size();
+  const std::size_t kept = unpaired.size();
   resize_with_headroom(unpaired_ids_, kept);
   resize_with_headroom(unpaired_spheres_, kept);
+  resize_with_headroom(unpaired_boxes_, objects.is_box() ? kept : 0);
   resize_with_headroom(unpaired_filters_, kept);
   for (std::size_t k = 0; k < kept; ++k) {
     unpaired_ids_[k] = unpaired[k];
     unpaired_spheres_[k] = spheres[unpaired[k]];
+    if (objects.is_box()) unpaired_boxes_[k] = objects.boxes[unpaired[k]];
     unpaired_filters_[k] = filters[unpaired[k]];
   }
   broadphase_.set_keep_order(config_.keep_order);
@@ -259,19 +237,20 @@ const BucketBroadphase& CpuDetector::unpaired_tree() {
       iota_.resize(n);
       for (std::size_t k = old; k < n; ++k) iota_[k] = static_cast<std::uint32_t>(k);
     }
+    BucketBroadphase::Extras extras;
+    extras.boxes = unpaired_boxes_;  // box frames: the boxes themselves in the lanes
     unpaired_tree_.build(unpaired_spheres_, std::span<const std::uint32_t>(iota_.data(), n), 32, config_.layout,
-                         threads, unpaired_stats_);
+                         threads, unpaired_stats_, extras);
     unpaired_built_.store(true, std::memory_order_release);
   }
   return unpaired_tree_;
 }
 
 // Each query searches the main tree, then the unpaired objects' tree (built on the first query
-// that needs it); after a frame of boxes (its own or its static set's), the base class's brute force over detect()'s
-// copy. Detector sorts the lists.
+// that needs it), then the static set's trees; box frames' trees test box lanes. Detector sorts
+// the lists.
 
 bool CpuDetector::query_ray_first(const Ray& ray, const Filter* filter, RayHit& hit) {
-  if (box_queries_) return PipelineDetector::query_ray_first(ray, filter, hit);
   prepare_queries();
   bool found = broadphase_.ray_first(ray, main_objects(), filter, hit, false);
   if (!unpaired_ids_.empty()) found = unpaired_tree().ray_first(ray, unpaired_objects(), filter, hit, found);
@@ -282,7 +261,6 @@ bool CpuDetector::query_ray_first(const Ray& ray, const Filter* filter, RayHit& 
 }
 
 void CpuDetector::query_ray_all(const Ray& ray, const Filter* filter, std::vector<RayHit>& hits) {
-  if (box_queries_) return PipelineDetector::query_ray_all(ray, filter, hits);
   prepare_queries();
   broadphase_.ray_all(ray, main_objects(), filter, hits);
   if (!unpaired_ids_.empty()) unpaired_tree().ray_all(ray, unpaired_objects(), filter, hits);
@@ -292,7 +270,6 @@ void CpuDetector::query_ray_all(const Ray& ray, const Filter* filter, std::vecto
 }
 
 void CpuDetector::query_ray_visit(const Ray& ray, const Filter* filter, RayVisitor& visitor) {
-  if (box_queries_) return PipelineDetector::query_ray_visit(ray, filter, visitor);
   prepare_queries();
   float max_t = ray.max_t;  // lowered by the visitor in the first tree, it prunes the second
   if (!broadphase_.ray_visit(ray, main_objects(), filter, max_t, visitor)) return;
@@ -303,7 +280,6 @@ void CpuDetector::query_ray_visit(const Ray& ray, const Filter* filter, RayVisit
 }
 
 void CpuDetector::query_sphere(const Sphere& sphere, const Filter* filter, std::vector<std::uint32_t>& indices) {
-  if (box_queries_) return PipelineDetector::query_sphere(sphere, filter, indices);
   prepare_queries();
   broadphase_.overlap(sphere, main_objects(), filter, indices);
   if (!unpaired_ids_.empty()) unpaired_tree().overlap(sphere, unpaired_objects(), filter, indices);
@@ -313,7 +289,6 @@ void CpuDetector::query_sphere(const Sphere& sphere, const Filter* filter, std::
 }
 
 void CpuDetector::query_box(const Box& box, const Filter* filter, std::vector<std::uint32_t>& indices) {
-  if (box_queries_) return PipelineDetector::query_box(box, filter, indices);
   prepare_queries();
   broadphase_.overlap_box(box, main_objects(), filter, indices);
   if (!unpaired_ids_.empty()) unpaired_tree().overlap_box(box, unpaired_objects(), filter, indices);
@@ -323,7 +298,6 @@ void CpuDetector::query_box(const Box& box, const Filter* filter, std::vector<st
 }
 
 void CpuDetector::query_sphere_visit(const Sphere& sphere, const Filter* filter, OverlapVisitor& visitor) {
-  if (box_queries_) return PipelineDetector::query_sphere_visit(sphere, filter, visitor);
   prepare_queries();
   if (!broadphase_.overlap_visit(sphere, main_objects(), filter, visitor)) return;
   if (!unpaired_ids_.empty() && !unpaired_tree().overlap_visit(sphere, unpaired_objects(), filter, visitor)) return;
@@ -333,7 +307,6 @@ void CpuDetector::query_sphere_visit(const Sphere& sphere, const Filter* filter,
 }
 
 void CpuDetector::query_box_visit(const Box& box, const Filter* filter, OverlapVisitor& visitor) {
-  if (box_queries_) return PipelineDetector::query_box_visit(box, filter, visitor);
   prepare_queries();
   if (!broadphase_.overlap_box_visit(box, main_objects(), filter, visitor)) return;
   if (!unpaired_ids_.empty() && !unpaired_tree().overlap_box_visit(box, unpaired_objects(), filter, visitor)) return;

@@ -28,8 +28,7 @@ class CpuDetector final : public PipelineDetector {
            unpaired_tree_.memory_bytes() + bytes_of(unpaired_spheres_) + bytes_of(unpaired_ids_) +
            bytes_of(unpaired_filters_) + bytes_of(iota_) + bytes_of(proxies_) + static_tree_.memory_bytes() +
            bytes_of(cross_) + bytes_of(merged_) + static_layer_.memory_bytes() + static_raster_.memory_bytes() +
-           static_box_raster_.memory_bytes() + rest_.memory_bytes() + bytes_of(q_filters_) + bytes_of(q_spheres_) +
-           bytes_of(q_boxes_) + bytes_of(q_ids_) + bytes_of(q_filter_list_);
+           static_box_raster_.memory_bytes() + rest_.memory_bytes() + bytes_of(q_filters_) + bytes_of(unpaired_boxes_);
   }
   /// With FrameInput::moved while the rest set follows these objects: only the listed ones.
   [[nodiscard]] Status validate_frame_objects(const FrameInput& input) override;
@@ -38,12 +37,8 @@ class CpuDetector final : public PipelineDetector {
   [[nodiscard]] const BucketBroadphase& bucket_broadphase() const { return broadphase_; }
 
  protected:
-  /// Sphere frames: from the trees. Frames whose objects or static set are boxes: by brute force
-  /// over the copy detect() keeps (the trees' ray and overlap walks test sphere lanes), or after a
-  /// followed frame over the objects the rest set keeps (query_objects()).
-  [[nodiscard]] bool answers_queries() const override { return followed_ || !box_queries_; }
-  /// After a followed frame: its active objects and the static set's, gathered on the first query.
-  [[nodiscard]] QueryObjects query_objects() override;
+  /// Every frame's queries search the trees (sphere or box lanes, as the frame's objects).
+  [[nodiscard]] bool answers_queries() const override { return true; }
   /// The static set lives in static_tree_ (cpu/static_tree.hpp).
   [[nodiscard]] bool handles_static() const override { return true; }
   [[nodiscard]] bool query_ray_first(const Ray& ray, const Filter* filter, RayHit& hit) override;
@@ -94,7 +89,6 @@ class CpuDetector final : public PipelineDetector {
   BoxRasterizer box_raster_;
   std::vector<Sphere> proxies_;  // box frames: box_proxy() of each object, for stages 4-6
   StaticTree static_tree_;
-  bool box_queries_ = false;  // the last frame's objects or static set are boxes: brute-force queries
   // The static set's map layer (ids: compact index + 1) and what it was drawn for.
   VisibilityMap static_layer_;
   std::vector<std::vector<std::uint32_t>> hidden_;  // per task: moving pixels a static object hides (draw_frame)
@@ -109,28 +103,25 @@ class CpuDetector final : public PipelineDetector {
   std::vector<std::uint64_t> cross_;  // the frame's pairs with static objects (keys i << 32 | j)
   std::vector<Pair> merged_;
   BucketBroadphase broadphase_;
-  // Active objects outside the tree (their reported indices, spheres, filters) and their tree,
-  // built lazily.
+  // Active objects outside the tree (their reported indices, spheres (box frames: their proxies),
+  // boxes (box frames), filters) and their tree, built lazily.
   std::vector<std::uint32_t> unpaired_ids_, iota_;
   std::vector<Sphere> unpaired_spheres_;
+  std::vector<Box> unpaired_boxes_;
   std::vector<Filter> unpaired_filters_;
   BucketBroadphase unpaired_tree_;
   FrameStats unpaired_stats_;  // the lazy build's stats, unused
   // What the first query after a frame builds (the unpaired objects' tree; after a followed frame
-  // the tree over its active objects, or its brute-force lists): built once, under the mutex, so
-  // that queries may run from many threads at once between frames.
+  // the tree over its active objects): built once, under the mutex, so that queries may run from
+  // many threads at once between frames.
   std::atomic<bool> unpaired_built_{false};
   std::mutex lazy_mutex_;
   // Cost follows change: the resting objects, whether the last frame was followed, its filters (by
   // object; empty without), and what its queries built.
   RestSet rest_;
   bool followed_ = false;
-  std::atomic<bool> query_tree_built_{false}, query_objects_built_{false};
+  std::atomic<bool> query_tree_built_{false};
   std::vector<Filter> q_filters_;
-  std::vector<Sphere> q_spheres_;
-  std::vector<Box> q_boxes_;
-  std::vector<std::uint32_t> q_ids_;
-  std::vector<Filter> q_filter_list_;
   int q_bits_ = 32;
 };
 

@@ -110,9 +110,8 @@ void StaticTree::update(StaticSet& set, Layout layout, int threads) {
 
 std::size_t StaticTree::parts(Part out[2]) const {
   std::size_t n = 0;
-  // An empty set has nothing to find (its trees may still hold erased lanes), and box trees are
-  // not walked by the queries (they test sphere lanes): the detector answers those by brute force.
-  if (live_ == 0 || boxes_) return 0;
+  // An empty set has nothing to find (its trees may still hold erased lanes).
+  if (live_ == 0) return 0;
   for (const Side* s : {&main_, &delta_})
     if (s->count > 0) out[n++] = Part{&s->tree, {s->reported, s->filters}};
   return n;

@@ -42,7 +42,7 @@ class StaticTree {
     return set.filter(static_slot(reported));
   }
   /// The trees, for queries: each tree's objects are reported as static_index(slot), with the
-  /// slot's filter. None for an empty set or a set of boxes (queries on boxes are brute force).
+  /// slot's filter. None for an empty set.
   struct Part {
     const BucketBroadphase* tree;
     BucketBroadphase::Objects objects;
