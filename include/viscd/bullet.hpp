@@ -114,12 +114,14 @@ class BulletBroadphase final : public btBroadphaseInterface {
   /// next calculateOverlappingPairs(), or until cleared with an empty span.
   void set_id_map(std::span<const std::uint32_t> ids, int width, int height);
   /// Never cull this proxy (FrameInput::always_active). Off for new proxies; static-set proxies are
-  /// never culled anyway.
+  /// never culled anyway; a pointer that is not a live proxy of this broadphase is ignored.
   void set_always_active(btBroadphaseProxy* proxy, bool always_active);
   /// The proxy's index in the detector's frame (its slot; what an id map writes, minus 1), or
-  /// nothing for a static-set proxy or a foreign pointer.
+  /// nothing for a static-set proxy, or for a pointer that is not a live proxy of this broadphase
+  /// (another broadphase's, or destroyed), which is never read.
   [[nodiscard]] std::optional<std::uint32_t> moving_index(const btBroadphaseProxy* proxy) const;
-  /// Whether the proxy lives in the static set.
+  /// Whether the proxy lives in the static set (false for a pointer that is not a live proxy of
+  /// this broadphase).
   [[nodiscard]] bool in_static_set(const btBroadphaseProxy* proxy) const;
   /// Proxies alive, and how many of them are in the static set.
   [[nodiscard]] std::size_t proxy_count() const;

@@ -86,8 +86,10 @@ class FclBroadphaseManager final : public fcl::BroadPhaseCollisionManager<double
   [[nodiscard]] bool empty() const override;
   [[nodiscard]] size_t size() const override;
 
-  /// The last detector frame's outcome. A failed frame (out of memory) is answered by brute force
-  /// over the AABBs, so the callbacks' guarantees hold either way.
+  /// The last detector frame's outcome: the self frame's (collide(), collide(obj)), or that of a
+  /// frame over grown boxes that distance() or collide(other) ran, which fails when its pairs
+  /// would pass 512 MiB (or Config::pair_memory_cap, when lower). A failed frame is answered by brute force over the
+  /// AABBs (distance() then visits the pairs one by one), so the callbacks' guarantees hold either way; this says why.
   [[nodiscard]] const Status& last_status() const;
 
   struct State;  ///< internal

@@ -45,6 +45,7 @@ btBroadphaseProxy* BulletBroadphase::createProxy(const btVector3& aabbMin, const
   p->m_uniqueId = ++st.next_uid;
   p->list_index = static_cast<std::uint32_t>(st.proxies.size());
   st.proxies.push_back(p);
+  st.owned.insert(p);
   p->valid = to_box(aabbMin, aabbMax, p->box);
   p->fixed = goes_to_static_set(collisionFilterGroup, collisionFilterMask);
   if (p->fixed) {
@@ -71,6 +72,7 @@ void BulletBroadphase::destroyProxy(btBroadphaseProxy* proxy, btDispatcher* disp
   st.proxies[p->list_index] = last;
   last->list_index = p->list_index;
   st.proxies.pop_back();
+  st.owned.erase(p);
   delete p;
   st.queries_stale = true;
 }
@@ -89,8 +91,8 @@ void BulletBroadphase::setAabb(btBroadphaseProxy* proxy, const btVector3& aabbMi
   if (valid) p->box = box;
   st.queries_stale = true;
   if (p->fixed) {
-    if (valid && was_valid) {
-      if (Status s = st.detector->move_static_box(p->slot, box); !s) st.status = s;
+    if (valid && was_valid && p->slot != kNoSlot) {
+      st.move_static(p);
     } else if (valid) {
       st.enter_static(p);
     } else {
@@ -215,6 +217,7 @@ void BulletBroadphase::set_id_map(std::span<const std::uint32_t> ids, int width,
 
 void BulletBroadphase::set_always_active(btBroadphaseProxy* proxy, bool always_active) {
   State& st = *state_;
+  if (!st.owns(proxy)) return;
   const Proxy* p = as_proxy(proxy);
   if (p->fixed) return;  // never culled
   std::uint8_t& flag = st.always_active[p->slot];
@@ -228,12 +231,14 @@ void BulletBroadphase::set_always_active(btBroadphaseProxy* proxy, bool always_a
 
 std::optional<std::uint32_t> BulletBroadphase::moving_index(const btBroadphaseProxy* proxy) const {
   const State& st = *state_;
+  if (!st.owns(proxy)) return std::nullopt;  // not read as ours: another broadphase's, or freed
   const Proxy* p = as_proxy(proxy);
   if (!p || p->fixed || p->slot >= st.slot_proxy.size() || st.slot_proxy[p->slot] != p) return std::nullopt;
   return p->slot;
 }
 
 bool BulletBroadphase::in_static_set(const btBroadphaseProxy* proxy) const {
+  if (!state_->owns(proxy)) return false;
   const Proxy* p = as_proxy(proxy);
   return p && p->fixed && p->slot != kNoSlot;
 }

@@ -2,8 +2,6 @@
 // answered by the detector's queries on the last frame and the static set, plus the proxies the
 // last frame culled or left out, tested directly.
 
-#include <utility>
-
 #include "bullet_state.hpp"
 
 namespace viscd {
@@ -52,20 +50,15 @@ void BulletBroadphase::rayTest(const btVector3& rayFrom, const btVector3& rayTo,
     }
     return;
   }
-  // Collected first and called after: the callback may then use the broadphase again (a call
-  // from inside it finds the lists taken and uses fresh ones).
-  std::vector<std::uint32_t> hits = std::exchange(st.hits, {});
-  std::vector<Proxy*> found = std::exchange(st.found, {});
-  hits.clear();
-  found.clear();
-  CollectHits collect(hits);
+  // Collected first and called after: the callback may then use the broadphase again.
+  auto hits = st.hit_lists.take();
+  auto found = st.proxy_lists.take();
+  CollectHits collect(*hits);
   st.detector->ray_cast(ray, collect);
-  for (const std::uint32_t index : hits)
-    if (Proxy* p = st.proxy_of(index); p && p->valid) found.push_back(p);
-  st.visit_culled(hit, [&](Proxy* p) { found.push_back(p); });
-  for (Proxy* p : found) rayCallback.process(p);
-  st.hits = std::move(hits);
-  st.found = std::move(found);
+  for (const std::uint32_t index : *hits)
+    if (Proxy* p = st.proxy_of(index); p && p->valid) found->push_back(p);
+  st.visit_culled(hit, [&](Proxy* p) { found->push_back(p); });
+  for (Proxy* p : *found) rayCallback.process(p);
 }
 
 void BulletBroadphase::aabbTest(const btVector3& aabbMin, const btVector3& aabbMax,
@@ -74,22 +67,18 @@ void BulletBroadphase::aabbTest(const btVector3& aabbMin, const btVector3& aabbM
   Box query;
   if (!to_box(aabbMin, aabbMax, query)) return;
   const auto overlaps = [&](const Box& box) { return boxes_overlap(box, query); };
-  // Taken from the state for the call, as in rayTest().
-  std::vector<std::uint32_t> hits = std::exchange(st.hits, {});
-  std::vector<Proxy*> found = std::exchange(st.found, {});
-  found.clear();
+  auto found = st.proxy_lists.take();  // collected first, as in rayTest()
   if (!st.frame_answers_queries()) {
     for (Proxy* p : st.proxies)
-      if (p->valid && overlaps(p->box)) found.push_back(p);
+      if (p->valid && overlaps(p->box)) found->push_back(p);
   } else {
-    st.detector->overlap_box(query, hits);
-    for (const std::uint32_t index : hits)
-      if (Proxy* p = st.proxy_of(index); p && p->valid) found.push_back(p);
-    st.visit_culled(overlaps, [&](Proxy* p) { found.push_back(p); });
+    auto hits = st.hit_lists.take();
+    st.detector->overlap_box(query, *hits);
+    for (const std::uint32_t index : *hits)
+      if (Proxy* p = st.proxy_of(index); p && p->valid) found->push_back(p);
+    st.visit_culled(overlaps, [&](Proxy* p) { found->push_back(p); });
   }
-  for (Proxy* p : found) callback.process(p);
-  st.hits = std::move(hits);
-  st.found = std::move(found);
+  for (Proxy* p : *found) callback.process(p);
 }
 
 }  // namespace viscd

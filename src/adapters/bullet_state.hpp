@@ -14,6 +14,8 @@
 #include <utility>
 #include <vector>
 
+#include "adapter_util.hpp"
+#include "viscd/assert.hpp"
 #include "viscd/detector.hpp"
 
 namespace viscd {
@@ -37,25 +39,8 @@ struct Proxy final : btBroadphaseProxy {
 inline Proxy* as_proxy(btBroadphaseProxy* p) { return static_cast<Proxy*>(p); }
 inline const Proxy* as_proxy(const btBroadphaseProxy* p) { return static_cast<const Proxy*>(p); }
 
-// btScalar to float, rounded down / up (exact in a float build).
-inline float round_down(btScalar v) {
-  if constexpr (std::is_same_v<btScalar, float>) {
-    return v;
-  } else {
-    float f = static_cast<float>(v);
-    if (static_cast<btScalar>(f) > v) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
-    return f;
-  }
-}
-inline float round_up(btScalar v) {
-  if constexpr (std::is_same_v<btScalar, float>) {
-    return v;
-  } else {
-    float f = static_cast<float>(v);
-    if (static_cast<btScalar>(f) < v) f = std::nextafter(f, std::numeric_limits<float>::infinity());
-    return f;
-  }
-}
+using adapter_detail::round_down;
+using adapter_detail::round_up;
 
 // The AABB as a viscd box, clamped to +-kMaxCoordinate (monotone, so no overlap is lost); false
 // for a NaN bound or min > max.
@@ -166,8 +151,9 @@ struct BulletBroadphase::State {
   FrameStats stats;
   Status status;
   int next_uid = 0;
-  std::vector<std::uint32_t> hits;  // the queries' lists, reused from call to call
-  std::vector<Proxy*> found;
+  std::unordered_set<const btBroadphaseProxy*> owned;   // every live proxy of this broadphase
+  adapter_detail::VectorPool<std::uint32_t> hit_lists;  // the queries' lists, lent per call
+  adapter_detail::VectorPool<Proxy*> proxy_lists;
   std::vector<std::pair<btBroadphaseProxy*, btBroadphaseProxy*>> stale_pairs;
   std::unordered_set<std::uint64_t> want, have;
 
@@ -227,26 +213,34 @@ struct BulletBroadphase::State {
     return index < slot_proxy.size() ? slot_proxy[index] : nullptr;
   }
 
+  // The static set's calls below cannot fail for what the adapter passes (a valid box, to a set
+  // of boxes only, far fewer than 2^31 - 1 of them); only an allocation can, and it throws
+  // std::bad_alloc as Bullet's own do. So they are invariants, asserted, not errors to report.
   void enter_static(Proxy* p) {
     Result<std::uint32_t> k = detector->add_static_box(p->box, filter_of(*p));
-    if (!k) {  // not expected: the box is valid and the set holds boxes only
-      status = k.status();
-      return;
-    }
+    VISCD_ASSERT(k.ok(), "the static set refused a valid box");
+    if (!k) return;  // (asserts off) the proxy stays out of the set: slot kNoSlot, no pairs
     p->slot = k.value();
     if (static_proxy.size() <= p->slot) static_proxy.resize(p->slot + 1, nullptr);
     static_proxy[p->slot] = p;
     ++static_live;
     mark_static(p->slot);
   }
+  void move_static(Proxy* p) {
+    [[maybe_unused]] const Status s = detector->move_static_box(p->slot, p->box);
+    VISCD_ASSERT(s.ok(), "the static set refused to move a valid box");
+  }
   void leave_static(Proxy* p) {
     if (p->slot == kNoSlot) return;
-    if (Status s = detector->remove_static(p->slot); !s) status = s;
+    [[maybe_unused]] const Status s = detector->remove_static(p->slot);
+    VISCD_ASSERT(s.ok(), "the static set refused to remove a live slot");
     static_proxy[p->slot] = nullptr;
     --static_live;
     mark_static(p->slot);
     p->slot = kNoSlot;
   }
+  // Whether `proxy` is one of this broadphase's (checked before it is read as a Proxy).
+  [[nodiscard]] bool owns(const btBroadphaseProxy* proxy) const { return proxy && owned.count(proxy) != 0; }
 
   void take_moving_slot(Proxy* p) {
     std::uint32_t s;

@@ -22,6 +22,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "adapter_util.hpp"
 #include "viscd/detector.hpp"
 
 namespace viscd {
@@ -42,17 +43,6 @@ constexpr double kHuge = std::numeric_limits<double>::max();
 // Pairs a grown frame may hold before a distance round falls back to visiting pairs one by one.
 constexpr std::size_t kGrownPairMemory = std::size_t{512} << 20;
 
-float down(double v) {
-  float f = static_cast<float>(v);
-  if (static_cast<double>(f) > v) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
-  return f;
-}
-float up(double v) {
-  float f = static_cast<float>(v);
-  if (static_cast<double>(f) < v) f = std::nextafter(f, std::numeric_limits<float>::infinity());
-  return f;
-}
-
 // The AABB grown by `grow` on every side, as a float box holding it: bounds rounded outward
 // (one double step out first, for the rounding of the sum), clamped to +-kMaxCoordinate
 // (monotone, so overlaps are kept), a NaN bound spanning everything (fcl::AABB::overlap is true
@@ -65,8 +55,10 @@ Box to_box(const Aabb& a, double grow = 0) {
       lo = std::nextafter(lo - grow, -kHuge);
       hi = std::nextafter(hi + grow, kHuge);
     }
-    b.min[k] = std::isnan(lo) ? -kMaxCoordinate : std::clamp(down(lo), -kMaxCoordinate, kMaxCoordinate);
-    b.max[k] = std::isnan(hi) ? kMaxCoordinate : std::clamp(up(hi), -kMaxCoordinate, kMaxCoordinate);
+    b.min[k] =
+        std::isnan(lo) ? -kMaxCoordinate : std::clamp(adapter_detail::round_down(lo), -kMaxCoordinate, kMaxCoordinate);
+    b.max[k] =
+        std::isnan(hi) ? kMaxCoordinate : std::clamp(adapter_detail::round_up(hi), -kMaxCoordinate, kMaxCoordinate);
   }
   return b;
 }
@@ -103,6 +95,11 @@ struct FclBroadphaseManager::State {
   std::vector<Box> work_boxes;
   std::vector<Filter> work_filters;
   std::vector<std::uint32_t> hits;
+  // Lists lent to one call (a callback may call the manager again), so that calls reuse memory.
+  adapter_detail::VectorPool<std::uint32_t> index_lists;
+  adapter_detail::VectorPool<Object*> object_lists;
+  adapter_detail::VectorPool<Aabb> aabb_lists;
+  adapter_detail::VectorPool<Candidate> candidate_lists;
 
   explicit State(const Config& c) : config(c) {
     config.contact_events = false;
@@ -210,13 +207,17 @@ struct FclBroadphaseManager::State {
     return true;
   }
 
+  // A grown frame; its outcome becomes last_status(), so that a fall back to visiting pairs one
+  // by one says why.
   bool run_grown(const FrameInput& in) {
     if (!grown) {
       Config c = config;
-      c.pair_memory_cap = kGrownPairMemory;
+      c.pair_memory_cap =  // the caller's cap when lower
+          config.pair_memory_cap != 0 ? std::min(config.pair_memory_cap, kGrownPairMemory) : kGrownPairMemory;
       grown = make_cpu_detector(c);
     }
-    return grown->detect(in, grown_frame).ok();
+    status = grown->detect(in, grown_frame);
+    return status.ok();
   }
 
   // The radii of the rounds: `guess`, a first radius when no AABBs overlap (the scene's diagonal
@@ -249,7 +250,8 @@ struct FclBroadphaseManager::State {
     double min_dist = kHuge;
     double covered = -1;  // every pair with bound <= covered has been offered (or ruled out)
     double r = 0;
-    std::vector<Candidate> list;
+    auto loan = candidate_lists.take();
+    std::vector<Candidate>& list = *loan;
     for (;;) {
       if (!std::isfinite(r) || !candidates(r, list)) {
         // Visit the remaining pairs one by one, as fcl::NaiveCollisionManager does.
@@ -357,9 +359,9 @@ void FclBroadphaseManager::getObjects(std::vector<Object*>& objs) const { objs =
 void FclBroadphaseManager::collide(Object* obj, void* cdata, fcl::CollisionCallBack<double> callback) const {
   State& st = *state_;
   if (st.objects.empty()) return;
-  std::vector<std::uint32_t> found;
-  st.overlapping(to_box(obj->getAABB()), found);
-  for (const std::uint32_t i : found)
+  auto found = st.index_lists.take();
+  st.overlapping(to_box(obj->getAABB()), *found);
+  for (const std::uint32_t i : *found)
     if (callback(obj, st.objects[i], cdata)) return;
 }
 
@@ -378,11 +380,14 @@ void FclBroadphaseManager::collide(fcl::BroadPhaseCollisionManager<double>* othe
     return;
   }
   State& st = *state_;
-  std::vector<Object*> others;
-  std::vector<Aabb> other_aabbs;
+  auto others_loan = st.object_lists.take();
+  auto aabbs_loan = st.aabb_lists.take();
+  std::vector<Object*>& others = *others_loan;
+  std::vector<Aabb>& other_aabbs = *aabbs_loan;
   objects_of(*other_manager, others, other_aabbs);
   if (st.objects.empty() || others.empty()) return;
-  std::vector<Candidate> list;
+  auto list_loan = st.candidate_lists.take();
+  std::vector<Candidate>& list = *list_loan;
   if (!st.cross_candidates(0, other_aabbs, list)) {  // too many pairs: one by one
     for (std::uint32_t i = 0; i < st.objects.size(); ++i)
       for (std::uint32_t j = 0; j < others.size(); ++j)
@@ -397,7 +402,8 @@ void FclBroadphaseManager::distance(Object* obj, void* cdata, fcl::DistanceCallB
   State& st = *state_;
   if (st.objects.empty()) return;
   const Aabb query = obj->getAABB();
-  std::vector<std::uint32_t> found;
+  auto found_loan = st.index_lists.take();
+  std::vector<std::uint32_t>& found = *found_loan;
   st.best_first(
       State::radii(st.aabbs, std::span<const Aabb>(&query, 1)),
       [&](double r, std::vector<Candidate>& out) {
@@ -433,8 +439,10 @@ void FclBroadphaseManager::distance(fcl::BroadPhaseCollisionManager<double>* oth
     return;
   }
   State& st = *state_;
-  std::vector<Object*> others;
-  std::vector<Aabb> other_aabbs;
+  auto others_loan = st.object_lists.take();
+  auto aabbs_loan = st.aabb_lists.take();
+  std::vector<Object*>& others = *others_loan;
+  std::vector<Aabb>& other_aabbs = *aabbs_loan;
   objects_of(*other_manager, others, other_aabbs);
   if (st.objects.empty() || others.empty()) return;
   st.best_first(

@@ -4,6 +4,7 @@
 // move, are created and destroyed (slots reused, frames compacted), go static or kinematic, get
 // NaN AABBs; with Bullet's hashed cache and its sorted cache (deferred removal). Queries against
 // Bullet's own ray-box test (btRayAabb) and a brute-force box test.
+#include <BulletCollision/BroadphaseCollision/btDbvtBroadphase.h>
 #include <BulletCollision/BroadphaseCollision/btOverlappingPairCache.h>
 #include <BulletCollision/CollisionDispatch/btCollisionDispatcher.h>
 #include <BulletCollision/CollisionDispatch/btDefaultCollisionConfiguration.h>
@@ -213,6 +214,35 @@ TEST(BulletBroadphase, SlotsAreReusedAndCompacted) {
 
 // A destroyed proxy's slot taken by a new proxy at the same place before the next frame: the
 // events see the same index pair in both frames, the cache must still swap the proxies.
+// A proxy of another broadphase (or a null pointer) is not one of viscd's: it is never read as
+// one, and the calls that take a proxy say so. The other broadphase's proxy is freed by it alone.
+TEST(BulletBroadphase, ForeignProxiesAreNotReadAsOurs) {
+  Bullet bullet;
+  viscd::BulletBroadphase bp;
+  btDbvtBroadphase other;
+  const int dyn = btBroadphaseProxy::DefaultFilter, all = btBroadphaseProxy::AllFilter;
+  const int fixed = btBroadphaseProxy::StaticFilter, not_fixed = all ^ fixed;
+  btBroadphaseProxy* ours = bp.createProxy({0, 0, 0}, {1, 1, 1}, BOX_SHAPE_PROXYTYPE, nullptr, dyn, all, nullptr);
+  btBroadphaseProxy* theirs =
+      other.createProxy({0, 0, 0}, {1, 1, 1}, BOX_SHAPE_PROXYTYPE, nullptr, fixed, not_fixed, &bullet.dispatcher);
+  EXPECT_TRUE(bp.moving_index(ours).has_value());
+  EXPECT_FALSE(bp.moving_index(theirs).has_value());
+  EXPECT_FALSE(bp.in_static_set(theirs));
+  EXPECT_FALSE(bp.moving_index(nullptr).has_value());
+  EXPECT_FALSE(bp.in_static_set(nullptr));
+  bp.set_always_active(theirs, true);  // ignored
+  bp.set_always_active(nullptr, true);
+  bp.calculateOverlappingPairs(&bullet.dispatcher);
+  EXPECT_TRUE(bp.last_status().ok()) << bp.last_status().error();
+  // A destroyed proxy is no longer ours either.
+  btBroadphaseProxy* gone = bp.createProxy({5, 0, 0}, {6, 1, 1}, BOX_SHAPE_PROXYTYPE, nullptr, dyn, all, nullptr);
+  EXPECT_TRUE(bp.moving_index(gone).has_value());
+  bp.destroyProxy(gone, &bullet.dispatcher);
+  EXPECT_FALSE(bp.moving_index(gone).has_value());
+  other.destroyProxy(theirs, &bullet.dispatcher);
+  bp.destroyProxy(ours, &bullet.dispatcher);
+}
+
 TEST(BulletBroadphase, SlotTakenOverWithinAFrame) {
   Bullet bullet;
   viscd::BulletBroadphase bp;

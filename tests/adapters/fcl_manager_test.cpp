@@ -339,6 +339,32 @@ TEST(FclBroadphaseManager, DistanceIsTheExactMinimumAndStopsEarly) {
   }
 }
 
+// A pair cap too small for the frames: every answer still exact (brute force, pairs one by one),
+// and last_status() says why, for the self frame and for distance()'s grown frames alike.
+TEST(FclBroadphaseManager, FramesOverThePairCapFallBackAndSayWhy) {
+  Scene scene(21, 200, 3);  // dense: hundreds of overlapping pairs
+  viscd::Config config;
+  config.pair_memory_cap = 64;  // eight pairs
+  viscd::FclBroadphaseManager ours(config);
+  fcl::NaiveCollisionManagerd naive;
+  register_both(ours, naive, scene.pointers());
+  check_self_collide(ours, naive);
+  ASSERT_FALSE(ours.last_status().ok());
+  EXPECT_NE(ours.last_status().error().find("pair"), std::string::npos) << ours.last_status().error();
+  DistanceRecord got, want;
+  ours.distance(&got, record_distance);
+  naive.distance(&want, record_distance);
+  check_distance(got.data.result.min_distance, want.data.result.min_distance);
+  ASSERT_FALSE(ours.last_status().ok());
+  // Far apart, the self frame fits again: ok once more.
+  Scene sparse(22, 20, 400);
+  viscd::FclBroadphaseManager roomy(config);
+  fcl::NaiveCollisionManagerd naive_sparse;
+  register_both(roomy, naive_sparse, sparse.pointers());
+  check_self_collide(roomy, naive_sparse);
+  EXPECT_TRUE(roomy.last_status().ok()) << roomy.last_status().error();
+}
+
 // Two objects far apart, then one object: the radius doubling and the empty answers.
 TEST(FclBroadphaseManager, FewAndFarObjects) {
   auto a = std::make_unique<Object>(std::make_shared<fcl::Sphered>(1.0), fcl::Transform3d::Identity());
