@@ -43,6 +43,10 @@ std::uint64_t bytes_of(const std::vector<T>& v) {
 /// all are valid (only then is the first bad one not searched for).
 [[nodiscard]] bool spheres_all_valid(std::span<const Sphere> spheres);
 [[nodiscard]] bool boxes_all_valid(std::span<const Box> boxes);
+/// Why one object is not valid, as "<name>: <what>" (validate_spheres()'s and validate_boxes()'s
+/// words; ok when it is valid), for callers that name their objects otherwise ("static box").
+[[nodiscard]] Status sphere_problem(const Sphere& s, const std::string& name);
+[[nodiscard]] Status box_problem(const Box& b, const std::string& name);
 
 /// Whether the frame brings the caller's visibility map (FrameInput::id_map or gl_id_texture).
 [[nodiscard]] inline bool has_callers_map(const FrameInput& input) {

@@ -16,14 +16,6 @@ constexpr std::size_t kMaxStatic = std::numeric_limits<std::int32_t>::max();
 
 const char* kind_name(ShapeKind k) { return k == ShapeKind::box ? "boxes" : "spheres"; }
 
-// "static sphere: ..." from validate_spheres()'s "sphere 0: ...".
-Status one_object_error(const Status& s, const char* noun) {
-  std::string m = s.error();
-  const std::string head = std::string(noun) + " 0";
-  if (m.rfind(head, 0) == 0) m = std::string("static ") + noun + m.substr(head.size());
-  return Status::failure(s.kind(), m);
-}
-
 Status filter_count_error(std::size_t filters, std::size_t objects) {
   return Status::failure(ErrorKind::invalid_input, "static set: " + std::to_string(filters) + " filters for " +
                                                        std::to_string(objects) +
@@ -50,11 +42,11 @@ void StaticSet::replaced() {
   changes_.slots.clear();
 }
 
-StaticSet::Changes StaticSet::take_changes() {
-  Changes out = std::move(changes_);
-  changes_ = Changes{false, {}};
-  changes_.slots.reserve(out.slots.capacity());
-  return out;
+void StaticSet::take_changes(Changes& out) {
+  out.reset = changes_.reset;
+  out.slots.swap(changes_.slots);
+  changes_.reset = false;
+  changes_.slots.clear();
 }
 
 Status StaticSet::check_kind(ShapeKind kind, const char* what) const {
@@ -92,13 +84,12 @@ namespace {
 // What differs between the two kinds: the checks and the words of the messages.
 Status validate(std::span<const Sphere> s) { return validate_spheres(s); }
 Status validate(std::span<const Box> b) { return validate_boxes(b); }
+// One object, named "static sphere" or "static box" in the message.
+Status validate_one(const Sphere& s) { return sphere_problem(s, "static sphere"); }
+Status validate_one(const Box& b) { return box_problem(b, "static box"); }
 template <class Shape>
 constexpr ShapeKind kind_of() {
   return std::is_same_v<Shape, Box> ? ShapeKind::box : ShapeKind::sphere;
-}
-template <class Shape>
-constexpr const char* noun() {
-  return std::is_same_v<Shape, Box> ? "box" : "sphere";
 }
 }  // namespace
 
@@ -131,8 +122,7 @@ Status StaticSet::set_all(std::span<const Shape> objects, std::span<const Filter
 template <class Shape>
 Result<std::uint32_t> StaticSet::add_one(const Shape& object, const Filter& filter) {
   constexpr ShapeKind kind = kind_of<Shape>();
-  if (Status s = validate(std::span<const Shape>(&object, 1)); !s)
-    return Result<std::uint32_t>::failure(one_object_error(s, noun<Shape>()));
+  if (Status s = validate_one(object); !s) return Result<std::uint32_t>::failure(s);
   if (Status s = check_kind(kind, kind == ShapeKind::box ? "add_static_box" : "add_static_sphere"); !s)
     return Result<std::uint32_t>::failure(s);
   if (live_count_ >= kMaxStatic)
@@ -156,7 +146,7 @@ Status StaticSet::move_one(std::uint32_t k, const Shape& object) {
   constexpr ShapeKind kind = kind_of<Shape>();
   if (Status s = check_slot(k); !s) return s;
   if (kind_ != kind) return check_kind(kind, kind == ShapeKind::box ? "move_static_box" : "move_static_sphere");
-  if (Status s = validate(std::span<const Shape>(&object, 1)); !s) return one_object_error(s, noun<Shape>());
+  if (Status s = validate_one(object); !s) return s;
   store<Shape>()[k] = object;
   touched(k);
   return {};

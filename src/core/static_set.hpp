@@ -47,8 +47,9 @@ class StaticSet {
     bool reset = true;
     std::vector<std::uint32_t> slots;
   };
-  /// Hands the changes over and starts a new list.
-  [[nodiscard]] Changes take_changes();
+  /// Hands the changes over in `out` and starts a new list in the memory `out` held (the two lists
+  /// trade places, so a steady state allocates nothing).
+  void take_changes(Changes& out);
   /// The live object in slot k (of the set's kind), and its filter.
   [[nodiscard]] const Sphere& sphere(std::uint32_t k) const { return spheres_[k]; }
   [[nodiscard]] const Box& box(std::uint32_t k) const { return boxes_[k]; }

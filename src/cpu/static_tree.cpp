@@ -72,7 +72,8 @@ void StaticTree::rebuild_all(StaticSet& set, Layout layout, int threads) {
 }
 
 void StaticTree::update(StaticSet& set, Layout layout, int threads) {
-  StaticSet::Changes changes = set.take_changes();
+  set.take_changes(changes_);
+  StaticSet::Changes& changes = changes_;
   live_ = set.size();
   boxes_ = set.kind() == ShapeKind::box;
   if (changes.reset) {
@@ -94,12 +95,11 @@ void StaticTree::update(StaticSet& set, Layout layout, int threads) {
   // Delta: the slots flagged, old and new (a sort of the few that changed, then a merge).
   std::sort(changes.slots.begin(), changes.slots.end());
   changes.slots.erase(std::unique(changes.slots.begin(), changes.slots.end()), changes.slots.end());
-  std::vector<std::uint32_t> merged;
-  merged.reserve(delta_slots_.size() + changes.slots.size());
+  merged_.clear();
   std::set_union(delta_slots_.begin(), delta_slots_.end(), changes.slots.begin(), changes.slots.end(),
-                 std::back_inserter(merged));
+                 std::back_inserter(merged_));
   delta_slots_.clear();
-  for (const std::uint32_t slot : merged)
+  for (const std::uint32_t slot : merged_)
     if (in_delta_[slot]) delta_slots_.push_back(slot);
   if (delta_slots_.size() + erased_ > std::max(kRebuildFloor, main_.count / 8)) {
     rebuild_all(set, layout, threads);

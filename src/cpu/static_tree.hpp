@@ -70,6 +70,8 @@ class StaticTree {
   std::vector<std::uint32_t> main_index_;  // per slot: its index in main, or ~0u (not there)
   std::vector<std::uint8_t> in_delta_;     // per slot
   std::vector<std::uint32_t> delta_slots_;
+  StaticSet::Changes changes_;         // update(): the set's changes, taken in place
+  std::vector<std::uint32_t> merged_;  // update(): delta's slots, old and new
   std::size_t erased_ = 0, live_ = 0;
   bool boxes_ = false;
   std::vector<std::vector<std::uint64_t>> lists_;  // pairs(): per chunk

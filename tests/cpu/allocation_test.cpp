@@ -189,6 +189,38 @@ TEST(Allocation, FollowedFramesAllocateNothing) {
   }
 }
 
+// A static set of which the same few objects move every frame (doors, platforms): the set's change
+// list, the static trees' update and the frame allocate nothing once warmed up, rebuilding or
+// following. (Moving ever more objects grows the delta tree, whose buffers then grow as vectors
+// do: a few allocations, amortised, until main is rebuilt.)
+TEST(Allocation, FramesWithMovingStaticObjectsAllocateNothing) {
+#ifdef VISCD_VALIDATE
+  GTEST_SKIP() << "VISCD_VALIDATE checks the tree every frame, whose diagnostics may allocate";
+#endif
+  const std::vector<Sphere> moving = test::random_spheres_by_half_extent(5000, 5, 60.0f, 0.2f, 1.0f);
+  std::vector<Sphere> fixed = test::random_spheres_by_half_extent(20000, 6, 60.0f, 0.2f, 1.0f);
+  for (const bool follow : {false, true}) {
+    Config c;
+    c.follow_change = follow;
+    auto det = make_cpu_detector(c);
+    ASSERT_TRUE(det->set_static_spheres(fixed).ok());
+    FrameInput in;
+    in.spheres = moving;
+    FrameResult f;
+    float shift = 0.01f;
+    const auto [n, st] = steady_state_allocations([&] {
+      shift = -shift;  // back and forth
+      for (const std::uint32_t k : {17u, 7919u, 15000u}) {
+        fixed[k].x += shift;
+        if (Status s = det->move_static_sphere(k, fixed[k]); !s) return s;
+      }
+      return det->detect(in, f);
+    });
+    ASSERT_TRUE(st.ok()) << st.error();
+    EXPECT_EQ(n, 0) << n << " allocations in four frames after static objects moved, follow_change " << follow;
+  }
+}
+
 TEST(Allocation, CounterSeesAllocations) {
   // The instrument works: a vector of 1000 ints allocates.
   const long n = allocations_during([] {

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <stdexcept>
 #include <thread>
 #include <vector>
 
@@ -103,6 +104,36 @@ TEST(Executor, SerialExecutorAndOneThreadGiveTheSamePairs) {
   EXPECT_TRUE(same_pairs(fa.pairs, fb.pairs));
   EXPECT_TRUE(same_pairs(fc.pairs, fb.pairs));
   EXPECT_EQ(fa.stats.layout, fc.stats.layout);
+}
+
+// A caller's executor that throws (a job system out of workers, say): no exception leaves
+// detect(), the frame fails with the exception's message, queries see nothing, and the next frame
+// with a working executor is exact again.
+class ThrowingExecutor final : public Executor {
+ public:
+  [[nodiscard]] int concurrency() const override { return 2; }
+  void run(std::uint32_t, TaskRef) override { throw std::runtime_error("no workers left"); }
+};
+
+TEST(Executor, AnExecutorThatThrowsFailsTheFrame) {
+  const auto spheres = random_spheres_by_half_extent(20000, 4, 40.0f, 0.2f, 1.5f);
+  ThrowingExecutor bad;
+  Config config;
+  config.executor = &bad;
+  auto d = make_cpu_detector(config);
+  FrameInput in;
+  in.spheres = spheres;
+  FrameResult r;
+  const Status s = d->detect(in, r);
+  ASSERT_FALSE(s.ok());
+  EXPECT_EQ(s.kind(), ErrorKind::backend_failure);
+  EXPECT_NE(s.error().find("no workers left"), std::string::npos) << s.error();
+  RayHit hit;
+  EXPECT_FALSE(d->ray_cast(test::make_ray(0, 0, -100, 0, 0, 1), hit));
+  config.executor = nullptr;
+  d->set_config(config);
+  ASSERT_TRUE(d->detect(in, r).ok());
+  EXPECT_TRUE(same_pairs(r.pairs, oracle_pairs(spheres)));
 }
 
 }  // namespace
