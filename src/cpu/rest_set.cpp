@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -90,8 +91,19 @@ void RestSet::reset() {
   std::fill(left_bits_.begin(), left_bits_.end(), std::uint64_t{0});
 }
 
+std::span<const std::uint32_t> RestSet::changed_list() {
+  if (!changed_listed_) {
+    changed_.clear();
+    for (std::size_t w = 0; w < changed_bits_.size(); ++w)
+      for (std::uint64_t m = changed_bits_[w]; m; m &= m - 1)
+        changed_.push_back(static_cast<std::uint32_t>(w * 64 + static_cast<std::size_t>(std::countr_zero(m))));
+    changed_listed_ = true;
+  }
+  return changed_;
+}
+
 void RestSet::clear_bits() {
-  if (changed_.size() * 16 > n_) {
+  if (changed_count_ * 16 > n_ || !changed_listed_) {
     std::fill(changed_bits_.begin(), changed_bits_.end(), std::uint64_t{0});
     std::fill(left_bits_.begin(), left_bits_.end(), std::uint64_t{0});
     return;
@@ -121,7 +133,8 @@ void RestSet::place(const Shapes& s, std::size_t k) {
   fat_sph_[k] = Sphere{o.x, o.y, o.z, conservative_half_extent(Sphere{o.x, o.y, o.z, r})};
 }
 
-bool RestSet::inside_fat(const Shapes& s, std::size_t k) const {
+// Inlined into find_changes()'s loop (a call per object cost a fifth of the pass).
+[[gnu::always_inline]] inline bool RestSet::inside_fat(const Shapes& s, std::size_t k) const {
   if (s.is_box()) {
     const Box& b = s.boxes[k];
     const Box& f = fat_box_[k];
@@ -347,14 +360,56 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
   std::atomic<std::size_t> left_total{0};
   std::atomic<bool> over{false};
   const bool boxes = s.is_box();
+  // Whether object k stays inside its fat bounds (margin > 0; find_changes() took its shape).
+  const auto stays = [&](std::uint32_t k) { return margin_ > 0 && inside_fat(s, k); };
+  std::atomic<std::size_t> changed_total{0};
   for_chunks(count, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
     std::vector<std::uint32_t>& changed = chunk_lists_[0][c];
     std::vector<std::uint32_t>& left = chunk_lists_[1][c];
+    std::size_t changed_in_chunk = 0;
     changed.clear();
     left.clear();
-    const std::size_t first = listed ? b : b * 64, last = listed ? e : std::min(n_, e * 64);
-    for (std::size_t t = first; t < last; ++t) {
-      const std::uint32_t k = listed ? in.moved[t] : static_cast<std::uint32_t>(t);
+    // One that left: its bit and list entry; false once the frame has too many to follow.
+    const auto note_left = [&](std::uint32_t k, std::uint64_t* word) {
+      *word |= std::uint64_t{1} << (k & 63);
+      left.push_back(k);
+      if ((left.size() & 63) == 0 && left_total.fetch_add(64, std::memory_order_relaxed) + 64 > limit) {
+        over.store(true, std::memory_order_relaxed);
+        return false;
+      }
+      return !over.load(std::memory_order_relaxed);
+    };
+    if (!listed) {
+      // A word of 64 objects at a time: which changed (compares without branches), their shapes
+      // taken, then the fat-bounds test on those alone. The chunk owns its words.
+      for (std::size_t w = b; w < e; ++w) {
+        const std::size_t first = w * 64, last = std::min(n_, first + 64);
+        std::uint64_t mask = 0;
+        if (boxes) {
+          for (std::size_t k = first; k < last; ++k)
+            mask |= std::uint64_t{!same_bits(s.boxes[k], cur_box_[k])} << (k - first);
+        } else {
+          for (std::size_t k = first; k < last; ++k)
+            mask |= std::uint64_t{!same_bits(s.spheres[k], cur_sph_[k])} << (k - first);
+        }
+        if (mask == 0) continue;
+        changed_bits_[w] = mask;
+        changed_in_chunk += static_cast<std::size_t>(std::popcount(mask));  // the list comes from the bits
+        for (std::uint64_t m = mask; m; m &= m - 1) {
+          const auto k = static_cast<std::uint32_t>(first + static_cast<std::size_t>(std::countr_zero(m)));
+          if (boxes)
+            cur_box_[k] = s.boxes[k];
+          else
+            cur_sph_[k] = s.spheres[k];
+          if (!stays(k) && !note_left(k, &left_bits_[w])) break;
+        }
+        if (over.load(std::memory_order_relaxed)) break;
+      }
+      changed_total.fetch_add(changed_in_chunk, std::memory_order_relaxed);
+      return;
+    }
+    for (std::size_t t = b; t < e; ++t) {
+      const std::uint32_t k = in.moved[t];
       if (boxes) {
         if (same_bits(s.boxes[k], cur_box_[k])) continue;
         cur_box_[k] = s.boxes[k];
@@ -364,21 +419,12 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
       }
       changed.push_back(k);
       const std::uint64_t word_bit = std::uint64_t{1} << (k & 63);
-      if (listed)
-        std::atomic_ref<std::uint64_t>(changed_bits_[k >> 6]).fetch_or(word_bit, std::memory_order_relaxed);
-      else
-        changed_bits_[k >> 6] |= word_bit;
-      if (margin_ > 0 && inside_fat(s, k)) continue;
-      if (listed)
-        std::atomic_ref<std::uint64_t>(left_bits_[k >> 6]).fetch_or(word_bit, std::memory_order_relaxed);
-      else
-        left_bits_[k >> 6] |= word_bit;
-      left.push_back(k);
-      if ((left.size() & 63) == 0 && left_total.fetch_add(64, std::memory_order_relaxed) + 64 > limit) {
-        over.store(true, std::memory_order_relaxed);
-        return;
-      }
-      if (over.load(std::memory_order_relaxed)) return;
+      // Listed objects of one word may fall in two chunks: atomic ORs.
+      std::atomic_ref<std::uint64_t>(changed_bits_[k >> 6]).fetch_or(word_bit, std::memory_order_relaxed);
+      if (stays(k)) continue;
+      std::atomic_ref<std::uint64_t>(left_bits_[k >> 6]).fetch_or(word_bit, std::memory_order_relaxed);
+      std::uint64_t unused = 0;
+      if (!note_left(k, &unused)) return;
     }
   });
   few = !over.load();
@@ -389,6 +435,11 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
     changed_.insert(changed_.end(), chunk_lists_[0][c].begin(), chunk_lists_[0][c].end());
     left_.insert(left_.end(), chunk_lists_[1][c].begin(), chunk_lists_[1][c].end());
   }
+  // Without a list the changed objects are the bits alone: counted here, listed on demand
+  // (changed_list()); every object in a jiggling pile changes, and a list of them all cost a
+  // store per object.
+  changed_count_ = listed ? changed_.size() : changed_total.load();
+  changed_listed_ = listed;
   if (left_.size() > limit) few = false;
   if (listed && in.verify_moved) {
     // Every object the list leaves out must be bit for bit the previous frame's.
@@ -417,10 +468,10 @@ bool RestSet::static_pairs_of(const BucketBroadphase& tree, std::span<const std:
 Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, int threads, FrameStats& stats) {
   Stopwatch sw;
   const Shapes& s = in.objects;
-  stats.moved = static_cast<std::uint32_t>(changed_.size());
+  stats.moved = static_cast<std::uint32_t>(changed_count_);
   stats.replaced = static_cast<std::uint32_t>(left_.size());
   // Nothing changed: every candidate keeps its result.
-  if (changed_.empty()) return {};
+  if (changed_count_ == 0) return {};
   // find_changes() took the changed shapes and set their bits.
   for (const std::uint32_t k : left_) {
     erase(k);
@@ -480,7 +531,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
     const BucketBroadphase* exact = &recent.tree;  // margin 0: the changed objects are the movers
     std::span<const std::uint32_t> ids = recent.ids;
     if (margin_ > 0) {
-      build_part(exact_, changed_, kNowhere, false, threads, nullptr);
+      build_part(exact_, changed_list(), kNowhere, false, threads, nullptr);
       exact = &exact_.tree;
       ids = exact_.ids;
     }

@@ -113,6 +113,9 @@ class RestSet {
   [[nodiscard]] Status find_changes(const Input& in, int threads, std::size_t limit, bool& few);
   /// Clears this frame's bits of changed_ and left_.
   void clear_bits();
+  /// The objects that changed this frame, ascending: changed_, made from the bits on the first
+  /// call when find_changes() compared every object.
+  std::span<const std::uint32_t> changed_list();
   /// Follows one frame of changes.
   [[nodiscard]] Status update(const Input& in, const StaticSet& set, StaticTree& st, int threads, FrameStats& stats);
   /// The static pairs of the objects in `tree` (ids through `ids`), unfiltered, sorted.
@@ -148,6 +151,8 @@ class RestSet {
   Part parts_[3];
   Part exact_;  // margin > 0: the changed objects' exact shapes, for their static pairs
   std::vector<std::uint32_t> changed_, left_, scratch_;
+  std::size_t changed_count_ = 0;  // this frame's changed objects
+  bool changed_listed_ = false;    // changed_ lists them (else only the bits do, until changed_list())
   std::vector<std::vector<std::uint32_t>> chunk_lists_[2];
 
   std::vector<std::uint64_t> cand_, cand_next_, found_, stat_, stat_next_, stat_found_;
