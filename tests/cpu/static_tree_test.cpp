@@ -96,7 +96,7 @@ void run(std::uint64_t seed, std::size_t statics, std::size_t changes_per_frame,
     EXPECT_TRUE(test::same_pairs(a.pairs, b.pairs));
     EXPECT_EQ(a.state, b.state);
     EXPECT_EQ(a.stats.static_objects, live.size());
-    // Queries see the static trees (sphere frames search them; box frames are brute force).
+    // Queries see the static trees.
     const Ray ray = test::make_ray(ops.pos(ops.rng), 60, ops.pos(ops.rng), 0.01f, -1, 0.02f, 200);
     std::vector<RayHit> ha, hb;
     cpu->ray_cast_all(ray, ha);
@@ -109,6 +109,50 @@ void run(std::uint64_t seed, std::size_t statics, std::size_t changes_per_frame,
     EXPECT_EQ(oa, ob);
   }
 }
+
+// The moving tree meets the static one in three ways (cpu/cross_pairs.hpp): a walk per group of
+// 16 moving buckets; where a group meets too many static buckets (few movers in a dense static
+// world, as here: a group covers a quarter of it), a walk per moving bucket; where a bucket meets
+// too many too (the huge object), a walk per moving object. Each against brute force.
+template <class Shape>
+void dense_static_world(std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<float> pos(-20.0f, 20.0f);
+  auto make = [&](float size) {
+    if constexpr (std::is_same_v<Shape, Sphere>)
+      return Sphere{pos(rng), pos(rng), pos(rng), size};
+    else
+      return box_at(pos(rng), pos(rng), pos(rng), 2 * size);
+  };
+  std::vector<Shape> fixed(100000), moving(1024);
+  for (Shape& f : fixed) f = make(0.05f);
+  for (Shape& m : moving) m = make(0.4f);
+  auto cpu = make_cpu_detector();
+  auto ref = make_reference_detector();
+  for (int round = 0; round < 2; ++round) {
+    if (round == 1) {  // one huge object: its bucket meets nearly every static bucket
+      if constexpr (std::is_same_v<Shape, Sphere>)
+        moving[500] = Sphere{0, 0, 0, 15};
+      else
+        moving[500] = box_at(-15, -15, -15, 30);
+    }
+    if constexpr (std::is_same_v<Shape, Sphere>) {
+      ASSERT_TRUE(cpu->set_static_spheres(fixed).ok());
+      ASSERT_TRUE(ref->set_static_spheres(fixed).ok());
+    } else {
+      ASSERT_TRUE(cpu->set_static_boxes(fixed).ok());
+      ASSERT_TRUE(ref->set_static_boxes(fixed).ok());
+    }
+    FrameResult a, b;
+    ASSERT_TRUE(cpu->detect(frame_of(std::span<const Shape>(moving), {}), a).ok());
+    ASSERT_TRUE(ref->detect(frame_of(std::span<const Shape>(moving), {}), b).ok());
+    EXPECT_GT(b.pairs.size(), round == 0 ? 100u : 10000u);
+    EXPECT_TRUE(test::same_pairs(a.pairs, b.pairs)) << "round " << round;
+  }
+}
+
+TEST(StaticTree, DenseStaticWorldSpheres) { dense_static_world<Sphere>(7); }
+TEST(StaticTree, DenseStaticWorldBoxes) { dense_static_world<Box>(8); }
 
 TEST(StaticTree, SpheresAcrossTheRebuildThreshold) { run<Sphere>(1, 20000, 1500, 6); }
 TEST(StaticTree, BoxesAcrossTheRebuildThreshold) { run<Box>(2, 20000, 1500, 6); }
