@@ -36,10 +36,10 @@ inline Aabb lane_box(const BoxLanes& ln, std::uint32_t l) { return ln.box(l); }
 /// the tree `other`: one walk of `other` with the group's box collects the buckets that can meet
 /// any of them, then each moving bucket tests its box against those candidates 16 at a time (as
 /// the moving search does, cpu/bucket_search.cpp); per bucket met, the moving lanes that reach it
-/// against all 16 of its lanes by K's exact test. Past kMaxCandidates, each moving bucket walks
-/// the tree with its own box; past it again (a huge object, or moving objects spread far apart,
-/// as the few that move in a world at rest), each moving object does. Calls emit(p, id) for each pair: p the moving
-/// object's sorted position in `moving`, id the other's id (an index into the shapes `other` was built from).
+/// against all 16 of its lanes by K's exact test. Past kMaxCandidates (a huge object, or moving
+/// objects spread far apart, as the few that move in a world at rest), each moving object walks
+/// the tree with its own box. Calls emit(p, id) for each pair: p the moving object's sorted
+/// position in `moving`, id the other's id (an index into the shapes `other` was built from).
 template <class K, class Emit>
 void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, std::size_t g, Emit&& emit) {
   constexpr std::uint32_t kMaxCandidates = 512;
@@ -72,30 +72,13 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
     return true;
   });
   if (overflow) {
-    // Too many for the group: each moving bucket walks the tree with its own box (a dense other
-    // tree, such as a large static world around the movers). Where even a bucket meets too many
-    // (movers spread far apart, or a huge object), each of its objects walks the tree with its
-    // own box: the buckets met are listed first, their lanes prefetched, and tested afterwards,
-    // since the lanes of buckets scattered over the world miss the cache, and this way the misses
-    // of a bucket's 16 walks overlap instead of queueing.
+    // Each moving object walks the tree with its own box. The buckets met are listed first, their
+    // lanes prefetched, and tested afterwards: the lanes of buckets scattered over the world miss
+    // the cache, and this way the misses of a bucket's 16 walks overlap instead of queueing.
     constexpr std::uint32_t kMet = 256;
     std::uint32_t met[kMet];
     std::uint8_t lane_of[kMet];
     for (std::size_t b = b0; b < b1; ++b) {
-      count = 0;
-      overflow = false;
-      for_each_wide_overlap(other.tree(), mboxes[b], [&](std::uint32_t sb) {
-        if (count == kMaxCandidates) {
-          overflow = true;
-          return false;
-        }
-        index[count++] = sb;
-        return true;
-      });
-      if (!overflow) {
-        for (std::uint32_t k = 0; k < count; ++k) bucket_pair(b, index[k]);
-        continue;
-      }
       const std::size_t m_first = b * kBucket;
       std::uint32_t count_met = 0;
       auto test_met = [&] {

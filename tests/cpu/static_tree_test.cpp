@@ -110,10 +110,10 @@ void run(std::uint64_t seed, std::size_t statics, std::size_t changes_per_frame,
   }
 }
 
-// The moving tree meets the static one in three ways (cpu/cross_pairs.hpp): a walk per group of
-// 16 moving buckets; where a group meets too many static buckets (few movers in a dense static
-// world, as here: a group covers a quarter of it), a walk per moving bucket; where a bucket meets
-// too many too (the huge object), a walk per moving object. Each against brute force.
+// The moving tree meets the static one in two ways (cpu/cross_pairs.hpp): a walk per group of 16
+// moving buckets, and where a group meets too many static buckets (few movers in a dense static
+// world, as here: a group covers a quarter of it; and the huge object) a walk per moving object.
+// Both against brute force.
 template <class Shape>
 void dense_static_world(std::uint64_t seed) {
   std::mt19937_64 rng(seed);
