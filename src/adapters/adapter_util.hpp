@@ -2,7 +2,9 @@
 // What the Bullet and FCL adapters share: engines' double (or btScalar) bounds rounded outward to
 // viscd's float boxes, and vectors lent to one call at a time.
 
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <type_traits>
 #include <utility>
@@ -10,16 +12,29 @@
 
 namespace viscd::adapter_detail {
 
+/// The float next to f toward -inf / +inf, for f not NaN and not already at that end: a step of
+/// its bits (what std::nextafter does, without the call: it ran for half of every bound).
+[[nodiscard]] inline float float_below(float f) {
+  if (f == 0) return -std::numeric_limits<float>::denorm_min();
+  const auto b = std::bit_cast<std::uint32_t>(f);
+  return std::bit_cast<float>(f > 0 ? b - 1 : b + 1);
+}
+[[nodiscard]] inline float float_above(float f) {
+  if (f == 0) return std::numeric_limits<float>::denorm_min();
+  const auto b = std::bit_cast<std::uint32_t>(f);
+  return std::bit_cast<float>(f > 0 ? b + 1 : b - 1);
+}
+
 /// v rounded down / up to a float: the largest float <= v, the smallest float >= v (v itself for
-/// a float). A box rounded this way holds the engine's box, so no overlap is lost. NaN stays NaN.
+/// a float). A box rounded this way holds the engine's box, so no overlap is lost. NaN stays NaN;
+/// beyond the float range, +-inf (and the largest float on the side toward v).
 template <class T>
 [[nodiscard]] float round_down(T v) {
   if constexpr (std::is_same_v<T, float>) {
     return v;
   } else {
-    float f = static_cast<float>(v);
-    if (static_cast<T>(f) > v) f = std::nextafter(f, -std::numeric_limits<float>::infinity());
-    return f;
+    const auto f = static_cast<float>(v);
+    return static_cast<T>(f) > v ? float_below(f) : f;  // f > v: not NaN, not -inf
   }
 }
 template <class T>
@@ -27,9 +42,8 @@ template <class T>
   if constexpr (std::is_same_v<T, float>) {
     return v;
   } else {
-    float f = static_cast<float>(v);
-    if (static_cast<T>(f) < v) f = std::nextafter(f, std::numeric_limits<float>::infinity());
-    return f;
+    const auto f = static_cast<float>(v);
+    return static_cast<T>(f) < v ? float_above(f) : f;  // f < v: not NaN, not +inf
   }
 }
 

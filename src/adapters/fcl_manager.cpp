@@ -328,7 +328,14 @@ void FclBroadphaseManager::setup() { update(); }
 
 void FclBroadphaseManager::update() {
   State& st = *state_;
-  for (std::uint32_t k = 0; k < st.objects.size(); ++k) st.read(k);
+  // The objects lie wherever the caller allocated them: each read would wait on memory, so the
+  // AABBs a few objects ahead are fetched early (100 000 boxes: 15.7 -> see docs/adapters.md).
+  constexpr std::size_t kAhead = 16;
+  const std::size_t n = st.objects.size();
+  for (std::size_t k = 0; k < n; ++k) {
+    if (k + kAhead < n) __builtin_prefetch(&st.objects[k + kAhead]->getAABB());
+    st.read(static_cast<std::uint32_t>(k));
+  }
   st.frame_ready = false;
   st.moved_all = true;  // any box may have changed: the detector finds which
 }
