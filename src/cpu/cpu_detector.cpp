@@ -104,7 +104,7 @@ Status CpuDetector::follow_change(const FrameInput& in, const Shapes& objects, s
   ri.bits = bits;
   ri.pair_memory_cap = config_.pair_memory_cap;
   if (Status s = rest_.run(ri, static_set_, static_tree_, threads, pairs, stats, done); !s || !done) return s;
-  // Queries after the frame: its objects are the rest set's copy; trees and lists come on demand.
+  // Queries after the frame: its objects are the rest set's copy; their tree comes on demand.
   followed_ = true;
   query_tree_built_.store(false);
   q_bits_ = bits;

@@ -17,8 +17,9 @@ namespace viscd::detail {
 /// (cpu/bucket_broadphase.hpp) on all cores (Config::executor).
 ///
 /// Queries search the last frame's tree. Active objects that the filters left out of the tree
-/// (they pair with nothing) are kept aside (a copy of their spheres) and get a tree of their own
-/// when the first query after the frame comes, so a frame without queries never builds it.
+/// (they pair with nothing) are kept aside (a copy of their spheres, and of their boxes in box
+/// frames) and get a tree of their own when the first query after the frame comes, so a frame
+/// without queries never builds it.
 class CpuDetector final : public PipelineDetector {
  public:
   explicit CpuDetector(const Config& config) : PipelineDetector(config) {}
