@@ -43,6 +43,12 @@ class Executor {
   virtual void run(std::uint32_t count, TaskRef task) = 0;
 };
 
+/// viscd's own pool, which every detector without an executor of its own (Config::executor) uses:
+/// one thread per hardware thread but one, the caller taking part, created on first use. The
+/// adapters run their own parallel loops on it (or on Config::executor when one is set). A pool
+/// busy with another caller's tasks runs new ones on their caller instead of queueing them.
+[[nodiscard]] Executor& shared_executor();
+
 /// An Executor that runs every task on the calling thread, in order.
 class SerialExecutor final : public Executor {
  public:

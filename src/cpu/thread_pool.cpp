@@ -154,3 +154,7 @@ ExecutorScope::ExecutorScope(Executor* executor) : previous_(t_current) { t_curr
 ExecutorScope::~ExecutorScope() { t_current = previous_; }
 
 }  // namespace viscd::detail
+
+namespace viscd {
+Executor& shared_executor() { return detail::default_executor(); }
+}  // namespace viscd

@@ -12,6 +12,7 @@
 #include <fcl/geometry/shape/halfspace.h>
 #include <fcl/geometry/shape/sphere.h>
 #include <gtest/gtest.h>
+#include <viscd/executor.hpp>
 #include <viscd/fcl.hpp>
 
 #include <algorithm>
@@ -363,6 +364,43 @@ TEST(FclBroadphaseManager, FramesOverThePairCapFallBackAndSayWhy) {
   register_both(roomy, naive_sparse, sparse.pointers());
   check_self_collide(roomy, naive_sparse);
   EXPECT_TRUE(roomy.last_status().ok()) << roomy.last_status().error();
+}
+
+// Enough objects for update() to read them in parallel chunks on the detector's executor (here a
+// caller's, which counts its calls and runs the tasks in reverse order); every box moved, then a
+// self collide against Naive. With Config::threads = 1 the executor is not asked.
+class CountingExecutor final : public viscd::Executor {
+ public:
+  int runs = 0;
+  [[nodiscard]] int concurrency() const override { return 4; }
+  void run(std::uint32_t count, viscd::TaskRef task) override {
+    ++runs;
+    for (std::uint32_t i = count; i-- > 0;) task(i);
+  }
+};
+
+TEST(FclBroadphaseManager, UpdateReadsInParallelChunks) {
+  for (const int threads : {0, 1}) {
+    SCOPED_TRACE(threads);
+    Scene scene(31, 9000, 60);  // two chunks of 4096 or more
+    CountingExecutor executor;
+    viscd::Config config;
+    config.executor = &executor;
+    config.threads = threads;
+    viscd::FclBroadphaseManager ours(config);
+    fcl::NaiveCollisionManagerd naive;
+    register_both(ours, naive, scene.pointers());
+    (void)scene.move(1.0);  // every object somewhere else
+    executor.runs = 0;
+    ours.update();
+    naive.update();
+    if (threads == 1) {
+      EXPECT_EQ(executor.runs, 0);
+    } else {
+      EXPECT_EQ(executor.runs, 1);  // update()'s read; the frame runs at the collide
+    }
+    check_self_collide(ours, naive);
+  }
 }
 
 // Two objects far apart, then one object: the radius doubling and the empty answers.
