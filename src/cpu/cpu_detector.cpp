@@ -43,22 +43,38 @@ Status CpuDetector::draw_frame(const CameraRig& cam, const Camera& camera, const
     const std::size_t tasks = std::min<std::size_t>(tiles, 2 * static_cast<std::size_t>(std::max(threads, 1)));
     hidden_.resize(tasks);
     run_tasks(static_cast<std::uint32_t>(tasks), [&](std::uint32_t task) {
-      std::vector<std::uint32_t>& hidden = hidden_[task];  // the ids of the hidden pixels, one each
-      hidden.clear();
+      // The hidden pixels as runs (object id, pixels): a sphere covers runs of pixels in a row,
+      // so the list is short, and each pixel's test is branch-free arithmetic.
+      std::vector<std::uint32_t>& runs = hidden_[task];
+      runs.clear();
+      std::uint32_t last = 0, run = 0;
       const Chunk range = chunk_of(tiles, task, tasks);
+      const std::uint32_t* const ids = map_.ids.data();
+      const float* const depth = map_.depth.data();
+      const std::uint32_t* const layer_ids = static_layer_.ids.data();
+      const float* const layer_depth = static_layer_.depth.data();
       for (std::size_t t = range.begin; t < range.end; ++t) {
         if (raster_.tile_is_background(t)) continue;
         const std::size_t x0 = (t % tiles_x) * kT, y0 = (t / tiles_x) * kT, x1 = std::min(x0 + kT, w);
         for (std::size_t y = y0; y < std::min(y0 + kT, h); ++y)
           for (std::size_t i = y * w + x0; i < y * w + x1; ++i) {
-            const std::uint32_t m = map_.ids[i];
-            if (m == 0 || static_layer_.ids[i] == 0 || !(static_layer_.depth[i] < map_.depth[i])) continue;
-            hidden.push_back(m);
+            const std::uint32_t m = ids[i];
+            // A moving pixel (m != 0) behind a static one (the layer's id is 0 where it has none).
+            const bool hidden = (m != 0) & (layer_ids[i] != 0) & (layer_depth[i] < depth[i]);
+            if (!hidden) continue;
+            if (m == last) {
+              ++run;
+              continue;
+            }
+            if (run != 0) runs.insert(runs.end(), {last, run});
+            last = m;
+            run = 1;
           }
       }
+      if (run != 0) runs.insert(runs.end(), {last, run});
     });
-    for (const auto& hidden : hidden_)
-      for (const std::uint32_t m : hidden) --map_.counts[m - 1];
+    for (const auto& runs : hidden_)
+      for (std::size_t k = 0; k < runs.size(); k += 2) map_.counts[runs[k] - 1] -= runs[k + 1];
     return {};
   }
   // Merge: per pixel the nearer of the two, a tie to the moving object (the smaller id); the

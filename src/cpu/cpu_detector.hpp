@@ -92,7 +92,8 @@ class CpuDetector final : public PipelineDetector {
   StaticTree static_tree_;
   // The static set's map layer (ids: compact index + 1) and what it was drawn for.
   VisibilityMap static_layer_;
-  std::vector<std::vector<std::uint32_t>> hidden_;  // per task: moving pixels a static object hides (draw_frame)
+  // per task: runs of moving pixels a static object hides, as (id, pixels) (draw_frame)
+  std::vector<std::vector<std::uint32_t>> hidden_;
   TiledRasterizer static_raster_;
   BoxRasterizer static_box_raster_;
   struct LayerKey {
