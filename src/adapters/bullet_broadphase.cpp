@@ -92,7 +92,10 @@ void BulletBroadphase::setAabb(btBroadphaseProxy* proxy, const btVector3& aabbMi
   st.queries_stale = true;
   if (p->fixed) {
     if (valid && was_valid && p->slot != kNoSlot) {
-      st.move_static(p);
+      if (!st.move_static(p)) {  // not expected (see State::enter_static): out of the set, no pairs
+        st.cache->removeOverlappingPairsContainingProxy(p, dispatcher);
+        st.leave_static(p);
+      }
     } else if (valid) {
       st.enter_static(p);
     } else {

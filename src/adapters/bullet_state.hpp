@@ -226,9 +226,12 @@ struct BulletBroadphase::State {
     ++static_live;
     mark_static(p->slot);
   }
-  void move_static(Proxy* p) {
-    [[maybe_unused]] const Status s = detector->move_static_box(p->slot, p->box);
+  // False (asserts off) when the set refused: the caller then takes the proxy out of the set, so
+  // that the detector never holds a box the proxy no longer has.
+  [[nodiscard]] bool move_static(Proxy* p) {
+    const Status s = detector->move_static_box(p->slot, p->box);
     VISCD_ASSERT(s.ok(), "the static set refused to move a valid box");
+    return s.ok();
   }
   void leave_static(Proxy* p) {
     if (p->slot == kNoSlot) return;
