@@ -153,7 +153,7 @@ class BucketBroadphase {
   /// overlap_walk() for a sphere query: each object that overlaps `sphere` (overlap_exact() on
   /// sphere lanes, sphere_box_exact() on box lanes).
   template <class Found>
-  bool overlap_visit_boxes(const Sphere& sphere, const Objects& objects, const Filter* filter, Found&& found) const;
+  bool sphere_overlap_walk(const Sphere& sphere, const Objects& objects, const Filter* filter, Found&& found) const;
   /// A box tree's rays widen its boxes by this much more than ray_box_margin() (RaySetup): the
   /// tree's boxes are the objects' boxes, with no conservative margin around them.
   [[nodiscard]] double box_ray_margin() const;

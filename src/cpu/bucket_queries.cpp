@@ -194,7 +194,7 @@ void BucketBroadphase::overlap(const Sphere& sphere, const Objects& objects, con
   const std::size_t n = order_.sorted_ids().size();
   if (n == 0) return;
   if (holds_boxes()) {
-    (void)overlap_visit_boxes(sphere, objects, filter, [&](std::uint32_t index) {
+    (void)sphere_overlap_walk(sphere, objects, filter, [&](std::uint32_t index) {
       out.push_back(index);
       return true;
     });
@@ -214,7 +214,7 @@ void BucketBroadphase::overlap(const Sphere& sphere, const Objects& objects, con
 }
 
 template <class Found>
-bool BucketBroadphase::overlap_visit_boxes(const Sphere& sphere, const Objects& objects, const Filter* filter,
+bool BucketBroadphase::sphere_overlap_walk(const Sphere& sphere, const Objects& objects, const Filter* filter,
                                            Found&& found) const {
   // The sphere's conservative box holds every point sphere_box_exact() accepts, so every box it
   // accepts meets that box (and the tree's boxes hold the objects' boxes exactly).
@@ -226,7 +226,7 @@ bool BucketBroadphase::overlap_visit_boxes(const Sphere& sphere, const Objects& 
 
 bool BucketBroadphase::overlap_visit(const Sphere& sphere, const Objects& objects, const Filter* filter,
                                      OverlapVisitor& visitor) const {
-  return overlap_visit_boxes(sphere, objects, filter, [&](std::uint32_t index) { return visitor.on_overlap(index); });
+  return sphere_overlap_walk(sphere, objects, filter, [&](std::uint32_t index) { return visitor.on_overlap(index); });
 }
 
 namespace {

@@ -11,6 +11,12 @@
 namespace viscd {
 namespace detail {
 
+std::span<const Sphere> CpuDetector::box_proxies(std::span<const Box> boxes, int threads) {
+  resize_with_headroom(proxies_, boxes.size());
+  parallel_for(boxes.size(), threads, [&](std::size_t k) { proxies_[k] = box_proxy(boxes[k]); });
+  return {proxies_.data(), boxes.size()};
+}
+
 Status CpuDetector::draw_frame(const CameraRig& cam, const Camera& camera, const FrameInput& in, int threads) {
   const Shapes moving = Shapes::of(in);
   if (static_set_.empty()) return rasterize(cam, moving, threads);
@@ -44,8 +50,8 @@ Status CpuDetector::draw_frame(const CameraRig& cam, const Camera& camera, const
     hidden_.resize(tasks);
     run_tasks(static_cast<std::uint32_t>(tasks), [&](std::uint32_t task) {
       // The hidden pixels as runs (object id, pixels): a sphere covers runs of pixels in a row,
-      // so the list is short, and each pixel's test is branch-free arithmetic.
-      std::vector<std::uint32_t>& runs = hidden_[task];
+      // so the list is short.
+      std::vector<HiddenRun>& runs = hidden_[task];
       runs.clear();
       std::uint32_t last = 0, run = 0;
       const Chunk range = chunk_of(tiles, task, tasks);
@@ -66,15 +72,15 @@ Status CpuDetector::draw_frame(const CameraRig& cam, const Camera& camera, const
               ++run;
               continue;
             }
-            if (run != 0) runs.insert(runs.end(), {last, run});
+            if (run != 0) runs.push_back({last, run});
             last = m;
             run = 1;
           }
       }
-      if (run != 0) runs.insert(runs.end(), {last, run});
+      if (run != 0) runs.push_back({last, run});
     });
     for (const auto& runs : hidden_)
-      for (std::size_t k = 0; k < runs.size(); k += 2) map_.counts[runs[k] - 1] -= runs[k + 1];
+      for (const HiddenRun& r : runs) map_.counts[r.id - 1] -= r.pixels;
     return {};
   }
   // Merge: per pixel the nearer of the two, a tie to the moving object (the smaller id); the
@@ -156,14 +162,9 @@ void CpuDetector::prepare_queries() {
   const Shapes objects = rest_.objects();
   const std::span<const std::uint32_t> active = last_active();
   if (objects.is_box()) {
-    // Stages 4-6 order the active boxes' proxies (by object index, as the build reads them).
-    resize_with_headroom(proxies_, objects.size());
-    parallel_for(active.size(), threads,
-                 [&](std::size_t k) { proxies_[active[k]] = box_proxy(objects.boxes[active[k]]); });
     BucketBroadphase::Extras extras;
     extras.boxes = objects.boxes;
-    broadphase_.build(std::span<const Sphere>(proxies_.data(), objects.size()), active, q_bits_, config_.layout,
-                      threads, unused, extras);
+    broadphase_.build(box_proxies(objects.boxes, threads), active, q_bits_, config_.layout, threads, unused, extras);
   } else {
     broadphase_.build(objects.spheres, active, q_bits_, config_.layout, threads, unused);
   }
@@ -178,14 +179,11 @@ Status CpuDetector::broadphase(const Shapes& objects, std::span<const std::uint3
   // The static set is static_tree_'s (handles_static()): `objects` are the frame's alone.
   VISCD_ASSERT(static_from == ~0u, "the cpu backend's frames hold no static objects");
   (void)static_from;
-  const std::size_t total = objects.size();
   // Box frames: stages 4-6 order the boxes' proxies; stages 7-8 pack and test the boxes.
   std::span<const Sphere> spheres = objects.spheres;
   BucketBroadphase::Extras extras;
   if (objects.is_box()) {
-    resize_with_headroom(proxies_, total);
-    parallel_for(total, threads, [&](std::size_t k) { proxies_[k] = box_proxy(objects.boxes[k]); });
-    spheres = std::span<const Sphere>(proxies_.data(), total);
+    spheres = box_proxies(objects.boxes, threads);
     extras.boxes = objects.boxes;
   } else {
     proxies_.clear();

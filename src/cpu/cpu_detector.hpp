@@ -89,11 +89,16 @@ class CpuDetector final : public PipelineDetector {
   TiledRasterizer raster_;
   BoxRasterizer box_raster_;
   std::vector<Sphere> proxies_;  // box frames: box_proxy() of each object, for stages 4-6
+  /// box_proxy() of every box, in proxies_.
+  std::span<const Sphere> box_proxies(std::span<const Box> boxes, int threads);
   StaticTree static_tree_;
   // The static set's map layer (ids: compact index + 1) and what it was drawn for.
   VisibilityMap static_layer_;
-  // per task: runs of moving pixels a static object hides, as (id, pixels) (draw_frame)
-  std::vector<std::vector<std::uint32_t>> hidden_;
+  // Per task: the runs of moving pixels (in a row, of one object) that a static object hides.
+  struct HiddenRun {
+    std::uint32_t id, pixels;
+  };
+  std::vector<std::vector<HiddenRun>> hidden_;
   TiledRasterizer static_raster_;
   BoxRasterizer static_box_raster_;
   struct LayerKey {
