@@ -46,14 +46,17 @@ double BucketBroadphase::fill_reading(std::span<const Sphere> spheres, std::size
   });
 }
 
-void BucketBroadphase::erase(std::uint32_t id) {
+void BucketBroadphase::index_positions() {
   const std::span<const std::uint32_t> ids = order_.sorted_ids();
-  if (position_.empty()) {
-    std::uint32_t most = 0;
-    for (const std::uint32_t i : ids) most = std::max(most, i);
-    position_.assign(ids.empty() ? 0 : std::size_t{most} + 1, ~0u);
-    for (std::size_t p = 0; p < ids.size(); ++p) position_[ids[p]] = static_cast<std::uint32_t>(p);
-  }
+  if (!position_.empty() || ids.empty()) return;
+  std::uint32_t most = 0;
+  for (const std::uint32_t i : ids) most = std::max(most, i);
+  position_.assign(std::size_t{most} + 1, ~0u);
+  for (std::size_t p = 0; p < ids.size(); ++p) position_[ids[p]] = static_cast<std::uint32_t>(p);
+}
+
+void BucketBroadphase::erase(std::uint32_t id) {
+  index_positions();
   if (id < position_.size() && position_[id] != ~0u) buckets_.erase_lane(position_[id], holds_boxes());
 }
 

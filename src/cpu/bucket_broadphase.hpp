@@ -110,8 +110,11 @@ class BucketBroadphase {
   [[nodiscard]] std::span<const Filter> sorted_filters() const { return buckets_.sorted_filters(); }
   /// Takes object `id` (an index into the spheres the tree was built from) out of the tree, so
   /// that no pair or query finds it; the tree's boxes stay. For trees kept across frames (the
-  /// static set's).
+  /// static set's). Calls for distinct objects may run from several threads at once once
+  /// index_positions() has run since the tree was built.
   void erase(std::uint32_t id);
+  /// Makes the index erase() reads (object id to sorted position), if it is not made yet.
+  void index_positions();
   [[nodiscard]] std::span<const std::uint32_t> sorted_objects() const { return order_.sorted_ids(); }
   [[nodiscard]] std::vector<std::uint64_t> sorted_codes() const { return order_.sorted_codes(); }
   [[nodiscard]] const SortReport& sort_report() const { return report_; }

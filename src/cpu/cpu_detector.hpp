@@ -36,6 +36,8 @@ class CpuDetector final : public PipelineDetector {
   /// The broadphase of the last frame (its 16-wide tree over buckets, the sorted objects and codes),
   /// for tests.
   [[nodiscard]] const BucketBroadphase& bucket_broadphase() const { return broadphase_; }
+  /// The rest set (Config::follow_change), for tests.
+  [[nodiscard]] const RestSet& rest_set() const { return rest_; }
 
  protected:
   /// Every frame's queries search the trees (sphere or box lanes, as the frame's objects).

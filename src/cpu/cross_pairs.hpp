@@ -96,6 +96,7 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
           if (count_met == kMet) test_met();
           const char* lanes = reinterpret_cast<const char*>(&sl[sb]);
           for (std::size_t line = 0; line < sizeof(sl[sb]); line += 64) __builtin_prefetch(lanes + line);
+          __builtin_prefetch(&sids[std::size_t{sb} * kBucket]);  // the ids of its lanes: one line
           met[count_met] = sb;
           lane_of[count_met++] = static_cast<std::uint8_t>(i);
         });

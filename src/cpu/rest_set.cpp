@@ -42,26 +42,58 @@ void clear_bit(std::vector<std::uint64_t>& b, std::uint32_t k) { b[k >> 6] &= ~(
 
 }  // namespace
 
-/// The chunks of a loop over three sorted key lists: chunk c covers the keys of list l from
-/// at[l][c] to at[l][c + 1], cut at the same keys in all three, so that each chunk merges on its
-/// own. Cut into `chunks` runs of about equal length of the longest list. Reuses its buffers.
-void RestSet::KeyChunks::cut(const std::span<const std::uint64_t> (&lists)[3], std::size_t chunks) {
-  std::size_t longest = 0;
-  for (std::size_t l = 0; l < 3; ++l) {
-    at[l].assign(1, 0);
-    if (lists[l].size() > lists[longest].size()) longest = l;
+/// Chunks of emit()'s merge for this many candidates and static pairs.
+std::size_t merge_chunks(std::size_t keys, int threads) {
+  return threads_for(keys, threads) == 1 ? 1 : 4 * static_cast<std::size_t>(std::max(1, threads));
+}
+
+std::size_t RestSet::candidate_count() const {
+  std::size_t n = 0;
+  for (const Segment& g : segs_) n += g.end - g.begin;
+  return n;
+}
+
+void RestSet::pack(int threads) {
+  ++packs_;
+  // One run: the segments copied into cand_next_ in order.
+  const std::size_t count = candidate_count();
+  if (segs_.size() > 1 || (segs_.size() == 1 && segs_[0].begin != 0)) {
+    resize_with_headroom(cand_next_, count);
+    resize_with_headroom(hit_next_, count);
+    std::size_t at = 0;
+    std::vector<std::size_t>& to = pack_at_;
+    to.assign(segs_.size(), 0);
+    for (std::size_t c = 0; c < segs_.size(); ++c) {
+      to[c] = at;
+      at += segs_[c].end - segs_[c].begin;
+    }
+    for_chunks(segs_.size(), segs_.size(), [&](std::size_t c, std::size_t, std::size_t) {
+      const std::size_t len = segs_[c].end - segs_[c].begin;
+      std::copy_n(cand_.data() + segs_[c].begin, len, cand_next_.data() + to[c]);
+      std::copy_n(hit_.data() + segs_[c].begin, len, hit_next_.data() + to[c]);
+    });
+    cand_.swap(cand_next_);
+    hit_.swap(hit_next_);
   }
-  const std::span<const std::uint64_t> s = lists[longest];
-  std::uint64_t last = 0;
-  for (std::size_t c = 1; c < chunks && !s.empty(); ++c) {
-    const std::uint64_t k = s[c * s.size() / chunks];
-    if (c > 1 && k <= last) continue;
-    last = k;
-    for (std::size_t l = 0; l < 3; ++l)
-      at[l].push_back(
-          static_cast<std::size_t>(std::lower_bound(lists[l].begin(), lists[l].end(), k) - lists[l].begin()));
+  cand_.resize(count);
+  hit_.resize(count);
+  // Cut at keys of the longer of the candidates and the static pairs, so that each chunk merges
+  // about as much.
+  const std::size_t chunks = merge_chunks(count + stat_.size(), threads);
+  const std::span<const std::uint64_t> longer = count >= stat_.size() ? std::span<const std::uint64_t>(cand_) : stat_;
+  cuts_.assign(1, 0);
+  for (std::size_t c = 1; c < chunks && !longer.empty(); ++c) {
+    const std::uint64_t k = longer[c * longer.size() / chunks];
+    if (k > cuts_.back()) cuts_.push_back(k);
   }
-  for (std::size_t l = 0; l < 3; ++l) at[l].push_back(lists[l].size());
+  segs_.resize(cuts_.size());
+  for (std::size_t c = 0; c < cuts_.size(); ++c) {
+    segs_[c].begin = c == 0 ? 0 : segs_[c - 1].end;
+    segs_[c].end =
+        c + 1 < cuts_.size()
+            ? static_cast<std::size_t>(std::lower_bound(cand_.begin(), cand_.end(), cuts_[c + 1]) - cand_.begin())
+            : count;
+  }
 }
 
 std::uint64_t RestSet::Part::memory_bytes() const {
@@ -72,10 +104,10 @@ std::uint64_t RestSet::memory_bytes() const {
   std::uint64_t b = bytes_of(cur_sph_) + bytes_of(cur_box_) + bytes_of(fat_box_) + bytes_of(fat_sph_) +
                     bytes_of(fat_r_) + bytes_of(part_of_) + bytes_of(changed_bits_) + bytes_of(left_bits_) +
                     bytes_of(local_) + bytes_of(changed_) + bytes_of(left_) + bytes_of(scratch_) + bytes_of(cand_) +
-                    bytes_of(cand_next_) + bytes_of(found_) + bytes_of(stat_) + bytes_of(stat_next_) +
-                    bytes_of(stat_found_) + bytes_of(hit_) + bytes_of(hit_next_) + bytes_of(local_pairs_) +
-                    bytes_of(active_mask_) + bytes_of(offsets_) + bytes_of(cand_offsets_) + bytes_of(sample_index_) +
-                    bytes_of(sample_);
+                    bytes_of(cand_next_) + bytes_of(found_) + bytes_of(merged_) + bytes_of(stat_) +
+                    bytes_of(stat_next_) + bytes_of(stat_found_) + bytes_of(hit_) + bytes_of(hit_next_) +
+                    bytes_of(local_pairs_) + bytes_of(active_mask_) + bytes_of(pair_buf_) + bytes_of(segs_) +
+                    bytes_of(cuts_) + bytes_of(sample_index_) + bytes_of(sample_);
   for (const Part& p : parts_) b += p.memory_bytes();
   b += exact_.memory_bytes();
   for (const auto& l : chunk_keys_) b += bytes_of(l);
@@ -155,6 +187,7 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
   part.count = count;
   part.erased = 0;
   part.ids.assign(objs.begin(), objs.end());
+  part.identity = which == kMain && count == n_;  // main over every object: rebuild_main()
   if (part.iota.size() < count) {
     const std::size_t old = part.iota.size();
     part.iota.resize(count);
@@ -202,14 +235,6 @@ std::span<const std::uint32_t> RestSet::rebuild_main(int threads, std::vector<Pa
     parts_[p].ids.clear();
   }
   return all;
-}
-
-void RestSet::erase(std::uint32_t o) {
-  const std::uint8_t p = part_of_[o];
-  if (p == kNowhere) return;
-  parts_[p].tree.erase(local_[o]);
-  ++parts_[p].erased;
-  part_of_[o] = kNowhere;
 }
 
 bool RestSet::sample_rests(const Shapes& s, float margin) {
@@ -343,6 +368,9 @@ Status RestSet::enter(const Input& in, const StaticSet& set, StaticTree& st, int
     }
     if (!static_pairs_of(*exact, all, st, threads, stat_)) return check_pair_cap(SIZE_MAX, in.pair_memory_cap, true);
   }
+  segs_.assign(1, Segment{0, cand_.size()});
+  packs_ = 0;
+  pack(threads);
   stats.ms(Stage::query) += sw.lap();
   stats.moved = stats.replaced = static_cast<std::uint32_t>(n);  // every object placed
   live_ = true;
@@ -410,6 +438,16 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
     }
     for (std::size_t t = b; t < e; ++t) {
       const std::uint32_t k = in.moved[t];
+      if (t + 8 < e) {  // listed objects lie scattered: their shapes and last copies read ahead
+        const std::uint32_t ahead = in.moved[t + 8];
+        if (boxes) {
+          __builtin_prefetch(&s.boxes[ahead]);
+          __builtin_prefetch(&cur_box_[ahead]);
+        } else {
+          __builtin_prefetch(&s.spheres[ahead]);
+          __builtin_prefetch(&cur_sph_[ahead]);
+        }
+      }
       if (boxes) {
         if (same_bits(s.boxes[k], cur_box_[k])) continue;
         cur_box_[k] = s.boxes[k];
@@ -472,11 +510,32 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   stats.replaced = static_cast<std::uint32_t>(left_.size());
   // Nothing changed: every candidate keeps its result.
   if (changed_count_ == 0) return {};
-  // find_changes() took the changed shapes and set their bits.
-  for (const std::uint32_t k : left_) {
-    erase(k);
-    if (margin_ > 0) place(s, k);
-  }
+  // find_changes() took the changed shapes and set their bits. The objects that left their fat
+  // bounds leave their trees, in parallel chunks (each erases its own objects' lanes; the
+  // objects lie scattered over memory, and the reads ahead are prefetched).
+  for (Part& p : parts_) p.tree.index_positions();
+  constexpr std::size_t kMaxChunks = 64;
+  std::size_t erased[3][kMaxChunks] = {};
+  const std::size_t erase_chunks = std::min(ranges_for(left_.size(), threads), kMaxChunks);
+  for_chunks(left_.size(), erase_chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
+    constexpr std::size_t kAhead = 8;
+    for (std::size_t t = b; t < e; ++t) {
+      if (t + kAhead < e) {
+        __builtin_prefetch(&part_of_[left_[t + kAhead]]);
+        __builtin_prefetch(&local_[left_[t + kAhead]]);
+      }
+      const std::uint32_t k = left_[t];
+      const std::uint8_t p = part_of_[k];
+      if (p != kNowhere) {
+        parts_[p].tree.erase(local_[k]);
+        ++erased[p][c];
+        part_of_[k] = kNowhere;
+      }
+      if (margin_ > 0) place(s, k);
+    }
+  });
+  for (std::size_t p = 0; p < 3; ++p)
+    for (std::size_t c = 0; c < erase_chunks; ++c) parts_[p].erased += erased[p][c];
   // The old recent objects that did not move again come to rest in delta.
   Part& delta = parts_[kDelta];
   Part& recent = parts_[kRecent];
@@ -508,8 +567,9 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
       for (const std::uint8_t p : {kMain, kDelta}) {
         const Part& other = parts_[p];
         if (other.count == other.erased) continue;
+        const std::uint32_t* const other_ids = other.identity ? nullptr : other.ids.data();
         auto found = [&](std::size_t pos, std::uint32_t id) {
-          const std::uint32_t a = recent.ids[mids[pos]], b = other.ids[id];
+          const std::uint32_t a = recent.ids[mids[pos]], b = other_ids == nullptr ? id : other_ids[id];
           list.push_back(a < b ? key(a, b) : key(b, a));
         };
         for (std::size_t g = gb; g < ge; ++g) {
@@ -520,10 +580,20 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
         }
       }
     });
-    for (std::size_t c = 0; c < std::min(chunks, groups); ++c)
-      found_.insert(found_.end(), chunk_keys_[c].begin(), chunk_keys_[c].end());
+    const std::size_t used = std::min(chunks, groups);
+    for_chunks(used, used, [&](std::size_t c, std::size_t, std::size_t) {
+      std::sort(chunk_keys_[c].begin(), chunk_keys_[c].end());
+    });
+    std::sort(found_.begin(), found_.end());
+    for (std::size_t c = 0; c < used; ++c) {
+      const std::vector<std::uint64_t>& more = chunk_keys_[c];
+      resize_with_headroom(merged_, found_.size() + more.size());
+      std::merge(found_.begin(), found_.end(), more.begin(), more.end(), merged_.begin());
+      found_.swap(merged_);
+    }
+  } else {
+    std::sort(found_.begin(), found_.end());
   }
-  std::sort(found_.begin(), found_.end());
 
   // The static pairs of the objects that changed, from a tree of their exact shapes.
   stat_found_.clear();
@@ -544,9 +614,8 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   // pairs. When no object left its fat bounds (objects jiggling in place), the list stays: tested
   // again in place here.
   if (left_.empty()) {
-    const std::size_t chunks = ranges_for(cand_.size(), threads);
-    for_chunks(cand_.size(), chunks, [&](std::size_t b, std::size_t e, std::size_t) {
-      for (std::size_t a = b; a < e; ++a) {
+    for_chunks(segs_.size(), segs_.size(), [&](std::size_t c, std::size_t, std::size_t) {
+      for (std::size_t a = segs_[c].begin; a < segs_[c].end; ++a) {
         const std::uint32_t i = key_i(cand_[a]), j = key_j(cand_[a]);
         if (bit(changed_bits_.data(), i) | bit(changed_bits_.data(), j)) hit_[a] = s.overlap(i, j);
       }
@@ -585,113 +654,143 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     for (const std::uint32_t k : in.active) active_mask_[k] = 1;
   }
   const std::span<const Filter> filters = in.filters;
-  auto moving_ok = [&](std::uint64_t k, bool hit) {
-    const std::uint32_t i = key_i(k), j = key_j(k);
-    if (!hit) return false;
-    if (masked && !(active_mask_[i] & active_mask_[j])) return false;
+  const std::uint8_t* const mask = active_mask_.data();
+  // Whether a pair of moving objects that meet, or a pair with the static set, is reported.
+  auto moving_ok = [&](std::uint32_t i, std::uint32_t j) {
+    if (masked && !(mask[i] & mask[j])) return false;
     return filters.empty() || pair_passes_filter(filters[i], filters[j]);
   };
   auto static_ok = [&](std::uint64_t k) {
     const std::uint32_t i = key_i(k);
-    if (masked && !active_mask_[i]) return false;
+    if (masked && !mask[i]) return false;
     return pair_passes_filter(filters.empty() ? Filter{} : filters[i], set.filter(static_slot(key_j(k))));
   };
-  // Three sorted lists: the kept candidates (A), this frame's new ones (B, when merging) and the
-  // static pairs (S); keys never reach kEnd (i < 2^31).
+  // Three sorted lists: the kept candidates (A, in segments), this frame's new ones (B, when
+  // merging) and the static pairs (S), merged chunk by chunk: chunk c takes segment c of A and the
+  // keys of B and S from the same cut. Keys never reach kEnd (i < 2^31).
   constexpr std::uint64_t kEnd = ~std::uint64_t{0};
-  const std::span<const std::uint64_t> lists[3] = {
-      cand_, merge_ ? std::span<const std::uint64_t>(found_) : std::span<const std::uint64_t>(), stat_};
-  const std::span<const std::uint64_t> a_keys = lists[0], b_keys = lists[1], s_keys = lists[2];
-  const std::size_t total = a_keys.size() + b_keys.size() + s_keys.size();
-  const std::size_t chunks = threads_for(total, threads) == 1 ? 1 : 4 * static_cast<std::size_t>(std::max(1, threads));
-  key_chunks_.cut(lists, chunks);
-  const KeyChunks& kc = key_chunks_;
-  const std::size_t nc = kc.count();
-  const bool retest = margin_ > 0;
-  // One chunk: counts what it keeps and emits (kWrite false), or writes them from its offsets.
-  // Templated, and every buffer read through a local pointer: the writes through hit_next_ (bytes,
-  // which may alias anything) would otherwise reload the members at every step.
+  const std::span<const std::uint64_t> b_keys =
+      merge_ ? std::span<const std::uint64_t>(found_) : std::span<const std::uint64_t>();
+  const std::span<const std::uint64_t> s_keys = stat_;
+  const std::size_t nc = segs_.size();
+  for (auto* v : {&b_at_, &s_at_, &cand_ub_, &pair_ub_, &kept_, &out_}) v->assign(nc + 1, 0);
+  for (std::size_t c = 1; c < nc; ++c) {
+    b_at_[c] = static_cast<std::size_t>(std::lower_bound(b_keys.begin(), b_keys.end(), cuts_[c]) - b_keys.begin());
+    s_at_[c] = static_cast<std::size_t>(std::lower_bound(s_keys.begin(), s_keys.end(), cuts_[c]) - s_keys.begin());
+  }
+  b_at_[nc] = b_keys.size();
+  s_at_[nc] = s_keys.size();
+  // Where each chunk writes: where it would start if nothing were dropped.
+  for (std::size_t c = 0; c < nc; ++c) {
+    const std::size_t a = segs_[c].end - segs_[c].begin, b = b_at_[c + 1] - b_at_[c], t = s_at_[c + 1] - s_at_[c];
+    cand_ub_[c + 1] = cand_ub_[c] + a + b;
+    pair_ub_[c + 1] = pair_ub_[c] + a + b + t;
+  }
+  resize_with_headroom(pair_buf_, pair_ub_[nc]);
+  if (merge_) {
+    resize_with_headroom(cand_next_, cand_ub_[nc]);
+    resize_with_headroom(hit_next_, cand_ub_[nc]);
+  }
+  // One chunk, templated on what it must do, every buffer read through a local pointer (the
+  // writes of bytes may alias anything, and would reload members at every step). Each entry's
+  // pair is written and the count moved past it only if it holds: no branch on the result.
   const std::uint64_t* const left = left_bits_.data();
   const std::uint64_t* const changed = changed_bits_.data();
-  const std::uint8_t* const hits = hit_.data();
-  auto chunk = [&]<bool kWrite, bool kMerge>(std::size_t c) {
-    std::uint64_t* const next_keys = kWrite && kMerge ? cand_next_.data() : nullptr;
-    std::uint8_t* const next_hits = kWrite && kMerge ? hit_next_.data() : nullptr;
-    Pair* const out_pairs = kWrite ? pairs.data() : nullptr;
-    std::size_t a = kc.at[0][c], b = kc.at[1][c], t = kc.at[2][c];
-    const std::size_t ae = kc.at[0][c + 1], be = kc.at[1][c + 1], te = kc.at[2][c + 1];
-    std::size_t kept = kWrite ? cand_offsets_[c] : 0, out = kWrite ? offsets_[c] : 0;
-    while (a < ae || b < be || t < te) {
-      const std::uint64_t ka = a < ae ? a_keys[a] : kEnd, kb = b < be ? b_keys[b] : kEnd,
-                          kt = t < te ? s_keys[t] : kEnd;
-      if (kt < ka && kt < kb) {
-        if (static_ok(kt)) {
-          if constexpr (kWrite) out_pairs[out] = Pair{key_i(kt), key_j(kt)};
-          ++out;
-        }
-        ++t;
-        continue;
-      }
-      std::uint64_t k;
-      bool hit;
-      if (ka < kb) {
-        k = ka;
-        hit = hits[a++] != 0;
+  auto chunk = [&]<bool kMerge, bool kCheck, bool kRetest>(std::size_t c) {
+    const std::uint64_t* const ak = cand_.data();
+    const std::uint8_t* const ah = hit_.data();
+    const std::uint64_t* const bk = b_keys.data();
+    const std::uint64_t* const sk = s_keys.data();
+    std::uint64_t* const nk = kMerge ? cand_next_.data() + cand_ub_[c] : nullptr;
+    std::uint8_t* const nh = kMerge ? hit_next_.data() + cand_ub_[c] : nullptr;
+    Pair* const po = pair_buf_.data() + pair_ub_[c];
+    std::size_t a = segs_[c].begin, b = b_at_[c], t = s_at_[c];
+    const std::size_t ae = segs_[c].end, be = b_at_[c + 1], te = s_at_[c + 1];
+    std::size_t kept = 0, out = 0;
+    for (;;) {
+      const std::uint64_t kb = b < be ? bk[b] : kEnd, kt = t < te ? sk[t] : kEnd;
+      const std::uint64_t below = std::min(kb, kt);
+      for (; a < ae && ak[a] < below; ++a) {
+        const std::uint64_t k = ak[a];
+        const std::uint32_t i = key_i(k), j = key_j(k);
+        bool hit = ah[a] != 0;
         if constexpr (kMerge) {
-          const std::uint32_t i = key_i(k), j = key_j(k);
           if (bit(left, i) | bit(left, j)) continue;  // placed again: found anew in B
-          if (bit(changed, i) | bit(changed, j)) hit = shapes.overlap(i, j);
+          if constexpr (kRetest)
+            if (bit(changed, i) | bit(changed, j)) hit = shapes.overlap(i, j);
+          nk[kept] = k;
+          nh[kept] = hit;
+          ++kept;
         }
+        po[out] = Pair{i, j};
+        if constexpr (kCheck) hit = hit && moving_ok(i, j);
+        out += hit;
+      }
+      if (below == kEnd) break;
+      if (kt < kb) {
+        po[out] = Pair{key_i(kt), key_j(kt)};
+        out += static_ok(kt);
+        ++t;
       } else {
-        k = kb;
-        ++b;
-        hit = !retest || shapes.overlap(key_i(k), key_j(k));
-      }
-      if constexpr (kMerge) {
-        if constexpr (kWrite) {
-          next_keys[kept] = k;
-          next_hits[kept] = hit;
-        }
+        const std::uint32_t i = key_i(kb), j = key_j(kb);
+        bool hit = !kRetest || shapes.overlap(i, j);
+        nk[kept] = kb;
+        nh[kept] = hit;
         ++kept;
-      }
-      if (moving_ok(k, hit)) {
-        if constexpr (kWrite) out_pairs[out] = Pair{key_i(k), key_j(k)};
-        ++out;
+        po[out] = Pair{i, j};
+        if constexpr (kCheck) hit = hit && moving_ok(i, j);
+        out += hit;
+        ++b;
       }
     }
-    if constexpr (!kWrite) {
-      cand_offsets_[c + 1] = kept;
-      offsets_[c + 1] = out;
-    }
+    kept_[c] = kept;
+    out_[c] = out;
   };
-  offsets_.assign(nc + 1, 0);
-  cand_offsets_.assign(nc + 1, 0);
+  const bool check = masked || !filters.empty();
   for_chunks(nc, nc, [&](std::size_t c, std::size_t, std::size_t) {
-    if (merge_)
-      chunk.template operator()<false, true>(c);
-    else
-      chunk.template operator()<false, false>(c);
+    if (!merge_) {
+      if (check)
+        chunk.template operator()<false, true, false>(c);
+      else
+        chunk.template operator()<false, false, false>(c);
+    } else if (margin_ > 0) {
+      if (check)
+        chunk.template operator()<true, true, true>(c);
+      else
+        chunk.template operator()<true, false, true>(c);
+    } else {
+      if (check)
+        chunk.template operator()<true, true, false>(c);
+      else
+        chunk.template operator()<true, false, false>(c);
+    }
   });
+  // The pairs into the caller's list, each chunk's at once.
+  std::size_t total = 0;
   for (std::size_t c = 0; c < nc; ++c) {
-    offsets_[c + 1] += offsets_[c];
-    cand_offsets_[c + 1] += cand_offsets_[c];
+    const std::size_t o = out_[c];
+    out_[c] = total;
+    total += o;
   }
-  if (Status s = check_pair_cap(offsets_[nc], in.pair_memory_cap); !s) return s;
-  pairs.resize(offsets_[nc]);
-  if (merge_) {
-    resize_with_headroom(cand_next_, cand_offsets_[nc]);
-    resize_with_headroom(hit_next_, cand_offsets_[nc]);
-  }
+  out_[nc] = total;
+  if (Status s = check_pair_cap(total, in.pair_memory_cap); !s) return s;
+  pairs.resize(total);
   for_chunks(nc, nc, [&](std::size_t c, std::size_t, std::size_t) {
-    if (merge_)
-      chunk.template operator()<true, true>(c);
-    else
-      chunk.template operator()<true, false>(c);
+    std::copy_n(pair_buf_.data() + pair_ub_[c], out_[c + 1] - out_[c], pairs.data() + out_[c]);
   });
-  if (merge_) {
-    cand_.swap(cand_next_);
-    hit_.swap(hit_next_);
+  if (!merge_) return {};
+  // The merged list becomes the candidates, in segments where the chunks wrote them; packed and
+  // cut again when a chunk's share of the merge has grown past twice the mean.
+  cand_.swap(cand_next_);
+  hit_.swap(hit_next_);
+  std::size_t most = 0, sum = 0;
+  for (std::size_t c = 0; c < nc; ++c) {
+    segs_[c] = Segment{cand_ub_[c], cand_ub_[c] + kept_[c]};
+    const std::size_t work = kept_[c] + s_at_[c + 1] - s_at_[c];
+    most = std::max(most, work);
+    sum += work;
   }
+  if (nc != merge_chunks(sum, threads) || most > 2 * sum / nc + 4096) pack(threads);
   return {};
 }
 

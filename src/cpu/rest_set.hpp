@@ -76,6 +76,10 @@ class RestSet {
     return kind_ == ShapeKind::box ? Shapes(std::span<const Box>(cur_box_)) : Shapes(std::span<const Sphere>(cur_sph_));
   }
   [[nodiscard]] std::uint64_t memory_bytes() const;
+  /// For tests: the segments the candidates lie in now, and how often they were packed and cut
+  /// again since the set last started following.
+  [[nodiscard]] std::size_t segments() const { return segs_.size(); }
+  [[nodiscard]] std::size_t packs() const { return packs_; }
 
  private:
   // One tree and what its objects are: the shapes its lanes hold (sphere lanes: `spheres`; box
@@ -87,6 +91,7 @@ class RestSet {
     std::vector<Box> boxes;
     std::vector<std::uint32_t> ids, iota;
     std::size_t count = 0, erased = 0;
+    bool identity = false;  // ids[k] == k (main, built over every object): the search skips them
     [[nodiscard]] std::uint64_t memory_bytes() const;
   };
   enum : std::uint8_t { kMain = 0, kDelta = 1, kRecent = 2, kNowhere = 3 };
@@ -104,8 +109,6 @@ class RestSet {
   /// Builds main over every object (their fat bounds; the pairs among them when `pairs` is not
   /// null) and empties delta and recent. Returns the object indices 0..N-1 (in scratch_).
   std::span<const std::uint32_t> rebuild_main(int threads, std::vector<Pair>* pairs);
-  /// Takes object o out of its tree.
-  void erase(std::uint32_t o);
   /// Starts following: every object placed now, every candidate found.
   [[nodiscard]] Status enter(const Input& in, const StaticSet& set, StaticTree& st, int threads, FrameStats& stats);
   /// Finds the objects that changed (changed_) and left their fat bounds (left_); false when more
@@ -124,6 +127,11 @@ class RestSet {
   /// The frame's pairs from the candidates and static pairs; with merge_, also the next list of
   /// candidates (those of objects placed again dropped, found_ merged in, re-tested where changed).
   [[nodiscard]] Status emit(const Input& in, const StaticSet& set, int threads, std::vector<Pair>& pairs);
+  /// The candidates: how many, over the segments.
+  [[nodiscard]] std::size_t candidate_count() const;
+  /// Packs the candidates into one run and cuts them (and the static pairs) into segments for
+  /// `threads`.
+  void pack(int threads);
   /// Whether the sample says the objects rest; takes a new sample.
   bool sample_rests(const Shapes& s, float margin);
 
@@ -155,19 +163,27 @@ class RestSet {
   bool changed_listed_ = false;    // changed_ lists them (else only the bits do, until changed_list())
   std::vector<std::vector<std::uint32_t>> chunk_lists_[2];
 
-  std::vector<std::uint64_t> cand_, cand_next_, found_, stat_, stat_next_, stat_found_;
+  // The candidates, sorted, with each one's exact result (hit_): in segments, one per chunk of
+  // emit()'s merge. Segment c holds the keys in [cuts_[c], cuts_[c + 1]) (the last one: every key
+  // from cuts_[c] up) at cand_[segs_[c].begin, segs_[c].end). emit() writes each chunk's merged
+  // list where the chunk would start if nothing were dropped, so that the chunks write at once
+  // without counting first; the gaps stay until the segments grow uneven, when the list is packed
+  // and cut again (pack()).
+  struct Segment {
+    std::size_t begin = 0, end = 0;
+  };
+  std::vector<std::uint64_t> cand_, cand_next_, found_, merged_, stat_, stat_next_, stat_found_;
   std::vector<std::uint8_t> hit_, hit_next_;
+  std::vector<Segment> segs_;
+  std::vector<std::uint64_t> cuts_;
   std::vector<std::vector<std::uint64_t>> chunk_keys_;
-  std::vector<Pair> local_pairs_;
+  std::vector<Pair> local_pairs_, pair_buf_;
   std::vector<std::uint8_t> active_mask_;
-  std::vector<std::size_t> offsets_;
-  std::vector<std::size_t> cand_offsets_;
-  struct KeyChunks {
-    std::vector<std::size_t> at[3];
-    void cut(const std::span<const std::uint64_t> (&lists)[3], std::size_t chunks);
-    [[nodiscard]] std::size_t count() const { return at[0].size() - 1; }
-  } key_chunks_;
-  bool merge_ = false;  // this frame's emit() merges found_ into the candidates
+  // emit()'s chunks: where each starts in found_ and stat_, where its output may start (the sizes
+  // before it), and what it kept and emitted.
+  std::vector<std::size_t> b_at_, s_at_, cand_ub_, pair_ub_, kept_, out_, pack_at_;
+  bool merge_ = false;     // this frame's emit() merges found_ into the candidates
+  std::size_t packs_ = 0;  // pack() calls since enter()
 
   // The sample watched while the set is out of use.
   std::vector<std::uint32_t> sample_index_;
