@@ -1,8 +1,10 @@
 #include "cpu/pipeline.hpp"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <bit>
+#include <cstring>
 #include <limits>
 #include <new>
 #include <optional>
@@ -192,10 +194,27 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     return m;
   };
   if (active_.size() == total) {
+    // free is 1 and colliding 2: eight states at a time are 0x01 per byte plus the mask's bits
+    // spread one to a byte (a table of 256).
+    static_assert(static_cast<int>(ObjectState::free) == 1 && static_cast<int>(ObjectState::colliding) == 2);
+    static constexpr auto kSpread = [] {
+      std::array<std::uint64_t, 256> t{};
+      for (std::uint32_t b = 0; b < 256; ++b)
+        for (std::uint32_t bit = 0; bit < 8; ++bit) t[b] |= std::uint64_t{((b >> bit) & 1u) + 1u} << (8 * bit);
+      return t;
+    }();
+    auto* const state = reinterpret_cast<std::uint8_t*>(out.state.data());
     parallel_for(words, threads, [&](std::size_t w) {
       const std::uint64_t m = in_pair(w);
-      const std::size_t end = std::min(n, (w + 1) * 64);
-      for (std::size_t k = w * 64; k < end; ++k)
+      const std::size_t first = w * 64, end = std::min(n, first + 64);
+      if (end - first == 64) {
+        for (std::size_t b = 0; b < 8; ++b) {
+          const std::uint64_t v = kSpread[(m >> (8 * b)) & 0xFF];
+          std::memcpy(state + first + 8 * b, &v, sizeof v);
+        }
+        return;
+      }
+      for (std::size_t k = first; k < end; ++k)
         out.state[k] = (m >> (k & 63)) & 1 ? ObjectState::colliding : ObjectState::free;
     });
   } else {
