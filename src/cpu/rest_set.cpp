@@ -17,16 +17,18 @@
 namespace viscd::detail {
 namespace {
 
-/// Main is rebuilt when the objects out of it pass an eighth of all, and at least this many.
+/// Main is rebuilt over the resting objects when its erased lanes and the objects of delta pass
+/// an eighth of all, and at least this many.
 constexpr std::size_t kRebuildFloor = 4096;
 /// Objects watched while the set is out of use; it takes over when all but 1 in kTakeOver of them
-/// rest, and gives up when more than 1 in kGiveUp objects leave their fat bounds in a frame. Each
-/// object placed again costs about 15 times what it costs in a rebuild (a walk of the trees
+/// rest, and gives up when more than 1 in kGiveUp objects leave their fat bounds in a frame (the
+/// gap between the two keeps a world near the limit from entering and leaving frame after frame).
+/// Each object placed again costs about 8 times what it costs in a rebuild (a walk of the trees
 /// whose buckets lie far apart in memory, and its candidates merged into the list), so that
-/// following pays up to about 6 % (docs/benchmarks.md, "Cost follows change").
-constexpr std::size_t kSample = 64;
+/// following pays up to about 12 % (docs/benchmarks.md, "Cost follows change").
+constexpr std::size_t kSample = 256;
 constexpr std::size_t kTakeOver = 16;
-constexpr std::size_t kGiveUp = 16;
+constexpr std::size_t kGiveUp = 10;
 
 [[nodiscard]] std::uint64_t key(std::uint32_t i, std::uint32_t j) { return std::uint64_t{i} << 32 | j; }
 [[nodiscard]] std::uint32_t key_i(std::uint64_t k) { return static_cast<std::uint32_t>(k >> 32); }
@@ -187,7 +189,7 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
   part.count = count;
   part.erased = 0;
   part.ids.assign(objs.begin(), objs.end());
-  part.identity = which == kMain && count == n_;  // main over every object: rebuild_main()
+  part.identity = which == kMain && count == n_;  // main over every object: enter_main()
   if (part.iota.size() < count) {
     const std::size_t old = part.iota.size();
     part.iota.resize(count);
@@ -225,7 +227,7 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
   if (which == kMain) main_layout_ = built.layout;
 }
 
-std::span<const std::uint32_t> RestSet::rebuild_main(int threads, std::vector<Pair>* pairs) {
+std::span<const std::uint32_t> RestSet::enter_main(int threads, std::vector<Pair>* pairs) {
   resize_with_headroom(scratch_, n_);
   parallel_for(n_, threads, [&](std::size_t k) { scratch_[k] = static_cast<std::uint32_t>(k); });
   const std::span<const std::uint32_t> all(scratch_.data(), n_);
@@ -349,7 +351,7 @@ Status RestSet::enter(const Input& in, const StaticSet& set, StaticTree& st, int
   left_bits_.assign((n + 63) / 64, 0);
   resize_with_headroom(local_, n);
   local_pairs_.clear();
-  const std::span<const std::uint32_t> all = rebuild_main(threads, &local_pairs_);
+  const std::span<const std::uint32_t> all = enter_main(threads, &local_pairs_);
   stats.ms(Stage::build) += sw.lap();
   // Main's tree ids are the object indices: its pairs are the candidates.
   resize_with_headroom(cand_, local_pairs_.size());
@@ -369,7 +371,7 @@ Status RestSet::enter(const Input& in, const StaticSet& set, StaticTree& st, int
     if (!static_pairs_of(*exact, all, st, threads, stat_)) return check_pair_cap(SIZE_MAX, in.pair_memory_cap, true);
   }
   segs_.assign(1, Segment{0, cand_.size()});
-  packs_ = 0;
+  packs_ = main_rebuilds_ = 0;
   pack(threads);
   stats.ms(Stage::query) += sw.lap();
   stats.moved = stats.replaced = static_cast<std::uint32_t>(n);  // every object placed
@@ -638,9 +640,17 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   }
   stats.ms(Stage::query) += sw.lap();
 
-  // Main rebuilt when too much lives outside it.
-  if (parts_[kMain].erased + delta.count + recent.count > std::max(kRebuildFloor, n_ / 8)) {
-    (void)rebuild_main(threads, nullptr);
+  // Main rebuilt when its lanes hold too many erased objects or too many rest outside it, over
+  // the resting objects: this frame's movers stay in recent (objects that move frame after frame
+  // would otherwise be built into main only to be erased from it again the next frame).
+  if (parts_[kMain].erased + delta.count > std::max(kRebuildFloor, n_ / 8)) {
+    scratch_.clear();
+    for (std::uint32_t k = 0; k < n_; ++k)
+      if (part_of_[k] != kRecent) scratch_.push_back(k);
+    build_part(parts_[kMain], scratch_, kMain, true, threads, nullptr);
+    delta.count = delta.erased = 0;
+    delta.ids.clear();
+    ++main_rebuilds_;
     stats.ms(Stage::build) += sw.lap();
   }
   return {};

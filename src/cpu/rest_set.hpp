@@ -15,16 +15,17 @@
 // are tested again; the rest keep their result. The frame's pairs are the candidates that hold,
 // whose objects are both active and whose filters accept each other: exactly the pairs of a frame
 // that rebuilt everything (filters, culling and never-culled flags are applied to the carried
-// candidates each frame, so they may change freely). When delta, recent and the objects taken out
-// of main pass an eighth of the objects, main is rebuilt over all of them.
+// candidates each frame, so they may change freely). When delta and the objects taken out of main
+// pass an eighth of the objects, main is rebuilt over the resting ones (the frame's movers stay in
+// recent).
 //
 // A frame costs the pass over the bounds (none with FrameInput::moved), the movers' tree and its
-// searches, and passes over the candidates and pairs. When more than 1 in 16 objects leave their
-// fat bounds in a frame, when the object count, their kind, the static set, the layout or the
-// margin change, or when culling leaves fewer than half of the objects active (the
+// searches, and one merging pass over the candidates and pairs. When more than 1 in 10 objects
+// leave their fat bounds in a frame, when the object count, their kind, the static set, the layout
+// or the margin change, or when culling leaves fewer than half of the objects active (the
 // candidates of culled objects would cost more than a culled rebuild saves), the set lets the
-// frame rebuild and starts again later: while it is not in use it watches a sample of 64 objects,
-// and takes over when 15 in 16 of them rest.
+// frame rebuild and starts again later: while it is not in use it watches a sample of 256
+// objects, and takes over when 15 in 16 of them rest.
 // docs/architecture.md, "Resting objects".
 
 #include <cstdint>
@@ -80,6 +81,8 @@ class RestSet {
   /// again since the set last started following.
   [[nodiscard]] std::size_t segments() const { return segs_.size(); }
   [[nodiscard]] std::size_t packs() const { return packs_; }
+  /// For tests: how often main was rebuilt over the resting objects since then.
+  [[nodiscard]] std::size_t main_rebuilds() const { return main_rebuilds_; }
 
  private:
   // One tree and what its objects are: the shapes its lanes hold (sphere lanes: `spheres`; box
@@ -108,7 +111,7 @@ class RestSet {
                   std::vector<Pair>* pairs);
   /// Builds main over every object (their fat bounds; the pairs among them when `pairs` is not
   /// null) and empties delta and recent. Returns the object indices 0..N-1 (in scratch_).
-  std::span<const std::uint32_t> rebuild_main(int threads, std::vector<Pair>* pairs);
+  std::span<const std::uint32_t> enter_main(int threads, std::vector<Pair>* pairs);
   /// Starts following: every object placed now, every candidate found.
   [[nodiscard]] Status enter(const Input& in, const StaticSet& set, StaticTree& st, int threads, FrameStats& stats);
   /// Finds the objects that changed (changed_) and left their fat bounds (left_); false when more
@@ -182,8 +185,9 @@ class RestSet {
   // emit()'s chunks: where each starts in found_ and stat_, where its output may start (the sizes
   // before it), and what it kept and emitted.
   std::vector<std::size_t> b_at_, s_at_, cand_ub_, pair_ub_, kept_, out_, pack_at_;
-  bool merge_ = false;     // this frame's emit() merges found_ into the candidates
-  std::size_t packs_ = 0;  // pack() calls since enter()
+  bool merge_ = false;             // this frame's emit() merges found_ into the candidates
+  std::size_t packs_ = 0;          // pack() calls since enter()
+  std::size_t main_rebuilds_ = 0;  // main rebuilt by update() since enter()
 
   // The sample watched while the set is out of use.
   std::vector<std::uint32_t> sample_index_;
