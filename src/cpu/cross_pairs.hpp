@@ -38,16 +38,20 @@ inline Aabb lane_box(const BoxLanes& ln, std::uint32_t l) { return ln.box(l); }
 /// the moving search does, cpu/bucket_search.cpp); per bucket met, the moving lanes that reach it
 /// against all 16 of its lanes by K's exact test. Past kMaxCandidates (a huge object, or moving
 /// objects spread far apart, as the few that move in a world at rest), each moving object walks
-/// the tree with its own box. Calls emit(p, id) for each pair: p the moving object's sorted
-/// position in `moving`, id the other's id (an index into the shapes `other` was built from).
-template <class K, class Emit>
-void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, std::size_t g, Emit&& emit) {
+/// the tree with its own box. Calls emit(p, q) for each pair: p the moving object's sorted
+/// position in `moving`, q the other's sorted position in `other` (its id is
+/// other.sorted_objects()[q]; callers keep what they report per sorted position, so that the
+/// reads of one bucket's objects share cache lines).
+/// `fetch(q)`, called for the first sorted position q of each bucket of `other` whose lanes the
+/// walks of scattered objects will read, prefetches what emit() reads for that bucket.
+template <class K, class Emit, class Fetch>
+void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, std::size_t g, Emit&& emit,
+                 Fetch&& fetch) {
   constexpr std::uint32_t kMaxCandidates = 512;
   const auto ml = lanes_of<K>(moving);
   const auto sl = lanes_of<K>(other);
   const std::span<const Aabb> mboxes = moving.leaf_boxes();
   const std::span<const Aabb> sboxes = other.leaf_boxes();
-  const std::span<const std::uint32_t> sids = other.sorted_objects();
   const std::size_t buckets = buckets_for(moving.sorted_objects().size());
   const std::size_t b0 = g * kWide, b1 = std::min(buckets, b0 + kWide);
   auto bucket_pair = [&](std::size_t b, std::uint32_t sb) {
@@ -55,7 +59,7 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
     for (std::uint32_t near = K::near(ml[b], sboxes[sb]); near; near &= near - 1) {
       const auto i = static_cast<std::uint32_t>(std::countr_zero(near));
       for (std::uint32_t m = K::exact(sl[sb], ml[b], i); m; m &= m - 1)
-        emit(m_first + i, sids[s_first + static_cast<std::size_t>(std::countr_zero(m))]);
+        emit(m_first + i, s_first + static_cast<std::size_t>(std::countr_zero(m)));
     }
   };
   WideNode box[kMaxCandidates / kWide];
@@ -85,7 +89,7 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
         for (std::uint32_t t = 0; t < count_met; ++t) {
           const std::uint32_t sb = met[t], i = lane_of[t];
           for (std::uint32_t m = K::exact(sl[sb], ml[b], i); m; m &= m - 1)
-            emit(m_first + i, sids[std::size_t{sb} * kBucket + static_cast<std::size_t>(std::countr_zero(m))]);
+            emit(m_first + i, std::size_t{sb} * kBucket + static_cast<std::size_t>(std::countr_zero(m)));
         }
         count_met = 0;
       };
@@ -96,7 +100,7 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
           if (count_met == kMet) test_met();
           const char* lanes = reinterpret_cast<const char*>(&sl[sb]);
           for (std::size_t line = 0; line < sizeof(sl[sb]); line += 64) __builtin_prefetch(lanes + line);
-          __builtin_prefetch(&sids[std::size_t{sb} * kBucket]);  // the ids of its lanes: one line
+          fetch(std::size_t{sb} * kBucket);
           met[count_met] = sb;
           lane_of[count_met++] = static_cast<std::uint8_t>(i);
         });

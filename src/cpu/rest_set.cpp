@@ -99,7 +99,7 @@ void RestSet::pack(int threads) {
 }
 
 std::uint64_t RestSet::Part::memory_bytes() const {
-  return tree.memory_bytes() + bytes_of(spheres) + bytes_of(boxes) + bytes_of(ids) + bytes_of(iota);
+  return tree.memory_bytes() + bytes_of(spheres) + bytes_of(boxes) + bytes_of(ids) + bytes_of(iota) + bytes_of(at);
 }
 
 std::uint64_t RestSet::memory_bytes() const {
@@ -189,7 +189,6 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
   part.count = count;
   part.erased = 0;
   part.ids.assign(objs.begin(), objs.end());
-  part.identity = which == kMain && count == n_;  // main over every object: enter_main()
   if (part.iota.size() < count) {
     const std::size_t old = part.iota.size();
     part.iota.resize(count);
@@ -225,6 +224,12 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
   else
     part.tree.build(spheres, ids, bits_, layout_, threads, built, extras);
   if (which == kMain) main_layout_ = built.layout;
+  if (which == kMain || which == kDelta) {
+    // The object at each sorted position, for the movers' searches (cross_pairs() reports those).
+    const std::span<const std::uint32_t> sorted = part.tree.sorted_objects();
+    resize_with_headroom(part.at, sorted.size());
+    parallel_for(sorted.size(), threads, [&](std::size_t q) { part.at[q] = part.ids[sorted[q]]; });
+  }
 }
 
 std::span<const std::uint32_t> RestSet::enter_main(int threads, std::vector<Pair>* pairs) {
@@ -569,16 +574,17 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
       for (const std::uint8_t p : {kMain, kDelta}) {
         const Part& other = parts_[p];
         if (other.count == other.erased) continue;
-        const std::uint32_t* const other_ids = other.identity ? nullptr : other.ids.data();
-        auto found = [&](std::size_t pos, std::uint32_t id) {
-          const std::uint32_t a = recent.ids[mids[pos]], b = other_ids == nullptr ? id : other_ids[id];
+        const std::uint32_t* const at = other.at.data();
+        auto found = [&](std::size_t pos, std::size_t q) {
+          const std::uint32_t a = recent.ids[mids[pos]], b = at[q];
           list.push_back(a < b ? key(a, b) : key(b, a));
         };
+        auto fetch = [&](std::size_t q) { __builtin_prefetch(&at[q]); };  // a bucket's 16: one line
         for (std::size_t g = gb; g < ge; ++g) {
           if (box_lanes())
-            cross_pairs<BoxTests<SimdBaseline>>(recent.tree, other.tree, g, found);
+            cross_pairs<BoxTests<SimdBaseline>>(recent.tree, other.tree, g, found, fetch);
           else
-            cross_pairs<SphereTests<SimdBaseline>>(recent.tree, other.tree, g, found);
+            cross_pairs<SphereTests<SimdBaseline>>(recent.tree, other.tree, g, found, fetch);
         }
       }
     });

@@ -93,8 +93,8 @@ class RestSet {
     std::vector<Sphere> spheres;
     std::vector<Box> boxes;
     std::vector<std::uint32_t> ids, iota;
+    std::vector<std::uint32_t> at;  // main and delta: the object index at each sorted position
     std::size_t count = 0, erased = 0;
-    bool identity = false;  // ids[k] == k (main, built over every object): the search skips them
     [[nodiscard]] std::uint64_t memory_bytes() const;
   };
   enum : std::uint8_t { kMain = 0, kDelta = 1, kRecent = 2, kNowhere = 3 };

@@ -46,11 +46,22 @@ void StaticTree::Side::build(const StaticSet& set, std::span<const std::uint32_t
   BucketBroadphase::Extras extras;
   extras.boxes = boxes;
   tree.build(spheres, std::span<const std::uint32_t>(iota.data(), count), 32, layout, threads, unused, extras);
+  // What a pair reports, by sorted position: a bucket's 16 objects share lines.
+  const std::span<const std::uint32_t> sorted = tree.sorted_objects();
+  reported_at.resize(sorted.size());
+  filter_at.resize(sorted.size());
+  std::atomic<bool> rejects{false};
+  parallel_for(sorted.size(), threads, [&](std::size_t q) {
+    reported_at[q] = reported[sorted[q]];
+    filter_at[q] = filters[sorted[q]];
+    if (!pair_passes_filter(Filter{}, filter_at[q])) rejects.store(true, std::memory_order_relaxed);
+  });
+  rejects_default = rejects.load();
 }
 
 std::uint64_t StaticTree::Side::memory_bytes() const {
   return tree.memory_bytes() + bytes_of(spheres) + bytes_of(boxes) + bytes_of(reported) + bytes_of(iota) +
-         bytes_of(filters);
+         bytes_of(filters) + bytes_of(reported_at) + bytes_of(filter_at);
 }
 
 std::uint64_t StaticTree::memory_bytes() const {
@@ -133,15 +144,22 @@ bool StaticTree::pairs(const BucketBroadphase& moving, std::span<const Filter> m
       for (const Side* s : {&main_, &delta_}) {
         if (s->count == 0) continue;
         const std::span<const std::uint32_t> mids = moving.sorted_objects();
-        auto emit = [&](std::size_t p, std::uint32_t id) {
+        // Without moving filters (all the default one), filters are read only when some static
+        // filter rejects the default.
+        const bool check = filtered && (!moving_filters.empty() || s->rejects_default);
+        auto emit = [&](std::size_t p, std::size_t q) {
           const Filter mf = moving_filters.empty() ? Filter{} : moving_filters[p];
-          if (!filtered || pair_passes_filter(mf, s->filters[id]))
-            list.push_back(std::uint64_t{mids[p]} << 32 | s->reported[id]);
+          if (!check || pair_passes_filter(mf, s->filter_at[q]))
+            list.push_back(std::uint64_t{mids[p]} << 32 | s->reported_at[q]);
+        };
+        auto fetch = [&](std::size_t q) {
+          __builtin_prefetch(&s->reported_at[q]);
+          if (check) __builtin_prefetch(&s->filter_at[q]);
         };
         if (boxes_)
-          cross_pairs<BoxTests<SimdBaseline>>(moving, s->tree, b, emit);
+          cross_pairs<BoxTests<SimdBaseline>>(moving, s->tree, b, emit, fetch);
         else
-          cross_pairs<SphereTests<SimdBaseline>>(moving, s->tree, b, emit);
+          cross_pairs<SphereTests<SimdBaseline>>(moving, s->tree, b, emit, fetch);
       }
       if (list.size() > max_pairs) over.store(true, std::memory_order_relaxed);
     }

@@ -60,6 +60,9 @@ class StaticTree {
     std::vector<Box> boxes;       // box sets
     std::vector<std::uint32_t> reported, iota;
     std::vector<Filter> filters;
+    std::vector<std::uint32_t> reported_at;  // reported, by the tree's sorted position
+    std::vector<Filter> filter_at;           // filters, by sorted position
+    bool rejects_default = false;            // some filter rejects the default Filter{}
     std::size_t count = 0;
     void build(const StaticSet& set, std::span<const std::uint32_t> slots, Layout layout, int threads);
     [[nodiscard]] std::uint64_t memory_bytes() const;
