@@ -34,55 +34,18 @@ Status CpuDetector::draw_frame(const CameraRig& cam, const Camera& camera, const
     }
     layer_key_ = {camera, map_.width, map_.height, normals, static_set_.version()};
   }
+  if (!moving.is_box() && !normals) {
+    // Counts only (no image): the moving spheres are drawn over the static layer's depth (a tie
+    // to the moving one), so that the map and the counts hold their visible pixels alone and the
+    // cost follows the moving objects. The map keeps no static id, which nothing reads without an
+    // image.
+    raster_.set_simd(simd_level_for(config_.simd));
+    raster_.run(cam, moving.spheres, threads, map_, &static_layer_);
+    return {};
+  }
   if (Status s = rasterize(cam, moving, threads); !s) return s;
   const auto n = static_cast<std::uint32_t>(moving.size());
   const std::size_t w = static_cast<std::size_t>(map_.width);
-  if (!moving.is_box() && !normals && map_.has_counts) {
-    // Counts only (no image): the cost follows the moving objects. Only the tiles in which the
-    // rasterizer drew a sphere are visited, and in them the moving pixels a static object hides
-    // are taken from their objects' counts (counted while rasterising). The map itself keeps the
-    // moving objects alone, which nothing reads (the shaded image takes the full merge below),
-    // and background tiles stay as they were, so the rasterizer need not write them again.
-    constexpr std::size_t kT = TiledRasterizer::kTile;
-    const std::size_t h = static_cast<std::size_t>(map_.height), tiles_x = (w + kT - 1) / kT;
-    const std::size_t tiles = tiles_x * ((h + kT - 1) / kT);
-    const std::size_t tasks = std::min<std::size_t>(tiles, 2 * static_cast<std::size_t>(std::max(threads, 1)));
-    hidden_.resize(tasks);
-    run_tasks(static_cast<std::uint32_t>(tasks), [&](std::uint32_t task) {
-      // The hidden pixels as runs (object id, pixels): a sphere covers runs of pixels in a row,
-      // so the list is short.
-      std::vector<HiddenRun>& runs = hidden_[task];
-      runs.clear();
-      std::uint32_t last = 0, run = 0;
-      const Chunk range = chunk_of(tiles, task, tasks);
-      const std::uint32_t* const ids = map_.ids.data();
-      const float* const depth = map_.depth.data();
-      const std::uint32_t* const layer_ids = static_layer_.ids.data();
-      const float* const layer_depth = static_layer_.depth.data();
-      for (std::size_t t = range.begin; t < range.end; ++t) {
-        if (raster_.tile_is_background(t)) continue;
-        const std::size_t x0 = (t % tiles_x) * kT, y0 = (t / tiles_x) * kT, x1 = std::min(x0 + kT, w);
-        for (std::size_t y = y0; y < std::min(y0 + kT, h); ++y)
-          for (std::size_t i = y * w + x0; i < y * w + x1; ++i) {
-            const std::uint32_t m = ids[i];
-            // A moving pixel (m != 0) behind a static one (the layer's id is 0 where it has none).
-            const bool hidden = (m != 0) & (layer_ids[i] != 0) & (layer_depth[i] < depth[i]);
-            if (!hidden) continue;
-            if (m == last) {
-              ++run;
-              continue;
-            }
-            if (run != 0) runs.push_back({last, run});
-            last = m;
-            run = 1;
-          }
-      }
-      if (run != 0) runs.push_back({last, run});
-    });
-    for (const auto& runs : hidden_)
-      for (const HiddenRun& r : runs) map_.counts[r.id - 1] -= r.pixels;
-    return {};
-  }
   // Merge: per pixel the nearer of the two, a tie to the moving object (the smaller id); the
   // static ids move up by N. The counts are taken afterwards, from the merged ids (keeping the
   // rasterizer's and subtracting the hidden pixels with atomics over every pixel was slower:

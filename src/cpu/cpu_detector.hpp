@@ -66,8 +66,8 @@ class CpuDetector final : public PipelineDetector {
   /// and each frame's moving objects are drawn on their own. For a shaded image (or boxes) the
   /// two are merged pixel by pixel: the nearer wins, a tie goes to the moving object (its id is
   /// the smaller), so the map is the one a single pass over both would draw, bit for bit. For
-  /// counts alone, only the tiles holding a moving sphere are visited, and the moving pixels a
-  /// static object hides are taken off the rasterizer's counts (the map keeps the moving ones).
+  /// counts alone, the moving spheres are drawn over the layer's depth (TiledRasterizer's
+  /// occluder), so that their counts are their visible pixels (the map keeps those alone).
   Status draw_frame(const CameraRig& cam, const Camera& camera, const FrameInput& in, int threads) override;
   Status follow_change(const FrameInput& in, const Shapes& objects, std::span<const std::uint32_t> active,
                        std::span<const Filter> filters, int bits, int threads, std::vector<Pair>& pairs,
@@ -96,11 +96,6 @@ class CpuDetector final : public PipelineDetector {
   StaticTree static_tree_;
   // The static set's map layer (ids: compact index + 1) and what it was drawn for.
   VisibilityMap static_layer_;
-  // Per task: the runs of moving pixels (in a row, of one object) that a static object hides.
-  struct HiddenRun {
-    std::uint32_t id, pixels;
-  };
-  std::vector<std::vector<HiddenRun>> hidden_;
   TiledRasterizer static_raster_;
   BoxRasterizer static_box_raster_;
   struct LayerKey {

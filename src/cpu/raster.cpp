@@ -311,11 +311,21 @@ void raster_tile_sse2(const TileJob& job, std::uint32_t t) {
     const __m128i zero = _mm_setzero_si128();
     for (int i = 0; i < 16; i += 4) _mm_store_si128(reinterpret_cast<__m128i*>(buf.pad + i), zero);
     // (id needs no start value: it is read only where slot is set, or compared where best is
-    // +inf or -inf, where the depth alone decides.)
+    // +inf or -inf, where the depth alone decides; an occluded pixel starts at the occluder's
+    // depth with kOccluderId.)
     for (int r = 0; r < h; ++r)
       for (int i = 0; i < kT; i += 4) {
         _mm_store_ps(buf.best + r * kT + i, _mm_load_ps(first + i));
         _mm_store_si128(reinterpret_cast<__m128i*>(buf.slot + r * kT + i), zero);
+      }
+    if (job.occluder_ids != nullptr)
+      for (int r = 0; r < h; ++r) {
+        const std::size_t row = static_cast<std::size_t>(y0 + r) * static_cast<std::size_t>(map.width) + x0;
+        for (int i = 0; i < w; ++i) {
+          const bool occluded = job.occluder_ids[row + i] != 0;
+          buf.best[r * kT + i] = occluded ? job.occluder_depth[row + i] : kInf;
+          buf.id[r * kT + i] = kOccluderId;
+        }
       }
   }
   std::uint32_t dirs_ready = 0;  // bit r: row r's rays are filled
@@ -405,7 +415,8 @@ std::uint64_t TiledRasterizer::memory_bytes() const {
   return s;
 }
 
-void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres, int threads, VisibilityMap& map) {
+void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres, int threads, VisibilityMap& map,
+                          const VisibilityMap* occluder) {
   const std::size_t n = spheres.size();
   const int tiles_x = (map.width + kT - 1) / kT, tiles_y = (map.height + kT - 1) / kT;
   const std::size_t tiles = static_cast<std::size_t>(tiles_x) * static_cast<std::size_t>(tiles_y);
@@ -568,7 +579,9 @@ void TiledRasterizer::run(const CameraRig& cam, std::span<const Sphere> spheres,
                     row_y_.data(),
                     row_z_.data(),
                     background_.data(),
-                    keep_background};
+                    keep_background,
+                    occluder != nullptr ? occluder->ids.data() : nullptr,
+                    occluder != nullptr ? occluder->depth.data() : nullptr};
   void (*kernel)(const TileJob&, std::uint32_t) = raster_tile_sse2;
 #if VISCD_HAVE_AVX512
   if (simd_ == SimdLevel::avx512) kernel = raster_tile_avx512;

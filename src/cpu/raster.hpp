@@ -23,8 +23,13 @@ class TiledRasterizer {
   /// Tile edge in pixels.
   static constexpr int kTile = 32;
   /// Fills map (already sized to the rig's map) from the spheres, and map.counts with the pixels
-  /// of each sphere (map.has_counts). Not thread-safe.
-  void run(const CameraRig& cam, std::span<const Sphere> spheres, int threads, VisibilityMap& map);
+  /// of each sphere (map.has_counts). Not thread-safe. With an occluder (a layer of the same size
+  /// drawn with the same rig: the static set's), each pixel starts at the occluder's depth where
+  /// it has an object, and a sphere takes the pixel only when it is as near or nearer (a tie goes
+  /// to the sphere, as in the merged map): the map and counts are then the spheres' visible
+  /// pixels, with the occluded ones as background.
+  void run(const CameraRig& cam, std::span<const Sphere> spheres, int threads, VisibilityMap& map,
+           const VisibilityMap* occluder = nullptr);
   /// Bytes of the binning buffers.
   [[nodiscard]] std::uint64_t memory_bytes() const;
   /// After run(): whether tile t (row-major, kTile x kTile pixels, ceil(width / kTile) to a row)

@@ -128,6 +128,21 @@ VISCD_AVX512_FLATTEN void raster_tile_avx512(const TileJob& job, std::uint32_t t
       _mm512_store_si512(buf.slot + r * kT, zero);
       _mm512_store_si512(buf.slot + r * kT + 16, zero);
     }
+    if (job.occluder_ids != nullptr) {
+      // An occluded pixel starts at the occluder's depth, with kOccluderId.
+      const __m512i occluder_id = _mm512_set1_epi32(static_cast<int>(kOccluderId));
+      for (int r = 0; r < h; ++r) {
+        const std::size_t row = static_cast<std::size_t>(y0 + r) * static_cast<std::size_t>(map.width) + x0;
+        for (int g = 0; g < kT; g += 16) {
+          const auto lanes = static_cast<__mmask16>(on_map >> g);
+          const __m512i ids = _mm512_maskz_loadu_epi32(lanes, job.occluder_ids + row + g);
+          const __mmask16 occluded = _mm512_test_epi32_mask(ids, ids);
+          float* best = buf.best + r * kT + g;
+          _mm512_store_ps(best, _mm512_mask_loadu_ps(_mm512_load_ps(best), occluded, job.occluder_depth + row + g));
+          _mm512_store_si512(buf.id + r * kT + g, occluder_id);
+        }
+      }
+    }
   }
   std::uint32_t dirs_ready = 0;  // bit r: row r's rays are filled
   DepthCut cut;

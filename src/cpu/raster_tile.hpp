@@ -30,7 +30,14 @@ struct TileJob {
   const float *col_x, *col_y, *col_z, *row_x, *row_y, *row_z;
   const std::uint8_t* background;  // tiles written as background only by the last run
   bool keep_background;            // ... and the map still holds them
+  // The occluder's ids and depth (TiledRasterizer::run()), rows of the map's width; null: none.
+  const std::uint32_t* occluder_ids = nullptr;
+  const float* occluder_depth = nullptr;
 };
+
+/// The id an occluded pixel starts with: above every sphere's (ids < 2^31), so that a sphere at
+/// the occluder's depth takes the pixel.
+inline constexpr std::uint32_t kOccluderId = 0x7FFFFFFFu;
 
 /// Tile edge in pixels.
 inline constexpr int kTileSide = TiledRasterizer::kTile;

@@ -221,6 +221,69 @@ void same_maps(std::uint64_t seed) {
 TEST(StaticLayer, SpheresMapEqualsTheReference) { same_maps<Sphere>(5); }
 TEST(StaticLayer, BoxesMapEqualsTheReference) { same_maps<Box>(6); }
 
+// Without an image the cpu backend draws the moving spheres over the static layer's depth (its
+// occluder) instead of merging the two maps: the pixel counts must still be those of the
+// reference's single pass over both, at every SIMD level, with moving spheres that sit exactly
+// on static ones (a tie at every pixel, which goes to the moving sphere), half inside them, and
+// in front of and behind them, while the camera and the set change.
+void counts_over_the_layer(Simd simd, std::uint64_t seed) {
+  Config c;
+  c.lambda = 4;
+  c.simd = simd;
+  c.map_width = 160;  // five tiles and a part one across
+  c.map_height = 100;
+  auto cpu = make_cpu_detector(c);
+  auto ref = make_reference_detector(c);
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<float> u(-12.0f, 12.0f), r(0.3f, 2.0f);
+  std::vector<Sphere> statics(300), moving(240);
+  for (Sphere& s : statics) s = {u(rng), u(rng), u(rng) * 0.5f, r(rng)};
+  ASSERT_TRUE(cpu->set_static_spheres(statics).ok() && ref->set_static_spheres(statics).ok());
+  Camera cam;
+  cam.eye[2] = 40;
+  FrameResult a, b;
+  for (int f = 0; f < 6; ++f) {
+    SCOPED_TRACE("frame " + std::to_string(f));
+    for (std::size_t k = 0; k < moving.size(); ++k) {
+      const Sphere& st = statics[(k * 7 + static_cast<std::size_t>(f)) % statics.size()];
+      switch (k % 4) {
+        case 0:  // exactly on a static sphere: equal depth at every pixel
+          moving[k] = st;
+          break;
+        case 1:  // half inside one
+          moving[k] = {st.x + st.r * 0.5f, st.y, st.z, st.r * 0.8f};
+          break;
+        case 2:  // just behind one, and larger: its rim shows
+          moving[k] = {st.x, st.y, st.z - st.r, st.r * 1.3f};
+          break;
+        default:
+          moving[k] = {u(rng), u(rng), u(rng) * 0.5f, r(rng)};
+      }
+    }
+    if (f == 2) cam.eye[0] = 7;  // the camera moves: the layer is drawn again
+    if (f == 4) {                // the set changes: again
+      ASSERT_TRUE(cpu->remove_static(3).ok() && ref->remove_static(3).ok());
+      ASSERT_TRUE(cpu->move_static_sphere(5, moving[3]).ok() && ref->move_static_sphere(5, moving[3]).ok());
+    }
+    FrameInput in;
+    in.spheres = moving;
+    in.camera = &cam;
+    ASSERT_TRUE(cpu->detect(in, a).ok());
+    ASSERT_TRUE(ref->detect(in, b).ok());
+    EXPECT_EQ(a.pixels, b.pixels);
+    EXPECT_EQ(a.state, b.state);
+    EXPECT_TRUE(test::same_pairs(a.pairs, b.pairs));
+    std::size_t hidden = 0;
+    for (const float p : b.pixels) hidden += p == 0.0f;
+    EXPECT_GT(hidden, 0u) << "some moving sphere should be hidden entirely";
+  }
+}
+
+TEST(StaticLayer, CountsOverTheLayerEqualTheReference) {
+  counts_over_the_layer(Simd::best, 9);
+  counts_over_the_layer(Simd::sse2, 9);
+}
+
 }  // namespace
 }  // namespace viscd
 
