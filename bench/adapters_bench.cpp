@@ -1,8 +1,11 @@
 // The adapters measured against the engines' own broadphases (docs/adapters.md, "Measurements"):
 //   bullet: a btDiscreteDynamicsWorld of --bodies falling boxes in a walled bin, stepped on
-//           viscd::BulletBroadphase, btDbvtBroadphase and bt32BitAxisSweep3; per step, the
-//           broadphase's share (from the first setAabb of the step's updateAabbs to the end of
-//           calculateOverlappingPairs) and the whole step; medians over the steps.
+//           viscd::BulletBroadphase, btDbvtBroadphase and bt32BitAxisSweep3, the worlds stepped
+//           in turn (one step each) so that the machine's load falls on all alike; per step,
+//           the broadphase's share (from the first setAabb of the step's updateAabbs to the end
+//           of calculateOverlappingPairs) and the whole step; medians over the steps. The worlds
+//           drift apart (each broadphase hands Bullet its pairs in its own order), so the steps'
+//           physics differ too, by the pile's state.
 //   fcl:    self collision of --fcl-boxes random boxes with a counting callback (no narrowphase)
 //           on viscd::FclBroadphaseManager and fcl::DynamicAABBTreeCollisionManager: setup +
 //           collide, then update + collide after every box moved, then 10 frames in which 1 % of
@@ -72,6 +75,11 @@ class TimedBroadphase final : public btBroadphaseInterface {
     pairs_ms.push_back(ms_since(start));
     share_ms.push_back(in_step_ ? ms_since(step_start_) : pairs_ms.back());
     in_step_ = false;
+    // viscd's: whether the frame followed change, and how many boxes it placed again.
+    if (const auto* v = dynamic_cast<const viscd::BulletBroadphase*>(inner_.get())) {
+      followed.push_back(v->last_stats().followed_change ? 1 : 0);
+      replaced.push_back(v->last_stats().followed_change ? v->last_stats().replaced : v->last_stats().objects);
+    }
   }
   btOverlappingPairCache* getOverlappingPairCache() override { return inner_->getOverlappingPairCache(); }
   const btOverlappingPairCache* getOverlappingPairCache() const override { return inner_->getOverlappingPairCache(); }
@@ -80,6 +88,8 @@ class TimedBroadphase final : public btBroadphaseInterface {
   void printStats() override { inner_->printStats(); }
 
   std::vector<double> pairs_ms, share_ms;  // calculateOverlappingPairs; updateAabbs + it
+  std::vector<int> followed;               // viscd's: per step, 1 when the frame followed change
+  std::vector<std::uint32_t> replaced;     // viscd's: boxes placed again (all of them in a rebuild)
 
  private:
   std::unique_ptr<btBroadphaseInterface> inner_;
@@ -95,86 +105,123 @@ struct BulletRun {
   // broadphase share's mean over the whole run.
   double quarter_step_ms[4] = {}, quarter_share_ms[4] = {};
   double mean_share_ms = 0;
+  // viscd's: per quarter, the share of steps that followed change and the mean boxes placed again
+  // (negative: not viscd).
+  double quarter_followed[4] = {-1, -1, -1, -1}, quarter_replaced[4] = {-1, -1, -1, -1};
 };
 
-BulletRun run_bullet(std::unique_ptr<btBroadphaseInterface> inner, int bodies, int steps) {
-  btDefaultCollisionConfiguration configuration;
-  btCollisionDispatcher dispatcher(&configuration);
-  TimedBroadphase broadphase(std::move(inner));
-  btSequentialImpulseConstraintSolver solver;
-  btDiscreteDynamicsWorld world(&dispatcher, &broadphase, &solver, &configuration);
-  world.setGravity(btVector3(0, -9.81f, 0));
-  // A bin whose floor holds the pile about 4 layers deep; boxes of 0.5 m in a jittered grid.
-  const int per_side = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(bodies) / 8)));
-  const float half = 0.6f * static_cast<float>(per_side);
-  std::vector<std::unique_ptr<btCollisionShape>> shapes;
-  std::vector<std::unique_ptr<btDefaultMotionState>> motions;
-  std::vector<std::unique_ptr<btRigidBody>> rigid;
-  const auto add = [&](btCollisionShape* shape, const btVector3& at, float mass) {
+// One Bullet world of `bodies` falling boxes in a walled bin on a broadphase, stepped by the
+// caller (so that the worlds of several broadphases step in turn, under the same load).
+class BulletWorld {
+ public:
+  BulletWorld(std::unique_ptr<btBroadphaseInterface> inner, int bodies)
+      : dispatcher_(&configuration_),
+        broadphase_(std::move(inner)),
+        world_(&dispatcher_, &broadphase_, &solver_, &configuration_),
+        bodies_(bodies) {
+    world_.setGravity(btVector3(0, -9.81f, 0));
+    // A bin whose floor holds the pile about 4 layers deep; boxes of 0.5 m in a jittered grid.
+    const int per_side = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(bodies) / 8)));
+    const float half = 0.6f * static_cast<float>(per_side);
+    shapes_.push_back(std::make_unique<btBoxShape>(btVector3(half + 1, 0.5f, half + 1)));
+    add(shapes_.back().get(), btVector3(0, -0.5f, 0), 0);
+    shapes_.push_back(std::make_unique<btBoxShape>(btVector3(0.5f, 10, half + 1)));
+    add(shapes_.back().get(), btVector3(half + 0.5f, 10, 0), 0);
+    add(shapes_.back().get(), btVector3(-half - 0.5f, 10, 0), 0);
+    shapes_.push_back(std::make_unique<btBoxShape>(btVector3(half + 1, 10, 0.5f)));
+    add(shapes_.back().get(), btVector3(0, 10, half + 0.5f), 0);
+    add(shapes_.back().get(), btVector3(0, 10, -half - 0.5f), 0);
+    shapes_.push_back(std::make_unique<btBoxShape>(btVector3(0.25f, 0.25f, 0.25f)));
+    btCollisionShape* box = shapes_.back().get();
+    std::mt19937 rng(1);
+    std::uniform_real_distribution<float> jitter(-0.05f, 0.05f);
+    for (int k = 0; k < bodies; ++k) {
+      const int i = k % per_side, j = (k / per_side) % per_side, layer = k / (per_side * per_side);
+      add(box,
+          btVector3(-half + 0.6f + 1.2f * static_cast<float>(i) + jitter(rng), 1 + 0.8f * static_cast<float>(layer),
+                    -half + 0.6f + 1.2f * static_cast<float>(j) + jitter(rng)),
+          1);
+    }
+  }
+  BulletWorld(const BulletWorld&) = delete;
+  BulletWorld& operator=(const BulletWorld&) = delete;
+  ~BulletWorld() {
+    for (auto& body : rigid_) world_.removeRigidBody(body.get());
+  }
+
+  void step() {
+    const auto start = Clock::now();
+    world_.stepSimulation(1.0f / 60, 1, 1.0f / 60);
+    step_ms_.push_back(ms_since(start));
+  }
+
+  [[nodiscard]] BulletRun result() const {
+    BulletRun r;
+    // The first steps (proxies created, first pairs) are left out of the medians.
+    const auto tail = [&](const std::vector<double>& v) {
+      return median(std::vector<double>(v.begin() + std::min<std::ptrdiff_t>(5, std::ssize(v)), v.end()));
+    };
+    r.pairs_ms = tail(broadphase_.pairs_ms);
+    r.share_ms = tail(broadphase_.share_ms);
+    r.step_ms = tail(step_ms_);
+    const std::size_t first = std::min<std::size_t>(5, step_ms_.size()), n = step_ms_.size() - first;
+    for (int q = 0; q < 4; ++q) {
+      const std::size_t b = first + n * static_cast<std::size_t>(q) / 4,
+                        e = first + n * static_cast<std::size_t>(q + 1) / 4;
+      r.quarter_step_ms[q] = median(std::vector<double>(step_ms_.begin() + static_cast<std::ptrdiff_t>(b),
+                                                        step_ms_.begin() + static_cast<std::ptrdiff_t>(e)));
+      if (broadphase_.share_ms.size() >= e)
+        r.quarter_share_ms[q] =
+            median(std::vector<double>(broadphase_.share_ms.begin() + static_cast<std::ptrdiff_t>(b),
+                                       broadphase_.share_ms.begin() + static_cast<std::ptrdiff_t>(e)));
+      if (broadphase_.followed.size() >= e && e > b) {
+        double f = 0, m = 0;
+        for (std::size_t k = b; k < e; ++k) {
+          f += broadphase_.followed[k];
+          m += broadphase_.replaced[k];
+        }
+        r.quarter_followed[q] = f / static_cast<double>(e - b);
+        r.quarter_replaced[q] = m / static_cast<double>(e - b);
+      }
+    }
+    for (std::size_t k = first; k < broadphase_.share_ms.size(); ++k) r.mean_share_ms += broadphase_.share_ms[k];
+    if (broadphase_.share_ms.size() > first)
+      r.mean_share_ms /= static_cast<double>(broadphase_.share_ms.size() - first);
+    r.cache_pairs = broadphase_.getOverlappingPairCache()->getNumOverlappingPairs();
+    for (std::size_t b = 5; b < rigid_.size(); ++b) r.mean_height += rigid_[b]->getCenterOfMassPosition().y();
+    r.mean_height /= static_cast<double>(bodies_);
+    return r;
+  }
+
+ private:
+  void add(btCollisionShape* shape, const btVector3& at, float mass) {
     btVector3 inertia(0, 0, 0);
     if (mass > 0) shape->calculateLocalInertia(mass, inertia);
     btTransform t;
     t.setIdentity();
     t.setOrigin(at);
-    motions.push_back(std::make_unique<btDefaultMotionState>(t));
-    rigid.push_back(std::make_unique<btRigidBody>(
-        btRigidBody::btRigidBodyConstructionInfo(mass, motions.back().get(), shape, inertia)));
-    world.addRigidBody(rigid.back().get());
-  };
-  shapes.push_back(std::make_unique<btBoxShape>(btVector3(half + 1, 0.5f, half + 1)));
-  add(shapes.back().get(), btVector3(0, -0.5f, 0), 0);
-  shapes.push_back(std::make_unique<btBoxShape>(btVector3(0.5f, 10, half + 1)));
-  add(shapes.back().get(), btVector3(half + 0.5f, 10, 0), 0);
-  add(shapes.back().get(), btVector3(-half - 0.5f, 10, 0), 0);
-  shapes.push_back(std::make_unique<btBoxShape>(btVector3(half + 1, 10, 0.5f)));
-  add(shapes.back().get(), btVector3(0, 10, half + 0.5f), 0);
-  add(shapes.back().get(), btVector3(0, 10, -half - 0.5f), 0);
-  shapes.push_back(std::make_unique<btBoxShape>(btVector3(0.25f, 0.25f, 0.25f)));
-  btCollisionShape* box = shapes.back().get();
-  std::mt19937 rng(1);
-  std::uniform_real_distribution<float> jitter(-0.05f, 0.05f);
-  for (int k = 0; k < bodies; ++k) {
-    const int i = k % per_side, j = (k / per_side) % per_side, layer = k / (per_side * per_side);
-    add(box,
-        btVector3(-half + 0.6f + 1.2f * static_cast<float>(i) + jitter(rng), 1 + 0.8f * static_cast<float>(layer),
-                  -half + 0.6f + 1.2f * static_cast<float>(j) + jitter(rng)),
-        1);
+    motions_.push_back(std::make_unique<btDefaultMotionState>(t));
+    rigid_.push_back(std::make_unique<btRigidBody>(
+        btRigidBody::btRigidBodyConstructionInfo(mass, motions_.back().get(), shape, inertia)));
+    world_.addRigidBody(rigid_.back().get());
   }
-  std::vector<double> step_ms;
-  for (int s = 0; s < steps; ++s) {
-    const auto start = Clock::now();
-    world.stepSimulation(1.0f / 60, 1, 1.0f / 60);
-    step_ms.push_back(ms_since(start));
-  }
-  BulletRun r;
-  // The first steps (proxies created, first pairs) are left out of the medians.
-  const auto tail = [&](const std::vector<double>& v) {
-    return median(std::vector<double>(v.begin() + std::min<std::ptrdiff_t>(5, std::ssize(v)), v.end()));
-  };
-  r.pairs_ms = tail(broadphase.pairs_ms);
-  r.share_ms = tail(broadphase.share_ms);
-  r.step_ms = tail(step_ms);
-  const std::size_t first = std::min<std::size_t>(5, step_ms.size()), n = step_ms.size() - first;
-  for (int q = 0; q < 4; ++q) {
-    const std::size_t b = first + n * static_cast<std::size_t>(q) / 4,
-                      e = first + n * static_cast<std::size_t>(q + 1) / 4;
-    r.quarter_step_ms[q] = median(std::vector<double>(step_ms.begin() + static_cast<std::ptrdiff_t>(b),
-                                                      step_ms.begin() + static_cast<std::ptrdiff_t>(e)));
-    if (broadphase.share_ms.size() >= e)
-      r.quarter_share_ms[q] = median(std::vector<double>(broadphase.share_ms.begin() + static_cast<std::ptrdiff_t>(b),
-                                                         broadphase.share_ms.begin() + static_cast<std::ptrdiff_t>(e)));
-  }
-  for (std::size_t k = first; k < broadphase.share_ms.size(); ++k) r.mean_share_ms += broadphase.share_ms[k];
-  if (broadphase.share_ms.size() > first) r.mean_share_ms /= static_cast<double>(broadphase.share_ms.size() - first);
-  r.cache_pairs = broadphase.getOverlappingPairCache()->getNumOverlappingPairs();
-  for (std::size_t b = 5; b < rigid.size(); ++b) r.mean_height += rigid[b]->getCenterOfMassPosition().y();
-  r.mean_height /= static_cast<double>(bodies);
-  for (auto& body : rigid) world.removeRigidBody(body.get());
-  return r;
-}
+
+  btDefaultCollisionConfiguration configuration_;
+  btCollisionDispatcher dispatcher_;
+  TimedBroadphase broadphase_;
+  btSequentialImpulseConstraintSolver solver_;
+  btDiscreteDynamicsWorld world_;
+  int bodies_;
+  std::vector<std::unique_ptr<btCollisionShape>> shapes_;
+  std::vector<std::unique_ptr<btDefaultMotionState>> motions_;
+  std::vector<std::unique_ptr<btRigidBody>> rigid_;
+  std::vector<double> step_ms_;
+};
 
 void bench_bullet(int bodies, int steps) {
-  std::printf("bullet: %d falling boxes, %d steps at 60 Hz, medians after the first 5 steps (ms)\n", bodies, steps);
+  std::printf("bullet: %d falling boxes, %d steps at 60 Hz, the worlds stepped in turn (one step each, same load),\n",
+              bodies, steps);
+  std::printf("medians after the first 5 steps (ms)\n");
   std::printf("%-22s %12s %18s %10s %12s %12s\n", "broadphase", "pairs_ms", "aabbs+pairs_ms", "step_ms", "cache_pairs",
               "mean_height");
   const float extent = 1000;
@@ -186,6 +233,12 @@ void bench_bullet(int bodies, int steps) {
          c.follow_change = false;
          return std::make_unique<viscd::BulletBroadphase>(c);
        }},
+      {"viscd, one thread",
+       [] {
+         viscd::Config c;
+         c.threads = 1;
+         return std::make_unique<viscd::BulletBroadphase>(c);
+       }},
       {"btDbvtBroadphase", [] { return std::make_unique<btDbvtBroadphase>(); }},
       {"bt32BitAxisSweep3",
        [&] {
@@ -194,14 +247,20 @@ void bench_bullet(int bodies, int steps) {
                                                     static_cast<unsigned>(bodies + 16));
        }},
   };
-  std::vector<std::pair<std::string, BulletRun>> runs;
-  for (const auto& [name, make] : kinds) {
-    const BulletRun r = run_bullet(make(), bodies, steps);
-    std::printf("%-22s %12.3f %18.3f %10.3f %12d %12.3f\n", name.c_str(), r.pairs_ms, r.share_ms, r.step_ms,
-                r.cache_pairs, r.mean_height);
-    std::fflush(stdout);
-    runs.emplace_back(name, r);
+  std::vector<std::unique_ptr<BulletWorld>> worlds;
+  for (const auto& [name, make] : kinds) worlds.push_back(std::make_unique<BulletWorld>(make(), bodies));
+  for (int s = 0; s < steps; ++s) {
+    for (auto& w : worlds) w->step();
+    if ((s + 1) % 100 == 0 || s + 1 == steps) std::fprintf(stderr, "step %d/%d\n", s + 1, steps);
   }
+  std::vector<std::pair<std::string, BulletRun>> runs;
+  for (std::size_t k = 0; k < kinds.size(); ++k) {
+    const BulletRun r = worlds[k]->result();
+    std::printf("%-22s %12.3f %18.3f %10.3f %12d %12.3f\n", kinds[k].first.c_str(), r.pairs_ms, r.share_ms, r.step_ms,
+                r.cache_pairs, r.mean_height);
+    runs.emplace_back(kinds[k].first, r);
+  }
+  worlds.clear();
   std::printf("\nper quarter of the run: median step ms | median aabbs+pairs ms; mean aabbs+pairs ms over the run\n");
   std::printf("%-22s %9s %9s %9s %9s | %9s %9s %9s %9s | %9s\n", "broadphase", "step Q1", "Q2", "Q3", "Q4", "bp Q1",
               "Q2", "Q3", "Q4", "bp mean");
@@ -209,6 +268,13 @@ void bench_bullet(int bodies, int steps) {
     std::printf("%-22s %9.3f %9.3f %9.3f %9.3f | %9.3f %9.3f %9.3f %9.3f | %9.3f\n", name.c_str(), r.quarter_step_ms[0],
                 r.quarter_step_ms[1], r.quarter_step_ms[2], r.quarter_step_ms[3], r.quarter_share_ms[0],
                 r.quarter_share_ms[1], r.quarter_share_ms[2], r.quarter_share_ms[3], r.mean_share_ms);
+  std::printf("\nviscd per quarter: steps that followed change (%%) | mean boxes placed again a step\n");
+  for (const auto& [name, r] : runs) {
+    if (r.quarter_followed[0] < 0) continue;
+    std::printf("%-22s %9.1f %9.1f %9.1f %9.1f | %9.1f %9.1f %9.1f %9.1f\n", name.c_str(), 100 * r.quarter_followed[0],
+                100 * r.quarter_followed[1], 100 * r.quarter_followed[2], 100 * r.quarter_followed[3],
+                r.quarter_replaced[0], r.quarter_replaced[1], r.quarter_replaced[2], r.quarter_replaced[3]);
+  }
 }
 
 // Counts the proxies a rayTest reports. The fields set() fills are what btDbvtBroadphase's rayTest

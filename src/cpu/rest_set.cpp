@@ -27,8 +27,8 @@ constexpr std::size_t kRebuildFloor = 4096;
 /// whose buckets lie far apart in memory, and its candidates merged into the list), so that
 /// following pays up to about 12 % (docs/benchmarks.md, "Cost follows change").
 constexpr std::size_t kSample = 256;
-constexpr std::size_t kTakeOver = 16;
-constexpr std::size_t kGiveUp = 10;
+constexpr std::size_t kTakeOver = 10;
+constexpr std::size_t kGiveUp = 8;
 
 [[nodiscard]] std::uint64_t key(std::uint32_t i, std::uint32_t j) { return std::uint64_t{i} << 32 | j; }
 [[nodiscard]] std::uint32_t key_i(std::uint64_t k) { return static_cast<std::uint32_t>(k >> 32); }
@@ -263,11 +263,16 @@ bool RestSet::sample_rests(const Shapes& s, float margin) {
     }
     rests = still * kTakeOver >= sample_index_.size() * (kTakeOver - 1);
   }
+  // Evenly spread, from an offset that changes with every sample (a fixed sample that happened
+  // to hold more of a fixed set of movers than the whole would never take over).
   const std::size_t m = std::min(n, kSample);
+  const std::size_t spacing = m == 0 ? 1 : n / m;
+  sample_seed_ = sample_seed_ * 6364136223846793005ull + 1442695040888963407ull;
+  const std::size_t offset = static_cast<std::size_t>(sample_seed_ >> 33) % spacing;
   sample_index_.resize(m);
   sample_.resize(m);
   for (std::size_t k = 0; k < m; ++k) {
-    sample_index_[k] = static_cast<std::uint32_t>(k * n / m);
+    sample_index_[k] = static_cast<std::uint32_t>(k * n / m + offset);
     const Aabb a = s.aabb(sample_index_[k]);
     sample_[k] = Box{{a.lo.x, a.lo.y, a.lo.z}, {a.hi.x, a.hi.y, a.hi.z}};
   }

@@ -20,12 +20,12 @@
 // recent).
 //
 // A frame costs the pass over the bounds (none with FrameInput::moved), the movers' tree and its
-// searches, and one merging pass over the candidates and pairs. When more than 1 in 10 objects
+// searches, and one merging pass over the candidates and pairs. When more than 1 in 8 objects
 // leave their fat bounds in a frame, when the object count, their kind, the static set, the layout
 // or the margin change, or when culling leaves fewer than half of the objects active (the
 // candidates of culled objects would cost more than a culled rebuild saves), the set lets the
 // frame rebuild and starts again later: while it is not in use it watches a sample of 256
-// objects, and takes over when 15 in 16 of them rest.
+// objects (a new one each frame), and takes over when 9 in 10 of them rest.
 // docs/architecture.md, "Resting objects".
 
 #include <cstdint>
@@ -193,6 +193,7 @@ class RestSet {
   std::vector<std::uint32_t> sample_index_;
   std::vector<Box> sample_;  // each sampled object's box (Shapes::aabb) when taken
   std::size_t sample_n_ = 0;
+  std::uint64_t sample_seed_ = 1;  // picks each sample's offset
   ShapeKind sample_kind_ = ShapeKind::sphere;
 };
 
