@@ -392,7 +392,7 @@ Status RestSet::enter(const Input& in, const StaticSet& set, StaticTree& st, int
 Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bool& few) {
   const Shapes& s = in.objects;
   const bool listed = in.moved_listed;
-  // The objects to compare: the listed ones, or all of them (in chunks of whole bitset words, so
+  // The objects to compare: the listed ones, or all of them, in chunks of whole bitset words (so
   // that each chunk sets the bits of its own words). A changed object's shape is taken at once.
   const std::size_t count = listed ? in.moved.size() : (n_ + 63) / 64;
   const std::size_t chunks = std::max<std::size_t>(1, ranges_for(listed ? count : n_, threads));
@@ -448,7 +448,14 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
       changed_total.fetch_add(changed_in_chunk, std::memory_order_relaxed);
       return;
     }
-    for (std::size_t t = b; t < e; ++t) {
+    // The chunk's ends moved past entries of the word before them, so that no two chunks set
+    // bits in one word (the list is ascending).
+    const auto word_start = [&](std::size_t t) {
+      while (t > 0 && t < count && (in.moved[t] >> 6) == (in.moved[t - 1] >> 6)) ++t;
+      return t;
+    };
+    e = word_start(e);
+    for (std::size_t t = word_start(b); t < e; ++t) {
       const std::uint32_t k = in.moved[t];
       if (t + 8 < e) {  // listed objects lie scattered: their shapes and last copies read ahead
         const std::uint32_t ahead = in.moved[t + 8];
@@ -469,12 +476,9 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
       }
       changed.push_back(k);
       const std::uint64_t word_bit = std::uint64_t{1} << (k & 63);
-      // Listed objects of one word may fall in two chunks: atomic ORs.
-      std::atomic_ref<std::uint64_t>(changed_bits_[k >> 6]).fetch_or(word_bit, std::memory_order_relaxed);
+      changed_bits_[k >> 6] |= word_bit;
       if (stays(k)) continue;
-      std::atomic_ref<std::uint64_t>(left_bits_[k >> 6]).fetch_or(word_bit, std::memory_order_relaxed);
-      std::uint64_t unused = 0;
-      if (!note_left(k, &unused)) return;
+      if (!note_left(k, &left_bits_[k >> 6])) return;
     }
   });
   few = !over.load();

@@ -544,6 +544,11 @@ TEST_P(RestSetSegments, StayExactWhileMoversGather) {
         sph[o] = {u(rng) * 20, u(rng) * 20, u(rng) * 20, 0.9f};
         moved.push_back(o);
       }
+      // Every other frame the list also names objects 0-5999, most of them unchanged (allowed):
+      // past the parallel threshold, so that the comparing pass splits the list into chunks
+      // whose ends fall inside runs of one bitset word.
+      if (frame % 2 == 0)
+        for (std::uint32_t k = 0; k < 6000; ++k) moved.push_back(k);
       std::sort(moved.begin(), moved.end());
       moved.erase(std::unique(moved.begin(), moved.end()), moved.end());
     }
