@@ -455,10 +455,11 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
       return t;
     };
     e = word_start(e);
+    constexpr std::size_t kAhead = 32;  // reads in flight: each one a miss at 10^6 objects
     for (std::size_t t = word_start(b); t < e; ++t) {
       const std::uint32_t k = in.moved[t];
-      if (t + 8 < e) {  // listed objects lie scattered: their shapes and last copies read ahead
-        const std::uint32_t ahead = in.moved[t + 8];
+      if (t + kAhead < e) {  // listed objects lie scattered: their shapes and last copies read ahead
+        const std::uint32_t ahead = in.moved[t + kAhead];
         if (boxes) {
           __builtin_prefetch(&s.boxes[ahead]);
           __builtin_prefetch(&cur_box_[ahead]);
