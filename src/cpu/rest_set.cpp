@@ -733,6 +733,17 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     std::size_t a = segs_[c].begin, b = b_at_[c], t = s_at_[c];
     const std::size_t ae = segs_[c].end, be = b_at_[c + 1], te = s_at_[c + 1];
     std::size_t kept = 0, out = 0;
+    // A candidate kept (when merging) with its result, and its pair if it holds.
+    auto take = [&](std::uint64_t k, std::uint32_t i, std::uint32_t j, bool hit) {
+      if constexpr (kMerge) {
+        nk[kept] = k;
+        nh[kept] = hit;
+        ++kept;
+      }
+      po[out] = Pair{i, j};
+      if constexpr (kCheck) hit = hit && moving_ok(i, j);
+      out += hit;
+    };
     for (;;) {
       const std::uint64_t kb = b < be ? bk[b] : kEnd, kt = t < te ? sk[t] : kEnd;
       const std::uint64_t below = std::min(kb, kt);
@@ -744,28 +755,16 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
           if (bit(left, i) | bit(left, j)) continue;  // placed again: found anew in B
           if constexpr (kRetest)
             if (bit(changed, i) | bit(changed, j)) hit = shapes.overlap(i, j);
-          nk[kept] = k;
-          nh[kept] = hit;
-          ++kept;
         }
-        po[out] = Pair{i, j};
-        if constexpr (kCheck) hit = hit && moving_ok(i, j);
-        out += hit;
+        take(k, i, j, hit);
       }
       if (below == kEnd) break;
       if (kt < kb) {
         po[out] = Pair{key_i(kt), key_j(kt)};
         out += static_ok(kt);
         ++t;
-      } else {
-        const std::uint32_t i = key_i(kb), j = key_j(kb);
-        bool hit = !kRetest || shapes.overlap(i, j);
-        nk[kept] = kb;
-        nh[kept] = hit;
-        ++kept;
-        po[out] = Pair{i, j};
-        if constexpr (kCheck) hit = hit && moving_ok(i, j);
-        out += hit;
+      } else {  // B holds keys only when merging
+        take(kb, key_i(kb), key_j(kb), !kRetest || shapes.overlap(key_i(kb), key_j(kb)));
         ++b;
       }
     }
