@@ -119,7 +119,9 @@ struct BulletRun {
 // caller (so that the worlds of several broadphases step in turn, under the same load).
 class BulletWorld {
  public:
-  BulletWorld(std::unique_ptr<btBroadphaseInterface> inner, int bodies)
+  /// `pillars`: every other body a sphere, and static pillars standing in the bin (a world whose
+  /// bodies fall among obstacles and come to rest apart, so that Bullet puts most to sleep).
+  BulletWorld(std::unique_ptr<btBroadphaseInterface> inner, int bodies, bool pillars)
       : dispatcher_(&configuration_),
         broadphase_(std::move(inner)),
         world_(&dispatcher_, &broadphase_, &solver_, &configuration_),
@@ -136,13 +138,22 @@ class BulletWorld {
     shapes_.push_back(std::make_unique<btBoxShape>(btVector3(half + 1, 10, 0.5f)));
     add(shapes_.back().get(), btVector3(0, 10, half + 0.5f), 0);
     add(shapes_.back().get(), btVector3(0, 10, -half - 0.5f), 0);
+    if (pillars) {
+      // A pillar 0.4 m thick and 3 m tall every 2.4 m, between the grid's columns.
+      shapes_.push_back(std::make_unique<btBoxShape>(btVector3(0.2f, 1.5f, 0.2f)));
+      for (float x = -half + 1.2f; x < half; x += 2.4f)
+        for (float z = -half + 1.2f; z < half; z += 2.4f) add(shapes_.back().get(), btVector3(x, 1.5f, z), 0);
+    }
     shapes_.push_back(std::make_unique<btBoxShape>(btVector3(0.25f, 0.25f, 0.25f)));
     btCollisionShape* box = shapes_.back().get();
+    shapes_.push_back(std::make_unique<btSphereShape>(0.25f));
+    btCollisionShape* ball = shapes_.back().get();
+    first_body_ = rigid_.size();
     std::mt19937 rng(1);
     std::uniform_real_distribution<float> jitter(-0.05f, 0.05f);
     for (int k = 0; k < bodies; ++k) {
       const int i = k % per_side, j = (k / per_side) % per_side, layer = k / (per_side * per_side);
-      add(box,
+      add(pillars && k % 2 == 1 ? ball : box,
           btVector3(-half + 0.6f + 1.2f * static_cast<float>(i) + jitter(rng), 1 + 0.8f * static_cast<float>(layer),
                     -half + 0.6f + 1.2f * static_cast<float>(j) + jitter(rng)),
           1);
@@ -198,7 +209,7 @@ class BulletWorld {
     if (broadphase_.share_ms.size() > first)
       r.mean_share_ms /= static_cast<double>(broadphase_.share_ms.size() - first);
     r.cache_pairs = broadphase_.getOverlappingPairCache()->getNumOverlappingPairs();
-    for (std::size_t b = 5; b < rigid_.size(); ++b) r.mean_height += rigid_[b]->getCenterOfMassPosition().y();
+    for (std::size_t b = first_body_; b < rigid_.size(); ++b) r.mean_height += rigid_[b]->getCenterOfMassPosition().y();
     r.mean_height /= static_cast<double>(bodies_);
     return r;
   }
@@ -226,11 +237,12 @@ class BulletWorld {
   std::vector<std::unique_ptr<btDefaultMotionState>> motions_;
   std::vector<std::unique_ptr<btRigidBody>> rigid_;
   std::vector<double> step_ms_;
+  std::size_t first_body_ = 0;  // rigid_[first_body_..] are the falling bodies
 };
 
-void bench_bullet(int bodies, int steps) {
-  std::printf("bullet: %d falling boxes, %d steps at 60 Hz, the worlds stepped in turn (one step each, same load),\n",
-              bodies, steps);
+void bench_bullet(int bodies, int steps, bool pillars) {
+  std::printf("bullet: %d falling %s, %d steps at 60 Hz, the worlds stepped in turn (one step each, same load),\n",
+              bodies, pillars ? "boxes and spheres among static pillars" : "boxes", steps);
   std::printf("medians after the first 5 steps (ms)\n");
   std::printf("%-22s %12s %18s %10s %12s %12s\n", "broadphase", "pairs_ms", "aabbs+pairs_ms", "step_ms", "cache_pairs",
               "mean_height");
@@ -260,11 +272,11 @@ void bench_bullet(int bodies, int steps) {
        [&] {
          return std::make_unique<bt32BitAxisSweep3>(btVector3(-extent, -extent, -extent),
                                                     btVector3(extent, extent, extent),
-                                                    static_cast<unsigned>(bodies + 16));
+                                                    static_cast<unsigned>(bodies + 1024));
        }},
   };
   std::vector<std::unique_ptr<BulletWorld>> worlds;
-  for (const auto& [name, make] : kinds) worlds.push_back(std::make_unique<BulletWorld>(make(), bodies));
+  for (const auto& [name, make] : kinds) worlds.push_back(std::make_unique<BulletWorld>(make(), bodies, pillars));
   for (int s = 0; s < steps; ++s) {
     for (auto& w : worlds) w->step();
     if ((s + 1) % 100 == 0 || s + 1 == steps) std::fprintf(stderr, "step %d/%d\n", s + 1, steps);
@@ -512,8 +524,11 @@ int main(int argc, char** argv) {
   std::vector<int> query_bodies = {1000, 10000};
   app.add_option("--only", only, "run one part: bullet, fcl or queries")
       ->check(CLI::IsMember({"bullet", "fcl", "queries"}));
-  app.add_option("--bodies", bodies, "falling boxes in the Bullet world")->check(CLI::Range(1, 10000000));
+  app.add_option("--bodies", bodies, "falling bodies in the Bullet world")->check(CLI::Range(1, 10000000));
   app.add_option("--steps", steps, "Bullet steps (60 Hz)")->check(CLI::Range(6, 100000));
+  bool pillars = false;
+  app.add_flag("--pillars", pillars,
+               "Bullet world: every other body a sphere, and static pillars in the bin (a world that comes to rest)");
   app.add_option("--fcl-boxes", fcl_boxes, "boxes in the FCL self collision")->check(CLI::Range(2, 100000000));
   app.add_option("--reps", reps, "FCL runs per manager")->check(CLI::Range(1, 1000));
   app.add_option("--query-bodies", query_bodies, "proxies in the query part, one run each (e.g. 1000,10000)")
@@ -522,7 +537,7 @@ int main(int argc, char** argv) {
   app.add_option("--rays", rays, "rays (and aabbTest boxes) per step in the query part")->check(CLI::Range(1, 1000000));
   app.add_option("--query-steps", query_steps, "steps in the query part")->check(CLI::Range(2, 100000));
   CLI11_PARSE(app, argc, argv);
-  if (only.empty() || only == "bullet") bench_bullet(bodies, steps);
+  if (only.empty() || only == "bullet") bench_bullet(bodies, steps, pillars);
   if (only.empty() || only == "fcl") bench_fcl(fcl_boxes, reps);
   if (only.empty() || only == "queries") bench_queries(query_bodies, rays, query_steps);
   return 0;
