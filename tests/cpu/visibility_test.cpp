@@ -186,6 +186,41 @@ TEST(Visibility, AllCulledAndNoneCulled) {
   EXPECT_TRUE(same_pairs(none.pairs, oracle_pairs(s)));
 }
 
+// One detector, the same objects: frames with a camera that culls some of them, without a camera
+// (every object active: the list of all of them is kept between such frames), and with a static
+// object appended; each frame's active objects and pairs are checked, so that a list left over
+// from another kind of frame shows.
+TEST(Visibility, ActiveListsAcrossFramesWithAndWithoutCamera) {
+  const auto s = random_spheres_by_half_extent(700, 22, 6.0f, 0.3f, 1.0f);
+  const Camera cam = camera_at(0, 0, 30, 0, 0, 0, 160, 90);
+  Config c;
+  c.lambda = 6;
+  c.follow_change = false;  // every frame runs the broadphase on the list
+  auto d = make_cpu_detector(c);
+  for (int f = 0; f < 7; ++f) {
+    SCOPED_TRACE("frame " + std::to_string(f));
+    if (f == 5) {
+      ASSERT_TRUE(d->add_static_sphere(Sphere{0, 0, 0, 2}).ok());
+    }
+    const bool culls = f % 3 == 1;
+    const FrameResult r = test::run_frame(*d, s, culls ? &cam : nullptr);
+    std::vector<std::uint32_t> active;
+    for (std::uint32_t k = 0; k < s.size(); ++k)
+      if (r.state[k] != ObjectState::culled) active.push_back(k);
+    EXPECT_EQ(r.stats.active, active.size());
+    if (culls) {
+      EXPECT_LT(active.size(), s.size());
+      EXPECT_GT(active.size(), 20u);
+    } else {
+      EXPECT_EQ(active.size(), s.size());
+    }
+    std::vector<Pair> moving;
+    for (const Pair& p : r.pairs)
+      if (p.j < s.size()) moving.push_back(p);
+    EXPECT_TRUE(same_pairs(moving, oracle_pairs(s, &active)));
+  }
+}
+
 // Culling off, adaptive bits, 2^17 + 1 objects on a 640x360 screen (fewer pixels than a = 100
 // per object): m is 32 whatever a map would show, so none is rendered; the pairs are a 32-bit
 // frame's. With 2^17 objects 16 bits stay possible and the map is rendered.
