@@ -5,7 +5,9 @@
 //           the broadphase's share (from the first setAabb of the step's updateAabbs to the end
 //           of calculateOverlappingPairs) and the whole step; medians over the steps. The worlds
 //           drift apart (each broadphase hands Bullet its pairs in its own order), so the steps'
-//           physics differ too, by the pile's state.
+//           physics differ too, by the pile's state. With --pillars every other body is a sphere
+//           and static pillars stand in the bin. Also per quarter: the boxes whose AABB changed a
+//           step, and for viscd the steps that followed change and the boxes placed again.
 //   fcl:    self collision of --fcl-boxes random boxes with a counting callback (no narrowphase)
 //           on viscd::FclBroadphaseManager and fcl::DynamicAABBTreeCollisionManager: setup +
 //           collide, then update + collide after every box moved, then 10 frames in which 1 % of
