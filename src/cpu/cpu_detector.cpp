@@ -39,8 +39,7 @@ Status CpuDetector::draw_frame(const CameraRig& cam, const Camera& camera, const
     // to the moving one), so that the map and the counts hold their visible pixels alone and the
     // cost follows the moving objects. The map keeps no static id, which nothing reads without an
     // image.
-    raster_.set_simd(simd_level_for(config_.simd));
-    raster_.run(cam, moving.spheres, threads, map_, &static_layer_);
+    rasterize_spheres(cam, moving.spheres, threads, &static_layer_);
     return {};
   }
   if (Status s = rasterize(cam, moving, threads); !s) return s;

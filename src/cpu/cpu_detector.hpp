@@ -58,9 +58,14 @@ class CpuDetector final : public PipelineDetector {
       box_raster_.run(cam, objects.boxes, threads, map_);
       return {};
     }
-    raster_.set_simd(simd_level_for(config_.simd));
-    raster_.run(cam, objects.spheres, threads, map_);
+    rasterize_spheres(cam, objects.spheres, threads, nullptr);
     return {};
+  }
+  /// The spheres into map_, over `occluder`'s depth when given (TiledRasterizer::run()).
+  void rasterize_spheres(const CameraRig& cam, std::span<const Sphere> spheres, int threads,
+                         const VisibilityMap* occluder) {
+    raster_.set_simd(simd_level_for(config_.simd));
+    raster_.run(cam, spheres, threads, map_, occluder);
   }
   /// The static set's layer is drawn once per camera, map size and set version (static_layer_),
   /// and each frame's moving objects are drawn on their own. For a shaded image (or boxes) the

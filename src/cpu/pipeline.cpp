@@ -100,7 +100,6 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     // The caller's map: no stage 1; counted, then culled exactly as a map of our own.
     map_ = VisibilityMap{};
     stats.ms(Stage::visibility) = sw.lap();
-    active_iota_ = kNotIota;  // culling writes the list
     if (!count_ids(in.id_map, n, threads, hist_, count_scratch_)) return id_map_error(in.id_map, in.id_map_width, n);
     stats.ms(Stage::count) = sw.lap();
     const double scale = map_pixel_scale(camera, in.id_map_width, in.id_map_height);
@@ -108,7 +107,6 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
                             threads, out.pixels, active_, cull_scratch_, stats);
     stats.ms(Stage::cull) = sw.lap();
   } else if (renders_own_map(in, config_)) {
-    active_iota_ = kNotIota;  // culling writes the list
     const MapSize map = map_size(config_, *camera);
     rig.emplace(*camera, map.width, map.height);
     map_.resize(map.width, map.height, config_.shade);
@@ -133,11 +131,11 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
     // pixels asked for): no stages 1-3, every object active.
     map_ = VisibilityMap{};
     out.pixels.clear();
-    // Every object: the list is kept while N stays (it is 4 MB at 10^6 objects).
-    if (active_iota_ != n || active_.size() != n) {
+    // Every object. Active lists ascend without repeats, so one of n entries ending at n - 1 is
+    // already 0 .. n - 1 (kept from the last frame: it is 4 MB at 10^6 objects).
+    if (active_.size() != n || (n > 0 && active_.back() != n - 1)) {
       active_.resize(n);
       parallel_for(n, threads, [&](std::size_t k) { active_[k] = static_cast<std::uint32_t>(k); });
-      active_iota_ = n;
     }
     stats.active = static_cast<std::uint32_t>(n);
     bits = choose_bits(config_, false, 0.0, n);
@@ -146,7 +144,6 @@ Status PipelineDetector::run_frame(const FrameInput& in, FrameResult& out) {
   if (total > n) {
     active_.reserve(total);
     for (std::size_t k = n; k < total; ++k) active_.push_back(static_cast<std::uint32_t>(k));
-    active_iota_ = kNotIota;
   }
   const std::span<const Filter> filters = all_.filters;
 

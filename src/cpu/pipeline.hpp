@@ -82,8 +82,6 @@ class PipelineDetector : public Backend {
 
  private:
   std::vector<std::uint32_t> counts_, hist_, active_, pairable_, unpaired_;
-  static constexpr std::size_t kNotIota = ~std::size_t{0};
-  std::size_t active_iota_ = kNotIota;  // active_ holds 0 .. active_iota_ - 1, in order
   std::vector<std::uint64_t> in_pair_;  // the states' pass: objects in pairs, a bitset per chunk
   CountScratch count_scratch_;
   CullScratch cull_scratch_;

@@ -321,11 +321,11 @@ void raster_tile_sse2(const TileJob& job, std::uint32_t t) {
     if (job.occluder_ids != nullptr)
       for (int r = 0; r < h; ++r) {
         const std::size_t row = static_cast<std::size_t>(y0 + r) * static_cast<std::size_t>(map.width) + x0;
-        for (int i = 0; i < w; ++i) {
-          const bool occluded = job.occluder_ids[row + i] != 0;
-          buf.best[r * kT + i] = occluded ? job.occluder_depth[row + i] : kInf;
-          buf.id[r * kT + i] = kOccluderId;
-        }
+        for (int i = 0; i < w; ++i)
+          if (job.occluder_ids[row + i] != 0) {
+            buf.best[r * kT + i] = job.occluder_depth[row + i];
+            buf.id[r * kT + i] = kOccluderId;
+          }
       }
   }
   std::uint32_t dirs_ready = 0;  // bit r: row r's rays are filled

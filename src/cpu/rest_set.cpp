@@ -42,12 +42,12 @@ void clear_bit(std::vector<std::uint64_t>& b, std::uint32_t k) { b[k >> 6] &= ~(
 [[nodiscard]] bool same_bits(const Sphere& a, const Sphere& b) { return std::memcmp(&a, &b, sizeof(Sphere)) == 0; }
 [[nodiscard]] bool same_bits(const Box& a, const Box& b) { return std::memcmp(&a, &b, sizeof(Box)) == 0; }
 
-}  // namespace
-
 /// Chunks of emit()'s merge for this many candidates and static pairs.
-std::size_t merge_chunks(std::size_t keys, int threads) {
+[[nodiscard]] std::size_t merge_chunks(std::size_t keys, int threads) {
   return threads_for(keys, threads) == 1 ? 1 : 4 * static_cast<std::size_t>(std::max(1, threads));
 }
+
+}  // namespace
 
 std::size_t RestSet::candidate_count() const {
   std::size_t n = 0;
@@ -572,6 +572,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   found_.resize(local_pairs_.size());
   for (std::size_t k = 0; k < local_pairs_.size(); ++k)
     found_[k] = key(recent.ids[local_pairs_[k].i], recent.ids[local_pairs_[k].j]);  // ids ascend: i < j stays
+  std::sort(found_.begin(), found_.end());
   if (!left_.empty()) {
     const std::size_t groups = (buckets_for(left_.size()) + kWide - 1) / kWide;
     const std::size_t chunks =
@@ -602,15 +603,12 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
     for_chunks(used, used, [&](std::size_t c, std::size_t, std::size_t) {
       std::sort(chunk_keys_[c].begin(), chunk_keys_[c].end());
     });
-    std::sort(found_.begin(), found_.end());
     for (std::size_t c = 0; c < used; ++c) {
       const std::vector<std::uint64_t>& more = chunk_keys_[c];
       resize_with_headroom(merged_, found_.size() + more.size());
       std::merge(found_.begin(), found_.end(), more.begin(), more.end(), merged_.begin());
       found_.swap(merged_);
     }
-  } else {
-    std::sort(found_.begin(), found_.end());
   }
 
   // The static pairs of the objects that changed, from a tree of their exact shapes.
