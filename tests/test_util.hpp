@@ -6,13 +6,16 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <iterator>
 #include <limits>
+#include <memory>
 #include <numeric>
 #include <ostream>
 #include <random>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "viscd/viscd.hpp"
@@ -75,19 +78,47 @@ inline std::vector<Sphere> float_boundary_pairs(int count, unsigned seed) {
   return s;
 }
 
-/// Brute-force pairs among spheres[active] (or all), the oracle written independently here.
+/// The pairs among spheres[active] (or all) by spheres_overlap(), the oracle written independently
+/// here: every pair is tested that a sweep along x cannot rule out, in the order of brute force
+/// (by position in `active`). The sweep is conservative: the float test accepts a pair only when
+/// |x_a - x_b| is within r_a + r_b plus a few ulps of the coordinates and radii (or a tiny
+/// absolute amount where the squares underflow), and each x interval here is widened by far more:
+/// 2^-12 of (max |coordinate| + r), plus 1e-18. Spheres with a coordinate or radius above 1e15 in
+/// magnitude (where the squares may overflow), a negative radius or one not finite are tested
+/// against every other one.
 inline std::vector<Pair> oracle_pairs(std::span<const Sphere> s, const std::vector<std::uint32_t>* active = nullptr) {
   std::vector<std::uint32_t> all;
   if (!active) {
     for (std::uint32_t k = 0; k < s.size(); ++k) all.push_back(k);
     active = &all;
   }
+  const std::vector<std::uint32_t>& act = *active;
+  const std::size_t n = act.size();
+  std::vector<double> lo(n), hi(n);
+  std::vector<std::uint32_t> swept, odd;  // positions in `act`
+  for (std::uint32_t a = 0; a < n; ++a) {
+    const Sphere& p = s[act[a]];
+    const double m = std::max({std::fabs(p.x), std::fabs(p.y), std::fabs(p.z), std::fabs(p.r)});
+    const double r = static_cast<double>(p.r) + (m + std::fabs(p.r)) * 0x1p-12 + 1e-18;
+    lo[a] = static_cast<double>(p.x) - r;
+    hi[a] = static_cast<double>(p.x) + r;
+    (m <= 1e15 && p.r >= 0 ? swept : odd).push_back(a);  // false for NaN
+  }
+  std::sort(swept.begin(), swept.end(), [&](std::uint32_t a, std::uint32_t b) { return lo[a] < lo[b]; });
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> found;  // positions, first < second
+  auto test = [&](std::uint32_t a, std::uint32_t b) {
+    if (spheres_overlap(s[act[a]], s[act[b]])) found.emplace_back(std::min(a, b), std::max(a, b));
+  };
+  for (std::size_t k = 0; k < swept.size(); ++k)
+    for (std::size_t l = k + 1; l < swept.size() && lo[swept[l]] <= hi[swept[k]]; ++l) test(swept[k], swept[l]);
+  for (std::size_t k = 0; k < odd.size(); ++k) {
+    for (std::uint32_t b : swept) test(odd[k], b);
+    for (std::size_t l = k + 1; l < odd.size(); ++l) test(odd[k], odd[l]);
+  }
+  std::sort(found.begin(), found.end());
   std::vector<Pair> out;
-  for (std::size_t a = 0; a < active->size(); ++a)
-    for (std::size_t b = a + 1; b < active->size(); ++b) {
-      const Sphere &p = s[(*active)[a]], &q = s[(*active)[b]];
-      if (spheres_overlap(p, q)) out.push_back({(*active)[a], (*active)[b]});
-    }
+  out.reserve(found.size());
+  for (const auto& [a, b] : found) out.push_back({act[a], act[b]});
   return out;
 }
 
@@ -171,6 +202,28 @@ inline Config config_bits(Bits b, Layout l = Layout::extended) {
   c.bits = b;
   c.layout = l;
   return c;
+}
+
+inline constexpr float kInf = std::numeric_limits<float>::infinity();
+
+/// The box from (x0, y0, z0) to (x1, y1, z1).
+inline Box make_box(float x0, float y0, float z0, float x1, float y1, float z1) {
+  Box b;
+  b.min[0] = x0, b.min[1] = y0, b.min[2] = z0;
+  b.max[0] = x1, b.max[1] = y1, b.max[2] = z1;
+  return b;
+}
+
+/// The detectors that answer queries on the cpu: the cpu backend and the reference.
+using Factory = std::unique_ptr<Detector> (*)(const Config&);
+inline constexpr Factory kBackends[] = {make_cpu_detector, make_reference_detector};
+
+/// A ray in words, for failure messages.
+inline std::string describe(const Ray& r) {
+  char buf[220];
+  std::snprintf(buf, sizeof buf, "ray (%.9g, %.9g, %.9g) + t (%.9g, %.9g, %.9g), max_t %.9g", r.origin[0], r.origin[1],
+                r.origin[2], r.dir[0], r.dir[1], r.dir[2], r.max_t);
+  return buf;
 }
 
 /// A ray from (ox, oy, oz) along (dx, dy, dz) up to max_t.

@@ -1,4 +1,5 @@
 // `viscd pairs`: one frame from files.
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cctype>
 #include <cinttypes>

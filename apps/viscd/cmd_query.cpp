@@ -1,4 +1,5 @@
 // `viscd query`: one frame from files, then a ray or overlap query on it.
+#include <CLI/CLI.hpp>
 #include <cstdio>
 #include <limits>
 #include <optional>

@@ -1,4 +1,5 @@
 // `viscd run`: the demo. Simulates the paper's scene headless and reports per-stage times.
+#include <CLI/CLI.hpp>
 #include <chrono>
 #include <cinttypes>
 #include <filesystem>

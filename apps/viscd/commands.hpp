@@ -1,7 +1,9 @@
 #pragma once
 // The subcommands of `viscd`: each registers itself on the app (main.cpp calls these).
 
-#include <CLI/CLI.hpp>
+namespace CLI {
+class App;
+}  // namespace CLI
 
 namespace viscd::app {
 

@@ -2,6 +2,7 @@
 // SceneParams, with messages that name the option.
 #include "options.hpp"
 
+#include <CLI/CLI.hpp>
 #include <charconv>
 #include <cmath>
 #include <initializer_list>

@@ -5,7 +5,6 @@
 // option values (sizes, lists of numbers). Every error names the option; the commands turn it
 // into exit code 2.
 
-#include <CLI/CLI.hpp>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -17,6 +16,12 @@
 #include "viscd/result.hpp"
 #include "viscd/scene.hpp"
 #include "viscd/viscd.hpp"
+
+// CLI11 is declared only: its header costs a TU seconds of compile time (more under the
+// sanitizers), so only the files that register options include it.
+namespace CLI {
+class App;
+}  // namespace CLI
 
 namespace viscd::app {
 

@@ -19,7 +19,7 @@ namespace {
 
 /// Main is rebuilt over the resting objects when its erased lanes and the objects of delta pass
 /// an eighth of all, and at least this many.
-constexpr std::size_t kRebuildFloor = 4096;
+constexpr std::size_t kMainRebuildFloor = 4096;
 /// Objects watched while the set is out of use; it takes over when all but 1 in kTakeOver of them
 /// rest, and gives up when more than 1 in kGiveUp objects leave their fat bounds in a frame (the
 /// gap between the two keeps a world near the limit from entering and leaving frame after frame).
@@ -657,7 +657,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   // Main rebuilt when its lanes hold too many erased objects or too many rest outside it, over
   // the resting objects: this frame's movers stay in recent (objects that move frame after frame
   // would otherwise be built into main only to be erased from it again the next frame).
-  if (parts_[kMain].erased + delta.count > std::max(kRebuildFloor, n_ / 8)) {
+  if (parts_[kMain].erased + delta.count > std::max(kMainRebuildFloor, n_ / 8)) {
     scratch_.clear();
     for (std::uint32_t k = 0; k < n_; ++k)
       if (part_of_[k] != kRecent) scratch_.push_back(k);

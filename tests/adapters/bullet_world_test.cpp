@@ -124,16 +124,19 @@ class BinWorld {
   btCollisionShape* cube_ = nullptr;
 };
 
-using Key = std::pair<const void*, const void*>;
-Key key(const btBroadphaseProxy* a, const btBroadphaseProxy* b) { return a < b ? Key{a, b} : Key{b, a}; }
+using ProxyPair = std::pair<const void*, const void*>;
+ProxyPair proxy_pair(const btBroadphaseProxy* a, const btBroadphaseProxy* b) {
+  return a < b ? ProxyPair{a, b} : ProxyPair{b, a};
+}
 
 // Pairs the cache is missing and pairs it has that it should not.
 void check_cache(btDiscreteDynamicsWorld& world, const viscd::BulletBroadphase& bp, int step) {
   btOverlappingPairCache& cache = *world.getBroadphase()->getOverlappingPairCache();
-  std::set<Key> got;
+  std::set<ProxyPair> got;
   const btBroadphasePairArray& array = cache.getOverlappingPairArray();
-  for (int c = 0; c < array.size(); ++c) ASSERT_TRUE(got.insert(key(array[c].m_pProxy0, array[c].m_pProxy1)).second);
-  std::set<Key> want;
+  for (int c = 0; c < array.size(); ++c)
+    ASSERT_TRUE(got.insert(proxy_pair(array[c].m_pProxy0, array[c].m_pProxy1)).second);
+  std::set<ProxyPair> want;
   const btCollisionObjectArray& objects = world.getCollisionObjectArray();
   for (int a = 0; a < objects.size(); ++a)
     for (int b = a + 1; b < objects.size(); ++b) {
@@ -141,9 +144,9 @@ void check_cache(btDiscreteDynamicsWorld& world, const viscd::BulletBroadphase& 
       if (!TestAabbAgainstAabb2(p->m_aabbMin, p->m_aabbMax, q->m_aabbMin, q->m_aabbMax)) continue;
       if (!cache.needsBroadphaseCollision(p, q)) continue;
       ASSERT_FALSE(bp.in_static_set(p) && bp.in_static_set(q));  // Bullet's rule refuses those
-      want.insert(key(p, q));
+      want.insert(proxy_pair(p, q));
     }
-  std::vector<Key> missing, extra;
+  std::vector<ProxyPair> missing, extra;
   std::set_difference(want.begin(), want.end(), got.begin(), got.end(), std::back_inserter(missing));
   std::set_difference(got.begin(), got.end(), want.begin(), want.end(), std::back_inserter(extra));
   ASSERT_TRUE(missing.empty()) << missing.size() << " pairs missing after step " << step;

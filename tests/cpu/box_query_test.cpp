@@ -29,12 +29,7 @@ struct Known {
 
 bool hit_order(const RayHit& a, const RayHit& b) { return a.t < b.t || (a.t == b.t && a.index < b.index); }
 
-std::string describe(const Ray& r) {
-  char buf[220];
-  std::snprintf(buf, sizeof buf, "ray (%.9g, %.9g, %.9g) + t (%.9g, %.9g, %.9g), max_t %.9g", r.origin[0], r.origin[1],
-                r.origin[2], r.dir[0], r.dir[1], r.dir[2], r.max_t);
-  return buf;
-}
+using test::describe;
 
 bool passes(const Filter* q, const Filter& f) { return q == nullptr || pair_passes_filter(*q, f); }
 

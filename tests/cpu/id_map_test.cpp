@@ -189,8 +189,8 @@ FrameResult detect_map(Detector& d, std::span<const Sphere> s, std::span<const s
   return out;
 }
 
-using Factory = std::unique_ptr<Detector> (*)(const Config&);
-const Factory kBackends[] = {make_cpu_detector, make_reference_detector};
+using test::Factory;
+using test::kBackends;
 
 TEST(IdMap, HandWorked) {
   // 4 x 3 map of 3 objects: object 0 (id 1) 4 pixels, object 1 (id 2) 2, object 2 (id 3) 3.

@@ -34,7 +34,7 @@ std::vector<SortEntry> nearly(std::size_t n, int jitter, std::size_t far, unsign
 }
 
 // An emit that drops the result (the tests that look at the report only).
-const auto ignore = [](std::size_t, const SortEntry&) {};
+const auto ignore_moves = [](std::size_t, const SortEntry&) {};
 
 void expect_sorted_like_std(std::vector<SortEntry> e, int threads, const char* what) {
   std::vector<SortEntry> want = e;
@@ -89,7 +89,7 @@ TEST(NearlySortedSort, ReportsMovesAndSetAside) {
   std::swap(e[10].key, e[11].key);  // one shift within reach
   e[500].key = 99999;               // far forward: set aside
   NearlySortedSort s;
-  ASSERT_TRUE(s.sort(e.data(), e.size(), 1, less, ignore));
+  ASSERT_TRUE(s.sort(e.data(), e.size(), 1, less, ignore_moves));
   EXPECT_EQ(s.report().moves, 1u);
   EXPECT_EQ(s.report().far, 1u);
 }
@@ -99,12 +99,12 @@ TEST(NearlySortedSort, GivesUpWhenTheOrderSaysLittle) {
   std::vector<SortEntry> e = nearly(10000, 0, 0, 7);
   std::reverse(e.begin(), e.end());
   NearlySortedSort s;
-  EXPECT_FALSE(s.sort(e.data(), e.size(), 1, less, ignore));
+  EXPECT_FALSE(s.sort(e.data(), e.size(), 1, less, ignore_moves));
   EXPECT_FALSE(s.report().sorted);
   // Shuffled, on several runs.
   std::vector<SortEntry> r = nearly(10000, 0, 0, 8);
   std::shuffle(r.begin(), r.end(), std::mt19937(9));
-  EXPECT_FALSE(s.sort(r.data(), r.size(), 4, less, ignore));
+  EXPECT_FALSE(s.sort(r.data(), r.size(), 4, less, ignore_moves));
   // The same object sorts a good input afterwards.
   expect_sorted_like_std(nearly(5000, 2, 10, 10), 4, "after giving up");
 }
@@ -120,7 +120,7 @@ TEST(NearlySortedSort, ReusesItsBuffers) {
   for (int round = 0; round < 4; ++round) {
     const std::vector<SortEntry> input = nearly(n, 2, 100, 12 + static_cast<unsigned>(round));
     entries.assign(input.begin(), input.end());
-    ASSERT_TRUE(s.sort(entries.data(), n, 4, less, ignore));
+    ASSERT_TRUE(s.sort(entries.data(), n, 4, less, ignore_moves));
     const std::uint64_t now = s.memory_bytes() + entries.capacity() * sizeof(SortEntry);
     if (round > 0) {
       EXPECT_EQ(now, bytes) << "round " << round;

@@ -16,15 +16,9 @@ using test::oracle_hits;
 using test::oracle_overlap;
 using test::random_spheres_by_half_extent;
 
-constexpr float kInf = std::numeric_limits<float>::infinity();
+using test::describe;
+using test::kInf;
 using test::make_ray;
-
-std::string describe(const Ray& r) {
-  char buf[200];
-  std::snprintf(buf, sizeof buf, "ray (%.9g, %.9g, %.9g) + t (%.9g, %.9g, %.9g), max_t %.9g", r.origin[0], r.origin[1],
-                r.origin[2], r.dir[0], r.dir[1], r.dir[2], r.max_t);
-  return buf;
-}
 
 // Every query of `d` (which ran the last frame on `s`) against the oracles over `active`.
 void check_ray(Detector& d, std::span<const Sphere> s, const std::vector<std::uint32_t>* active, const Ray& r,
@@ -109,8 +103,8 @@ void check_scene(Detector& d, std::span<const Sphere> s, const std::vector<std::
   }
 }
 
-using Factory = std::unique_ptr<Detector> (*)(const Config&);
-const Factory kBackends[] = {make_cpu_detector, make_reference_detector};
+using test::Factory;
+using test::kBackends;
 
 TEST(Query, RandomScenesAgainstBruteForce) {
   for (std::size_t n : {1u, 2u, 15u, 16u, 17u, 33u, 200u, 5000u}) {

@@ -17,17 +17,12 @@
 namespace viscd {
 namespace {
 
-constexpr float kInf = std::numeric_limits<float>::infinity();
 using test::AllHits;
+using test::describe;
+using test::kInf;
+using test::make_box;
 using test::make_ray;
 constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
-
-Box make_box(float x0, float y0, float z0, float x1, float y1, float z1) {
-  Box b;
-  b.min[0] = x0, b.min[1] = y0, b.min[2] = z0;
-  b.max[0] = x1, b.max[1] = y1, b.max[2] = z1;
-  return b;
-}
 
 // ---- the oracles: loops over every object of the frame ----
 
@@ -116,13 +111,6 @@ struct Collect final : OverlapVisitor {
     return seen.size() < limit;
   }
 };
-
-std::string describe(const Ray& r) {
-  char buf[200];
-  std::snprintf(buf, sizeof buf, "ray (%.9g, %.9g, %.9g) + t (%.9g, %.9g, %.9g), max_t %.9g", r.origin[0], r.origin[1],
-                r.origin[2], r.dir[0], r.dir[1], r.dir[2], r.max_t);
-  return buf;
-}
 
 std::string describe(const Box& b) {
   char buf[200];
@@ -260,8 +248,8 @@ void check_scene(Detector& d, const Frame& fr, float h, std::uint64_t seed, cons
   }
 }
 
-using Factory = std::unique_ptr<Detector> (*)(const Config&);
-const Factory kBackends[] = {make_cpu_detector, make_reference_detector};
+using test::Factory;
+using test::kBackends;
 
 // Runs one frame with `filters` (may be empty) and returns the active set (all, no camera).
 void run(Detector& d, std::span<const Sphere> s, std::span<const Filter> filters) {

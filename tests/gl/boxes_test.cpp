@@ -39,13 +39,6 @@ std::vector<Box> touching_grid(int g) {
   return b;
 }
 
-Box make_box(float x0, float y0, float z0, float x1, float y1, float z1) {
-  Box b;
-  b.min[0] = x0, b.min[1] = y0, b.min[2] = z0;
-  b.max[0] = x1, b.max[1] = y1, b.max[2] = z1;
-  return b;
-}
-
 // Every pair of boxes_overlap() among all objects.
 std::vector<Pair> brute_box_pairs(const std::vector<Box>& boxes) {
   std::vector<Pair> pairs;

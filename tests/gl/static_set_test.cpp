@@ -34,13 +34,6 @@ FrameInput frame_of(std::span<const Sphere> spheres, std::span<const Box> boxes,
   return in;
 }
 
-Box make_box(float x0, float y0, float z0, float x1, float y1, float z1) {
-  Box b;
-  b.min[0] = x0, b.min[1] = y0, b.min[2] = z0;
-  b.max[0] = x1, b.max[1] = y1, b.max[2] = z1;
-  return b;
-}
-
 // The same change to both detectors; the slots they give must agree.
 void add_both(Detector& gl, Detector& ref, const Sphere& s, const Filter& f = {}) {
   auto a = gl.add_static_sphere(s, f), b = ref.add_static_sphere(s, f);

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "file_test_util.hpp"
 #include "viscd/detector.hpp"
 #include "viscd/io.hpp"
 
@@ -22,37 +23,9 @@ namespace viscd {
 namespace {
 
 namespace fs = std::filesystem;
-
-#define EXPECT_CONTAINS(text, part)                          \
-  EXPECT_NE(std::string(text).find(part), std::string::npos) \
-      << "expected '" << (text) << "' to contain '" << (part) << "'"
-
-// A fresh folder per test, removed afterwards.
-class TempDir {
- public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() /
-            ("viscd_box_io_test_" + std::to_string(::getpid()) + "_" + info->test_suite_name() + "_" + info->name());
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  [[nodiscard]] fs::path operator/(const std::string& name) const { return path_ / name; }
-
- private:
-  fs::path path_;
-};
-
-void write_file(const fs::path& p, std::string_view text) {
-  std::ofstream out(p, std::ios::binary);
-  out.write(text.data(), static_cast<std::streamsize>(text.size()));
-}
+using test::read_file;
+using test::TempDir;
+using test::write_file;
 
 void expect_box(const Box& b, std::array<float, 6> v) {
   for (int k = 0; k < 3; ++k) {
