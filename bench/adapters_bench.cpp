@@ -6,7 +6,8 @@
 //           of calculateOverlappingPairs) and the whole step; medians over the steps. The worlds
 //           drift apart (each broadphase hands Bullet its pairs in its own order), so the steps'
 //           physics differ too, by the pile's state. With --pillars every other body is a sphere
-//           and static pillars stand in the bin. Also per quarter: the boxes whose AABB changed a
+//           and static pillars stand in the bin; with --settling, on a floor twice as wide where the
+//           bodies come to rest apart and Bullet puts them to sleep. Also per quarter: the boxes whose AABB changed a
 //           step, and for viscd the steps that followed change and the boxes placed again.
 //   fcl:    self collision of --fcl-boxes random boxes with a counting callback (no narrowphase)
 //           on viscd::FclBroadphaseManager and fcl::DynamicAABBTreeCollisionManager: setup +
@@ -121,9 +122,11 @@ struct BulletRun {
 // caller (so that the worlds of several broadphases step in turn, under the same load).
 class BulletWorld {
  public:
-  /// `pillars`: every other body a sphere, and static pillars standing in the bin (a world whose
-  /// bodies fall among obstacles and come to rest apart, so that Bullet puts most to sleep).
-  BulletWorld(std::unique_ptr<btBroadphaseInterface> inner, int bodies, bool pillars)
+  /// `pillars`: every other body a sphere, and static pillars standing in the bin. `settling`
+  /// (with pillars): a floor twice as wide, so that the pile lies about one body deep and falls
+  /// apart into small islands, friction 0.6 and rolling friction on the spheres, so that they stop
+  /// rolling: a world whose bodies Bullet puts to sleep, as a game's settle.
+  BulletWorld(std::unique_ptr<btBroadphaseInterface> inner, int bodies, bool pillars, bool settling)
       : dispatcher_(&configuration_),
         broadphase_(std::move(inner)),
         world_(&dispatcher_, &broadphase_, &solver_, &configuration_),
@@ -131,7 +134,8 @@ class BulletWorld {
     world_.setGravity(btVector3(0, -9.81f, 0));
     // A bin whose floor holds the pile about 4 layers deep; boxes of 0.5 m in a jittered grid.
     const int per_side = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(bodies) / 8)));
-    const float half = 0.6f * static_cast<float>(per_side);
+    const float half = (settling ? 1.2f : 0.6f) * static_cast<float>(per_side);
+    const float cell = settling ? 2.4f : 1.2f;  // the grid's spacing in x and z
     shapes_.push_back(std::make_unique<btBoxShape>(btVector3(half + 1, 0.5f, half + 1)));
     add(shapes_.back().get(), btVector3(0, -0.5f, 0), 0);
     shapes_.push_back(std::make_unique<btBoxShape>(btVector3(0.5f, 10, half + 1)));
@@ -141,10 +145,10 @@ class BulletWorld {
     add(shapes_.back().get(), btVector3(0, 10, half + 0.5f), 0);
     add(shapes_.back().get(), btVector3(0, 10, -half - 0.5f), 0);
     if (pillars) {
-      // A pillar 0.4 m thick and 3 m tall every 2.4 m, between the grid's columns.
+      // A pillar 0.4 m thick and 3 m tall every other grid line, between the grid's columns.
       shapes_.push_back(std::make_unique<btBoxShape>(btVector3(0.2f, 1.5f, 0.2f)));
-      for (float x = -half + 1.2f; x < half; x += 2.4f)
-        for (float z = -half + 1.2f; z < half; z += 2.4f) add(shapes_.back().get(), btVector3(x, 1.5f, z), 0);
+      for (float x = -half + cell; x < half; x += 2 * cell)
+        for (float z = -half + cell; z < half; z += 2 * cell) add(shapes_.back().get(), btVector3(x, 1.5f, z), 0);
     }
     shapes_.push_back(std::make_unique<btBoxShape>(btVector3(0.25f, 0.25f, 0.25f)));
     btCollisionShape* box = shapes_.back().get();
@@ -155,10 +159,16 @@ class BulletWorld {
     std::uniform_real_distribution<float> jitter(-0.05f, 0.05f);
     for (int k = 0; k < bodies; ++k) {
       const int i = k % per_side, j = (k / per_side) % per_side, layer = k / (per_side * per_side);
-      add(pillars && k % 2 == 1 ? ball : box,
-          btVector3(-half + 0.6f + 1.2f * static_cast<float>(i) + jitter(rng), 1 + 0.8f * static_cast<float>(layer),
-                    -half + 0.6f + 1.2f * static_cast<float>(j) + jitter(rng)),
+      const bool sphere = pillars && k % 2 == 1;
+      btRigidBody* b = add(
+          sphere ? ball : box,
+          btVector3(-half + cell / 2 + cell * static_cast<float>(i) + jitter(rng), 1 + 0.8f * static_cast<float>(layer),
+                    -half + cell / 2 + cell * static_cast<float>(j) + jitter(rng)),
           1);
+      if (settling) {
+        b->setFriction(0.6f);
+        if (sphere) b->setRollingFriction(0.05f);
+      }
     }
   }
   BulletWorld(const BulletWorld&) = delete;
@@ -217,7 +227,7 @@ class BulletWorld {
   }
 
  private:
-  void add(btCollisionShape* shape, const btVector3& at, float mass) {
+  btRigidBody* add(btCollisionShape* shape, const btVector3& at, float mass) {
     btVector3 inertia(0, 0, 0);
     if (mass > 0) shape->calculateLocalInertia(mass, inertia);
     btTransform t;
@@ -227,6 +237,7 @@ class BulletWorld {
     rigid_.push_back(std::make_unique<btRigidBody>(
         btRigidBody::btRigidBodyConstructionInfo(mass, motions_.back().get(), shape, inertia)));
     world_.addRigidBody(rigid_.back().get());
+    return rigid_.back().get();
   }
 
   btDefaultCollisionConfiguration configuration_;
@@ -242,9 +253,10 @@ class BulletWorld {
   std::size_t first_body_ = 0;  // rigid_[first_body_..] are the falling bodies
 };
 
-void bench_bullet(int bodies, int steps, bool pillars) {
-  std::printf("bullet: %d falling %s, %d steps at 60 Hz, the worlds stepped in turn (one step each, same load),\n",
-              bodies, pillars ? "boxes and spheres among static pillars" : "boxes", steps);
+void bench_bullet(int bodies, int steps, bool pillars, bool settling) {
+  std::printf("bullet: %d falling %s%s, %d steps at 60 Hz, the worlds stepped in turn (one step each, same load),\n",
+              bodies, pillars ? "boxes and spheres among static pillars" : "boxes",
+              settling ? " on a floor twice as wide (a world that settles)" : "", steps);
   std::printf("medians after the first 5 steps (ms)\n");
   std::printf("%-22s %12s %18s %10s %12s %12s\n", "broadphase", "pairs_ms", "aabbs+pairs_ms", "step_ms", "cache_pairs",
               "mean_height");
@@ -278,7 +290,8 @@ void bench_bullet(int bodies, int steps, bool pillars) {
        }},
   };
   std::vector<std::unique_ptr<BulletWorld>> worlds;
-  for (const auto& [name, make] : kinds) worlds.push_back(std::make_unique<BulletWorld>(make(), bodies, pillars));
+  for (const auto& [name, make] : kinds)
+    worlds.push_back(std::make_unique<BulletWorld>(make(), bodies, pillars, settling));
   for (int s = 0; s < steps; ++s) {
     for (auto& w : worlds) w->step();
     if ((s + 1) % 100 == 0 || s + 1 == steps) std::fprintf(stderr, "step %d/%d\n", s + 1, steps);
@@ -529,8 +542,11 @@ int main(int argc, char** argv) {
   app.add_option("--bodies", bodies, "falling bodies in the Bullet world")->check(CLI::Range(1, 10000000));
   app.add_option("--steps", steps, "Bullet steps (60 Hz)")->check(CLI::Range(6, 100000));
   bool pillars = false;
-  app.add_flag("--pillars", pillars,
-               "Bullet world: every other body a sphere, and static pillars in the bin (a world that comes to rest)");
+  app.add_flag("--pillars", pillars, "Bullet world: every other body a sphere, and static pillars in the bin");
+  bool settling = false;
+  app.add_flag("--settling", settling,
+               "Bullet world: --pillars on a floor twice as wide, friction 0.6, rolling friction on the spheres "
+               "(a world whose bodies Bullet puts to sleep)");
   app.add_option("--fcl-boxes", fcl_boxes, "boxes in the FCL self collision")->check(CLI::Range(2, 100000000));
   app.add_option("--reps", reps, "FCL runs per manager")->check(CLI::Range(1, 1000));
   app.add_option("--query-bodies", query_bodies, "proxies in the query part, one run each (e.g. 1000,10000)")
@@ -539,7 +555,7 @@ int main(int argc, char** argv) {
   app.add_option("--rays", rays, "rays (and aabbTest boxes) per step in the query part")->check(CLI::Range(1, 1000000));
   app.add_option("--query-steps", query_steps, "steps in the query part")->check(CLI::Range(2, 100000));
   CLI11_PARSE(app, argc, argv);
-  if (only.empty() || only == "bullet") bench_bullet(bodies, steps, pillars);
+  if (only.empty() || only == "bullet") bench_bullet(bodies, steps, pillars || settling, settling);
   if (only.empty() || only == "fcl") bench_fcl(fcl_boxes, reps);
   if (only.empty() || only == "queries") bench_queries(query_bodies, rays, query_steps);
   return 0;
