@@ -6,9 +6,10 @@
 //           of calculateOverlappingPairs) and the whole step; medians over the steps. The worlds
 //           drift apart (each broadphase hands Bullet its pairs in its own order), so the steps'
 //           physics differ too, by the pile's state. With --pillars every other body is a sphere
-//           and static pillars stand in the bin; with --settling, on a floor twice as wide where the
-//           bodies come to rest apart and Bullet puts them to sleep. Also per quarter: the boxes whose AABB changed a
-//           step, and for viscd the steps that followed change and the boxes placed again.
+//           and static pillars stand in the bin; with --settling, that world on a floor twice as
+//           wide, where the bodies come to rest apart and Bullet puts them to sleep. Also per
+//           quarter: the boxes whose AABB changed a step, and for viscd the steps that followed
+//           change and the boxes placed again.
 //   fcl:    self collision of --fcl-boxes random boxes with a counting callback (no narrowphase)
 //           on viscd::FclBroadphaseManager and fcl::DynamicAABBTreeCollisionManager: setup +
 //           collide, then update + collide after every box moved, then 10 frames in which 1 % of
@@ -123,9 +124,9 @@ struct BulletRun {
 class BulletWorld {
  public:
   /// `pillars`: every other body a sphere, and static pillars standing in the bin. `settling`
-  /// (with pillars): a floor twice as wide, so that the pile lies about one body deep and falls
-  /// apart into small islands, friction 0.6 and rolling friction on the spheres, so that they stop
-  /// rolling: a world whose bodies Bullet puts to sleep, as a game's settle.
+  /// (with pillars): a floor twice as wide, so that the fallen bodies cover about a third of it
+  /// in small islands, friction 0.6 and rolling friction on the spheres, so that they stop
+  /// rolling: a world whose bodies Bullet puts to sleep.
   BulletWorld(std::unique_ptr<btBroadphaseInterface> inner, int bodies, bool pillars, bool settling)
       : dispatcher_(&configuration_),
         broadphase_(std::move(inner)),
