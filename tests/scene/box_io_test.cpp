@@ -3,13 +3,11 @@
 // the sphere CSV's with the six columns minx,miny,minz,maxx,maxy,maxz, and its messages are the
 // same (docs/usage.md, "Boxes").
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <array>
 #include <bit>
 #include <cstdint>
 #include <filesystem>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <string>
@@ -22,8 +20,6 @@
 namespace viscd {
 namespace {
 
-namespace fs = std::filesystem;
-using test::read_file;
 using test::TempDir;
 using test::write_file;
 

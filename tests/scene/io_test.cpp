@@ -1,7 +1,6 @@
 // Tests of the file formats the world sees (docs/usage.md, "File formats"): XYZR and CSV sphere
 // readers, the camera JSON reader and writer, the pairs/spheres/stats writers and pairs_hash.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <sys/stat.h>
 
@@ -11,7 +10,6 @@
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <random>
