@@ -87,6 +87,7 @@ Status CpuDetector::follow_change(const FrameInput& in, const Shapes& objects, s
   ri.layout = config_.layout;
   ri.bits = bits;
   ri.pair_memory_cap = config_.pair_memory_cap;
+  ri.simd = simd_level_for(config_.simd);
   if (Status s = rest_.run(ri, static_set_, static_tree_, threads, pairs, stats, done); !s || !done) return s;
   // Queries after the frame: its objects are the rest set's copy; their tree comes on demand.
   followed_ = true;
@@ -179,7 +180,8 @@ Status CpuDetector::static_pairs(int threads, std::vector<Pair>& pairs, FrameSta
   if (static_tree_.size() == 0) return {};
   const std::size_t allowed = pairs_within_cap(config_.pair_memory_cap);
   const std::size_t room = allowed > pairs.size() ? allowed - pairs.size() : 0;
-  if (!static_tree_.pairs(broadphase_, broadphase_.sorted_filters(), true, threads, room, cross_))
+  if (!static_tree_.pairs(broadphase_, broadphase_.sorted_filters(), true, simd_level_for(config_.simd), threads, room,
+                          cross_))
     return check_pair_cap(pairs.size() + room + 1, config_.pair_memory_cap, true);
   // Merge: for each i the moving pairs come first (every static index is above every moving one).
   if (!cross_.empty()) {

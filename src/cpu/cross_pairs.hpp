@@ -32,21 +32,36 @@ inline Aabb lane_box(const BucketLanes& ln, std::uint32_t l) {
 }
 inline Aabb lane_box(const BoxLanes& ln, std::uint32_t l) { return ln.box(l); }
 
+/// How cross_pairs() walks the other tree, chosen from how many objects each tree holds: the
+/// fewer the moving objects, the farther apart they lie, and the larger the boxes of their buckets
+/// and groups are beside the other tree's buckets. Limits measured at 10^6 objects of which 1-10 %
+/// move (docs/benchmarks.md, "Walks of the moving buckets").
+struct CrossWalk {
+  bool group = true;    ///< first one walk per group of 16 buckets (up to 512 buckets met)
+  bool bucket = false;  ///< then one walk per bucket (up to 64 buckets met with lanes that reach them)
+};
+[[nodiscard]] inline CrossWalk cross_walk_for(std::size_t moving, std::size_t other) {
+  return {other <= 4 * moving, other <= 25 * moving};
+}
+
 /// The pairs of the buckets of group g of `moving` (the 16 under node g of its lowest level) with
-/// the tree `other`: one walk of `other` with the group's box collects the buckets that can meet
-/// any of them, then each moving bucket tests its box against those candidates 16 at a time (as
-/// the moving search does, cpu/bucket_search.cpp); per bucket met, the moving lanes that reach it
-/// against all 16 of its lanes by K's exact test. Past kMaxCandidates (a huge object, or moving
-/// objects spread far apart, as the few that move in a world at rest), each moving object walks
-/// the tree with its own box. Calls emit(p, q) for each pair: p the moving object's sorted
-/// position in `moving`, q the other's sorted position in `other` (its id is
-/// other.sorted_objects()[q]; callers keep what they report per sorted position, so that the
-/// reads of one bucket's objects share cache lines).
+/// the tree `other`. With walk.group: one walk of `other` with the group's box collects the
+/// buckets that can meet any of them, then each moving bucket tests its box against those
+/// candidates 16 at a time (as the moving search does, cpu/bucket_search.cpp); per bucket met, the
+/// moving lanes that reach it against all 16 of its lanes by K's exact test. Past kMaxCandidates,
+/// or without walk.group, each moving bucket walks on its own: with walk.bucket, one walk with the
+/// bucket's box, each bucket met tested against the lanes that reach it; past kBucketMet such
+/// buckets (a huge object, or objects spread far apart, as the few that move in a world at rest),
+/// or without walk.bucket, each moving object walks the tree with its own box. Every way finds the
+/// same pairs. Calls emit(p, q) for each pair: p the moving object's sorted position in `moving`,
+/// q the other's sorted position in `other` (its id is other.sorted_objects()[q]; callers keep what
+/// they report per sorted position, so that the reads of one bucket's objects share cache lines).
 /// `fetch(q)`, called for the first sorted position q of each bucket of `other` whose lanes the
-/// walks of scattered objects will read, prefetches what emit() reads for that bucket.
-template <class K, class Emit, class Fetch>
-void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, std::size_t g, Emit&& emit,
-                 Fetch&& fetch) {
+/// walks of single buckets and objects will read, prefetches what emit() reads for that bucket.
+template <class Simd, template <class> class Tests, class Emit, class Fetch>
+void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, std::size_t g, CrossWalk walk,
+                 Emit&& emit, Fetch&& fetch) {
+  using K = Tests<Simd>;
   constexpr std::uint32_t kMaxCandidates = 512;
   const auto ml = lanes_of<K>(moving);
   const auto sl = lanes_of<K>(other);
@@ -62,58 +77,116 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
         emit(m_first + i, s_first + static_cast<std::size_t>(std::countr_zero(m)));
     }
   };
-  WideNode box[kMaxCandidates / kWide];
-  std::uint32_t index[kMaxCandidates];
-  std::uint32_t count = 0;
-  bool overflow = false;
-  for_each_wide_overlap(other.tree(), moving.tree().level[0][g].box(), [&](std::uint32_t sb) {
-    if (count == kMaxCandidates) {
-      overflow = true;
-      return false;
-    }
-    box[count / kWide].set_child(count % kWide, sboxes[sb]);
-    index[count++] = sb;
-    return true;
-  });
-  if (overflow) {
-    // Each moving object walks the tree with its own box. The buckets met are listed first, their
-    // lanes prefetched, and tested afterwards: the lanes of buckets scattered over the world miss
-    // the cache, and this way the misses of a bucket's 16 walks overlap instead of queueing.
-    constexpr std::uint32_t kMet = 256;
-    std::uint32_t met[kMet];
-    std::uint8_t lane_of[kMet];
-    for (std::size_t b = b0; b < b1; ++b) {
-      const std::size_t m_first = b * kBucket;
-      std::uint32_t count_met = 0;
-      auto test_met = [&] {
-        for (std::uint32_t t = 0; t < count_met; ++t) {
-          const std::uint32_t sb = met[t], i = lane_of[t];
-          for (std::uint32_t m = K::exact(sl[sb], ml[b], i); m; m &= m - 1)
-            emit(m_first + i, std::size_t{sb} * kBucket + static_cast<std::size_t>(std::countr_zero(m)));
-        }
-        count_met = 0;
-      };
-      for (std::uint32_t i = 0; i < kBucket; ++i) {
-        const Aabb own = lane_box(ml[b], i);
-        if (!(own.lo.x <= own.hi.x)) continue;  // padding (NaN) or an erased lane
-        for_each_wide_overlap(other.tree(), own, [&](std::uint32_t sb) {
-          if (count_met == kMet) test_met();
-          const char* lanes = reinterpret_cast<const char*>(&sl[sb]);
-          for (std::size_t line = 0; line < sizeof(sl[sb]); line += 64) __builtin_prefetch(lanes + line);
-          fetch(std::size_t{sb} * kBucket);
-          met[count_met] = sb;
-          lane_of[count_met++] = static_cast<std::uint8_t>(i);
-        });
+  // The lanes of a bucket of `other` and what emit() reads for it, fetched before they are tested.
+  auto prefetch = [&](std::uint32_t sb) {
+    const char* lanes = reinterpret_cast<const char*>(&sl[sb]);
+    for (std::size_t line = 0; line < sizeof(sl[sb]); line += 64) __builtin_prefetch(lanes + line);
+    fetch(std::size_t{sb} * kBucket);
+  };
+  if (walk.group) {
+    WideNode box[kMaxCandidates / kWide];
+    std::uint32_t index[kMaxCandidates];
+    std::uint32_t count = 0;
+    bool overflow = false;
+    for_each_wide_overlap<Simd>(other.tree(), moving.tree().level[0][g].box(), [&](std::uint32_t sb) {
+      if (count == kMaxCandidates) {
+        overflow = true;
+        return false;
       }
-      test_met();
+      box[count / kWide].set_child(count % kWide, sboxes[sb]);
+      index[count++] = sb;
+      return true;
+    });
+    if (!overflow) {
+      for (std::uint32_t l = count % kWide; l != 0 && l < kWide; ++l) box[count / kWide].set_child(l, Aabb{});
+      for (std::size_t b = b0; b < b1; ++b)
+        for (std::uint32_t k = 0; k * kWide < count; ++k)
+          for (std::uint32_t m = Simd::node_children(box[k], mboxes[b]); m; m &= m - 1)
+            bucket_pair(b, index[k * kWide + static_cast<std::uint32_t>(std::countr_zero(m))]);
+      return;
     }
-    return;
   }
-  for (std::uint32_t l = count % kWide; l != 0 && l < kWide; ++l) box[count / kWide].set_child(l, Aabb{});
-  for (std::size_t b = b0; b < b1; ++b)
-    for (std::uint32_t k = 0; k * kWide < count; ++k)
-      for (std::uint32_t m = SimdBaseline::node_children(box[k], mboxes[b]); m; m &= m - 1)
-        bucket_pair(b, index[k * kWide + static_cast<std::uint32_t>(std::countr_zero(m))]);
+  // The buckets met are listed first, their lanes prefetched, and tested afterwards: the lanes of
+  // buckets scattered over the world miss the cache, and this way the misses overlap instead of
+  // queueing. met[t] is a bucket of `other`; mask_of[t] the moving lanes that reach it (a bucket's
+  // walk) or the one lane that does (an object's walk, its index).
+  constexpr std::uint32_t kMet = 256, kBucketMet = 64;
+  std::uint32_t met[kMet], mask_of[kMet];
+  for (std::size_t b = b0; b < b1; ++b) {
+    const std::size_t m_first = b * kBucket;
+    std::uint32_t count_met = 0;
+    if (walk.bucket) {
+      bool over = false;
+      for_each_wide_overlap<Simd>(other.tree(), mboxes[b], [&](std::uint32_t sb) {
+        if (count_met == kBucketMet) {
+          over = true;
+          return false;
+        }
+        if (const std::uint32_t near = K::near(ml[b], sboxes[sb]); near != 0) {
+          prefetch(sb);
+          met[count_met] = sb;
+          mask_of[count_met++] = near;
+        }
+        return true;
+      });
+      if (!over) {
+        for (std::uint32_t t = 0; t < count_met; ++t)
+          for (std::uint32_t near = mask_of[t]; near; near &= near - 1) {
+            const auto i = static_cast<std::uint32_t>(std::countr_zero(near));
+            for (std::uint32_t m = K::exact(sl[met[t]], ml[b], i); m; m &= m - 1)
+              emit(m_first + i, std::size_t{met[t]} * kBucket + static_cast<std::size_t>(std::countr_zero(m)));
+          }
+        continue;
+      }
+      count_met = 0;
+    }
+    auto test_met = [&] {
+      for (std::uint32_t t = 0; t < count_met; ++t) {
+        const std::uint32_t sb = met[t], i = mask_of[t];
+        for (std::uint32_t m = K::exact(sl[sb], ml[b], i); m; m &= m - 1)
+          emit(m_first + i, std::size_t{sb} * kBucket + static_cast<std::size_t>(std::countr_zero(m)));
+      }
+      count_met = 0;
+    };
+    for (std::uint32_t i = 0; i < kBucket; ++i) {
+      const Aabb own = lane_box(ml[b], i);
+      if (!(own.lo.x <= own.hi.x)) continue;  // padding (NaN) or an erased lane
+      for_each_wide_overlap<Simd>(other.tree(), own, [&](std::uint32_t sb) {
+        if (count_met == kMet) test_met();
+        prefetch(sb);
+        met[count_met] = sb;
+        mask_of[count_met++] = i;
+      });
+    }
+    test_met();
+  }
+}
+
+#if VISCD_HAVE_AVX512
+/// cross_pairs() with every call inlined into code compiled for AVX-512 (cpu/simd.hpp).
+template <template <class> class Tests, class Emit, class Fetch>
+VISCD_AVX512_FLATTEN void cross_pairs_avx512(const BucketBroadphase& moving, const BucketBroadphase& other,
+                                             std::size_t g, CrossWalk walk, Emit& emit, Fetch& fetch) {
+  cross_pairs<SimdAvx512, Tests>(moving, other, g, walk, emit, fetch);
+}
+#endif
+
+/// cross_pairs() with the kernels of `level` (a usable level: simd_level_for(), usable_simd_level()).
+template <template <class> class Tests, class Emit, class Fetch>
+void cross_pairs_at(SimdLevel level, const BucketBroadphase& moving, const BucketBroadphase& other, std::size_t g,
+                    CrossWalk walk, Emit& emit, Fetch& fetch) {
+  switch (level) {
+#if VISCD_HAVE_AVX512
+    case SimdLevel::avx512:
+      return cross_pairs_avx512<Tests>(moving, other, g, walk, emit, fetch);
+#endif
+#if defined(__SSE2__)
+    case SimdLevel::sse2:
+      return cross_pairs<SimdSse2, Tests>(moving, other, g, walk, emit, fetch);
+#endif
+    default:
+      return cross_pairs<SimdScalar, Tests>(moving, other, g, walk, emit, fetch);
+  }
 }
 
 }  // namespace viscd::detail

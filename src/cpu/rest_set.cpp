@@ -215,6 +215,7 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
   FrameStats built;
   part.tree.reset_order();
   part.tree.set_keep_order(false);
+  part.tree.set_simd(simd_);
   BucketBroadphase::Extras extras;
   extras.boxes = std::span<const Box>(part.boxes.data(), boxes ? count : 0);
   const std::span<const std::uint32_t> ids(part.iota.data(), count);
@@ -284,6 +285,7 @@ bool RestSet::sample_rests(const Shapes& s, float margin) {
 Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int threads, std::vector<Pair>& pairs,
                     FrameStats& stats, bool& followed) {
   followed = false;
+  simd_ = in.simd;
   const Shapes& s = in.objects;
   const std::size_t n = s.size();
   if (n == 0 || in.active.size() * 2 < n) {
@@ -514,7 +516,7 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
 
 bool RestSet::static_pairs_of(const BucketBroadphase& tree, std::span<const std::uint32_t> ids, StaticTree& st,
                               int threads, std::vector<std::uint64_t>& out) {
-  if (!st.pairs(tree, {}, false, threads, std::numeric_limits<std::size_t>::max(), out)) return false;
+  if (!st.pairs(tree, {}, false, simd_, threads, std::numeric_limits<std::size_t>::max(), out)) return false;
   // Tree ids to object indices: `ids` ascend, so the order stays.
   parallel_for(out.size(), threads, [&](std::size_t k) { out[k] = key(ids[key_i(out[k])], key_j(out[k])); });
   return true;
@@ -529,8 +531,11 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   if (changed_count_ == 0) return {};
   // find_changes() took the changed shapes and set their bits. The objects that left their fat
   // bounds leave their trees, in parallel chunks (each erases its own objects' lanes; the
-  // objects lie scattered over memory, and the reads ahead are prefetched).
-  for (Part& p : parts_) p.tree.index_positions();
+  // objects lie scattered over memory, and the reads ahead are prefetched). Recent is built anew
+  // below, so its objects only leave it by their part_of_ (objects that move frame after frame
+  // would otherwise cost a scattered erase each).
+  parts_[kMain].tree.index_positions();
+  parts_[kDelta].tree.index_positions();
   constexpr std::size_t kMaxChunks = 64;
   std::size_t erased[3][kMaxChunks] = {};
   const std::size_t erase_chunks = std::min(ranges_for(left_.size(), threads), kMaxChunks);
@@ -543,11 +548,11 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
       }
       const std::uint32_t k = left_[t];
       const std::uint8_t p = part_of_[k];
-      if (p != kNowhere) {
+      if (p == kMain || p == kDelta) {
         parts_[p].tree.erase(local_[k]);
         ++erased[p][c];
-        part_of_[k] = kNowhere;
       }
+      part_of_[k] = kNowhere;
       if (margin_ > 0) place(s, k);
     }
   });
@@ -591,11 +596,12 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
           list.push_back(a < b ? key(a, b) : key(b, a));
         };
         auto fetch = [&](std::size_t q) { __builtin_prefetch(&at[q]); };  // a bucket's 16: one line
+        const CrossWalk walk = cross_walk_for(recent.count, other.count - other.erased);
         for (std::size_t g = gb; g < ge; ++g) {
           if (box_lanes())
-            cross_pairs<BoxTests<SimdBaseline>>(recent.tree, other.tree, g, found, fetch);
+            cross_pairs_at<BoxTests>(simd_, recent.tree, other.tree, g, walk, found, fetch);
           else
-            cross_pairs<SphereTests<SimdBaseline>>(recent.tree, other.tree, g, found, fetch);
+            cross_pairs_at<SphereTests>(simd_, recent.tree, other.tree, g, walk, found, fetch);
         }
       }
     });

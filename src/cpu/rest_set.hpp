@@ -57,6 +57,7 @@ class RestSet {
     Layout layout = Layout::extended;       ///< Config::layout
     int bits = 32;                          ///< the frame's Morton width: reported, and used by trees built this frame
     std::size_t pair_memory_cap = 0;        ///< Config::pair_memory_cap
+    SimdLevel simd = SimdLevel::scalar;     ///< simd_level_for(Config::simd): the trees' and searches' kernels
   };
 
   /// Runs the frame's broadphase (stages 4-8) by following change, when it can. Returns true with
@@ -144,7 +145,8 @@ class RestSet {
   float margin_ = 0;
   Layout layout_ = Layout::extended;
   int bits_ = 32;
-  MortonLayoutInfo main_layout_;  // the layout main was built with, reported by the frames
+  SimdLevel simd_ = SimdLevel::scalar;  // this frame's kernels (Input::simd)
+  MortonLayoutInfo main_layout_;        // the layout main was built with, reported by the frames
   std::uint64_t static_version_ = 0;
 
   std::vector<Sphere> cur_sph_;  // the last frame's objects

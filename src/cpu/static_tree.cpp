@@ -129,7 +129,7 @@ std::size_t StaticTree::parts(Part out[2]) const {
 }
 
 bool StaticTree::pairs(const BucketBroadphase& moving, std::span<const Filter> moving_filters, bool filtered,
-                       int threads, std::size_t max_pairs, std::vector<std::uint64_t>& out) {
+                       SimdLevel simd, int threads, std::size_t max_pairs, std::vector<std::uint64_t>& out) {
   out.clear();
   const std::size_t n = moving.sorted_objects().size();
   if (n == 0 || live_ == 0) return true;
@@ -152,14 +152,15 @@ bool StaticTree::pairs(const BucketBroadphase& moving, std::span<const Filter> m
           if (!check || pair_passes_filter(mf, s->filter_at[q]))
             list.push_back(std::uint64_t{mids[p]} << 32 | s->reported_at[q]);
         };
+        const CrossWalk walk = cross_walk_for(n, s->count);
         auto fetch = [&](std::size_t q) {
           __builtin_prefetch(&s->reported_at[q]);
           if (check) __builtin_prefetch(&s->filter_at[q]);
         };
         if (boxes_)
-          cross_pairs<BoxTests<SimdBaseline>>(moving, s->tree, b, emit, fetch);
+          cross_pairs_at<BoxTests>(simd, moving, s->tree, b, walk, emit, fetch);
         else
-          cross_pairs<SphereTests<SimdBaseline>>(moving, s->tree, b, emit, fetch);
+          cross_pairs_at<SphereTests>(simd, moving, s->tree, b, walk, emit, fetch);
       }
       if (list.size() > max_pairs) over.store(true, std::memory_order_relaxed);
     }

@@ -280,6 +280,17 @@ TEST_P(RestSetTest, ObjectsAppearAndVanish) {
   EXPECT_GE(followed, sc.frames / 3);
 }
 
+TEST_P(RestSetTest, ATenthMoving) {
+  // About a tenth moving each frame (7 % of the resting objects and most of the awake ones): the
+  // movers' searches walk per bucket of movers, not per object (cpu/cross_pairs.hpp).
+  Scenario sc = scenario_of(GetParam());
+  sc.move_fraction = 0.07f;
+  sc.n = 2000;
+  sc.frames = 12;
+  const int followed = run_scenario(sc);
+  EXPECT_GE(followed, sc.frames / 3);
+}
+
 INSTANTIATE_TEST_SUITE_P(Cpu, RestSetTest, ::testing::Range(0, 16), scenario_name);
 
 TEST(RestSet, ManyMoversFallBackAndComeBack) {
