@@ -31,8 +31,56 @@ constexpr std::size_t kTakeOver = 10;
 constexpr std::size_t kGiveUp = 8;
 
 [[nodiscard]] std::uint64_t key(std::uint32_t i, std::uint32_t j) { return std::uint64_t{i} << 32 | j; }
+
 [[nodiscard]] std::uint32_t key_i(std::uint64_t k) { return static_cast<std::uint32_t>(k >> 32); }
 [[nodiscard]] std::uint32_t key_j(std::uint64_t k) { return static_cast<std::uint32_t>(k); }
+
+/// Sorts the keys of `lists` (pairs key(i, j), i < n) into `out`: one counting pass by the high
+/// bits of i into buckets of about 32 keys, then each bucket sorted on its own; the lists counted
+/// and scattered in parallel, and the buckets sorted so. Two passes over the keys and small sorts:
+/// sorting each chunk's list and merging the lists had cost a fifth of the movers' searches when
+/// a tenth of 10^6 objects moved (docs/benchmarks.md, "Walks of the moving buckets").
+/// `hist` and `starts` are scratch.
+void sort_keys(std::span<const std::vector<std::uint64_t>* const> lists, std::size_t n, int threads,
+               std::vector<std::uint32_t>& hist, std::vector<std::uint32_t>& starts, std::vector<std::uint64_t>& out) {
+  std::size_t total = 0;
+  for (const std::vector<std::uint64_t>* l : lists) total += l->size();
+  resize_with_headroom(out, total);
+  if (total == 0) return;
+  const auto n_bits = static_cast<int>(std::bit_width(std::max<std::size_t>(n, 2) - 1));
+  const int b_bits = std::min({static_cast<int>(std::bit_width(total / 32)), 16, n_bits});
+  const int shift = 32 + n_bits - b_bits;  // key >> shift: the top b_bits of i's n_bits
+  const std::size_t buckets = std::size_t{1} << b_bits, count = lists.size();
+  hist.assign(count * buckets, 0);
+  resize_with_headroom(starts, buckets + 1);
+  const std::size_t chunks = threads_for(total, threads) == 1 ? 1 : count;
+  for_chunks(count, chunks, [&](std::size_t b, std::size_t e, std::size_t) {
+    for (std::size_t l = b; l < e; ++l) {
+      std::uint32_t* const h = hist.data() + l * buckets;
+      for (const std::uint64_t k : *lists[l]) ++h[k >> shift];
+    }
+  });
+  std::uint32_t sum = 0;  // offsets in (bucket, list) order, so each bucket's keys lie together
+  for (std::size_t d = 0; d < buckets; ++d) {
+    starts[d] = sum;
+    for (std::size_t l = 0; l < count; ++l) {
+      const std::uint32_t c = hist[l * buckets + d];
+      hist[l * buckets + d] = sum;
+      sum += c;
+    }
+  }
+  starts[buckets] = sum;
+  for_chunks(count, chunks, [&](std::size_t b, std::size_t e, std::size_t) {
+    for (std::size_t l = b; l < e; ++l) {
+      std::uint32_t* const h = hist.data() + l * buckets;
+      for (const std::uint64_t k : *lists[l]) out[h[k >> shift]++] = k;
+    }
+  });
+  for_chunks(buckets, chunks == 1 ? 1 : std::min<std::size_t>(buckets, 8 * static_cast<std::size_t>(threads)),
+             [&](std::size_t b, std::size_t e, std::size_t) {
+               for (std::size_t d = b; d < e; ++d) std::sort(out.begin() + starts[d], out.begin() + starts[d + 1]);
+             });
+}
 
 /// Bit k of a bitset (one bit per object: 125 KB for 10^6 objects, which stays in cache while the
 /// candidates stream past).
@@ -188,6 +236,9 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
   const std::size_t count = objs.size();
   part.count = count;
   part.erased = 0;
+  // The same objects as at its last build (objects that move frame after frame, in recent): the
+  // tree's last order is nearly right, and its sort starts from it.
+  const bool same = part.ids.size() == count && std::equal(objs.begin(), objs.end(), part.ids.begin());
   part.ids.assign(objs.begin(), objs.end());
   if (part.iota.size() < count) {
     const std::size_t old = part.iota.size();
@@ -213,7 +264,7 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
     }
   });
   FrameStats built;
-  part.tree.reset_order();
+  if (!same) part.tree.reset_order();
   part.tree.set_keep_order(false);
   part.tree.set_simd(simd_);
   BucketBroadphase::Extras extras;
@@ -577,7 +628,6 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   found_.resize(local_pairs_.size());
   for (std::size_t k = 0; k < local_pairs_.size(); ++k)
     found_[k] = key(recent.ids[local_pairs_[k].i], recent.ids[local_pairs_[k].j]);  // ids ascend: i < j stays
-  std::sort(found_.begin(), found_.end());
   if (!left_.empty()) {
     const std::size_t groups = (buckets_for(left_.size()) + kWide - 1) / kWide;
     const std::size_t chunks =
@@ -606,15 +656,11 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
       }
     });
     const std::size_t used = std::min(chunks, groups);
-    for_chunks(used, used, [&](std::size_t c, std::size_t, std::size_t) {
-      std::sort(chunk_keys_[c].begin(), chunk_keys_[c].end());
-    });
-    for (std::size_t c = 0; c < used; ++c) {
-      const std::vector<std::uint64_t>& more = chunk_keys_[c];
-      resize_with_headroom(merged_, found_.size() + more.size());
-      std::merge(found_.begin(), found_.end(), more.begin(), more.end(), merged_.begin());
-      found_.swap(merged_);
-    }
+    lists_.clear();
+    lists_.push_back(&found_);
+    for (std::size_t c = 0; c < used; ++c) lists_.push_back(&chunk_keys_[c]);
+    sort_keys(lists_, n_, threads, key_hist_, key_starts_, merged_);
+    found_.swap(merged_);
   }
 
   // The static pairs of the objects that changed, from a tree of their exact shapes.
