@@ -166,7 +166,7 @@ class RestSet {
   std::vector<std::uint32_t> changed_, left_, scratch_;
   std::size_t changed_count_ = 0;  // this frame's changed objects
   bool changed_listed_ = false;    // changed_ lists them (else only the bits do, until changed_list())
-  std::vector<std::vector<std::uint32_t>> chunk_lists_[2];
+  std::vector<std::vector<std::uint32_t>> chunk_left_;  // find_changes(): left_, per chunk
 
   // The candidates, sorted, with each one's exact result (hit_): in segments, one per chunk of
   // emit()'s merge. Segment c holds the keys in [cuts_[c], cuts_[c + 1]) (the last one: every key
