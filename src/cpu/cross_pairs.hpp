@@ -67,6 +67,11 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
   const auto sl = lanes_of<K>(other);
   const std::span<const Aabb> mboxes = moving.leaf_boxes();
   const std::span<const Aabb> sboxes = other.leaf_boxes();
+  // Bucket sb's box as the walk just tested it: the lowest level's nodes hold the leaf boxes
+  // (bit for bit), on lines the walk read, where leaf_boxes()[sb] would be one more miss.
+  const std::span<const WideNode> leaves =
+      other.tree().levels > 0 ? std::span<const WideNode>(other.tree().level[0]) : std::span<const WideNode>();
+  auto walked_box = [&](std::uint32_t sb) { return leaves[sb / kWide].child(sb % kWide); };
   const std::size_t buckets = buckets_for(moving.sorted_objects().size());
   const std::size_t b0 = g * kWide, b1 = std::min(buckets, b0 + kWide);
   auto bucket_pair = [&](std::size_t b, std::uint32_t sb) {
@@ -93,7 +98,7 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
         overflow = true;
         return false;
       }
-      box[count / kWide].set_child(count % kWide, sboxes[sb]);
+      box[count / kWide].set_child(count % kWide, walked_box(sb));
       index[count++] = sb;
       return true;
     });
@@ -122,7 +127,7 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
           over = true;
           return false;
         }
-        if (const std::uint32_t near = K::near(ml[b], sboxes[sb]); near != 0) {
+        if (const std::uint32_t near = K::near(ml[b], walked_box(sb)); near != 0) {
           prefetch(sb);
           met[count_met] = sb;
           mask_of[count_met++] = near;

@@ -275,7 +275,7 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
   else
     part.tree.build(spheres, ids, bits_, layout_, threads, built, extras);
   if (which == kMain) main_layout_ = built.layout;
-  if (which == kMain || which == kDelta) {
+  if (which != kNowhere) {
     // The object at each sorted position, for the movers' searches (cross_pairs() reports those).
     const std::span<const std::uint32_t> sorted = part.tree.sorted_objects();
     resize_with_headroom(part.at, sorted.size());
@@ -627,7 +627,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
     const std::size_t chunks =
         threads_for(left_.size() * 8, threads) == 1 ? 1 : std::min<std::size_t>(groups, 4 * threads);
     if (chunk_keys_.size() < chunks) chunk_keys_.resize(chunks);
-    const std::span<const std::uint32_t> mids = recent.tree.sorted_objects();
+    const std::uint32_t* const mat = recent.at.data();
     for_chunks(groups, chunks, [&](std::size_t gb, std::size_t ge, std::size_t c) {
       std::vector<std::uint64_t>& list = chunk_keys_[c];
       list.clear();
@@ -636,7 +636,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
         if (other.count == other.erased) continue;
         const std::uint32_t* const at = other.at.data();
         auto found = [&](std::size_t pos, std::size_t q) {
-          const std::uint32_t a = recent.ids[mids[pos]], b = at[q];
+          const std::uint32_t a = mat[pos], b = at[q];
           list.push_back(a < b ? key(a, b) : key(b, a));
         };
         auto fetch = [&](std::size_t q) { __builtin_prefetch(&at[q]); };  // a bucket's 16: one line

@@ -94,7 +94,7 @@ class RestSet {
     std::vector<Sphere> spheres;
     std::vector<Box> boxes;
     std::vector<std::uint32_t> ids, iota;
-    std::vector<std::uint32_t> at;  // main and delta: the object index at each sorted position
+    std::vector<std::uint32_t> at;  // main, delta and recent: the object index at each sorted position
     std::size_t count = 0, erased = 0;
     [[nodiscard]] std::uint64_t memory_bytes() const;
   };
