@@ -236,7 +236,8 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
   part.count = count;
   part.erased = 0;
   // The same objects as at its last build (objects that move frame after frame, in recent): the
-  // tree's last order is nearly right, and its sort starts from it.
+  // tree keeps its last order while its buckets stay tight (Config::keep_order's rule), and sorts
+  // from it when they do not.
   const bool same = part.ids.size() == count && std::equal(objs.begin(), objs.end(), part.ids.begin());
   part.ids.assign(objs.begin(), objs.end());
   if (part.iota.size() < count) {
@@ -264,7 +265,7 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
   });
   FrameStats built;
   if (!same) part.tree.reset_order();
-  part.tree.set_keep_order(false);
+  part.tree.set_keep_order(same);
   part.tree.set_simd(simd_);
   BucketBroadphase::Extras extras;
   extras.boxes = std::span<const Box>(part.boxes.data(), boxes ? count : 0);
