@@ -239,6 +239,8 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
   // tree keeps its last order while its buckets stay tight (Config::keep_order's rule), and sorts
   // from it when they do not.
   const bool same = part.ids.size() == count && std::equal(objs.begin(), objs.end(), part.ids.begin());
+  // Then recent's objects are its own still, at the same places (the erase pass leaves them so).
+  const bool placed = same && which == kRecent;
   part.ids.assign(objs.begin(), objs.end());
   if (part.iota.size() < count) {
     const std::size_t old = part.iota.size();
@@ -258,7 +260,7 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
     } else {
       part.spheres[k] = use_fat ? fat_sph_[o] : cur_sph_[o];
     }
-    if (which != kNowhere) {
+    if (which != kNowhere && !placed) {
       part_of_[o] = which;
       local_[o] = static_cast<std::uint32_t>(k);
     }
@@ -276,7 +278,7 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
   else
     part.tree.build(spheres, ids, bits_, layout_, threads, built, extras);
   if (which == kMain) main_layout_ = built.layout;
-  if (which != kNowhere) {
+  if (which != kNowhere && !(placed && built.order_kept)) {
     // The object at each sorted position, for the movers' searches (cross_pairs() reports those).
     const std::span<const std::uint32_t> sorted = part.tree.sorted_objects();
     resize_with_headroom(part.at, sorted.size());
@@ -578,8 +580,9 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   // find_changes() took the changed shapes and set their bits. The objects that left their fat
   // bounds leave their trees, in parallel chunks (each erases its own objects' lanes; the
   // objects lie scattered over memory, and the reads ahead are prefetched). Recent is built anew
-  // below, so its objects only leave it by their part_of_ (objects that move frame after frame
-  // would otherwise cost a scattered erase each).
+  // below over the objects that left: its own among them keep their part_of_ and are not erased
+  // (objects that move frame after frame would otherwise cost two scattered writes and an erase
+  // each), and its others come to rest in delta.
   parts_[kMain].tree.index_positions();
   parts_[kDelta].tree.index_positions();
   constexpr std::size_t kMaxChunks = 64;
@@ -597,8 +600,8 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
       if (p == kMain || p == kDelta) {
         parts_[p].tree.erase(local_[k]);
         ++erased[p][c];
+        part_of_[k] = kNowhere;
       }
-      part_of_[k] = kNowhere;
       if (margin_ > 0) place(s, k);
     }
   });
@@ -609,7 +612,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   Part& recent = parts_[kRecent];
   scratch_.clear();
   for (const std::uint32_t o : recent.ids)
-    if (part_of_[o] == kRecent) scratch_.push_back(o);
+    if (part_of_[o] == kRecent && !bit(left_bits_.data(), o)) scratch_.push_back(o);
   if (!scratch_.empty()) {
     for (const std::uint32_t o : delta.ids)
       if (part_of_[o] == kDelta) scratch_.push_back(o);
