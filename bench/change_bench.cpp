@@ -75,8 +75,11 @@ World make_world(std::size_t n, bool is_box, std::mt19937_64& rng) {
 }
 
 void run_fractions(const Options& o, CsvWriter& csv) {
-  std::printf("%-6s %9s %8s %6s | %10s %10s %10s | %9s %9s %9s | %s\n", "shape", "objects", "moving", "mode", "rebuild",
-              "compared", "listed", "rebuild/a", "compared/a", "listed/a", "pairs");
+  // Medians of the frames, each over the all-moving frame's median; then the same for the means,
+  // which count frames that cost more now and then (main rebuilt every few frames) at their share.
+  std::printf("%-6s %9s %8s %6s | %10s %10s %10s | %9s %9s %9s | %9s %9s %9s | %s\n", "shape", "objects", "moving",
+              "mode", "rebuild", "compared", "listed", "rebuild/a", "compared/a", "listed/a", "mean r/a", "mean c/a",
+              "mean l/a", "pairs");
   for (const std::string& shape : o.shapes) {
     for (const std::uint32_t n : o.objects) {
       double all_moving_ms = 0;  // the rebuild of a frame where every object moves
@@ -155,11 +158,13 @@ void run_fractions(const Options& o, CsvWriter& csv) {
           }
         if (fraction >= 1.0) all_moving_ms = mr;
         const double denom = all_moving_ms > 0 ? all_moving_ms : mr;
-        std::printf("%-6s %9u %7.1f%% %6s | %10.3f %10.3f %10.3f | %9.3f %9.3f %9.3f | %zu\n", shape.c_str(), n,
-                    100 * fraction, o.redraw ? "redraw" : "fixed", mr, mc, ml, mr / denom, mc / denom, ml / denom,
-                    fr.pairs.size());
+        const double ar = mean(t_rebuild), ac = mean(t_compared), al = mean(t_listed);
+        std::printf("%-6s %9u %7.1f%% %6s | %10.3f %10.3f %10.3f | %9.3f %9.3f %9.3f | %9.3f %9.3f %9.3f | %zu\n",
+                    shape.c_str(), n, 100 * fraction, o.redraw ? "redraw" : "fixed", mr, mc, ml, mr / denom, mc / denom,
+                    ml / denom, ar / denom, ac / denom, al / denom, fr.pairs.size());
         csv.row({shape, std::to_string(n), std::to_string(fraction), o.redraw ? "redraw" : "fixed", std::to_string(mr),
-                 std::to_string(mc), std::to_string(ml), std::to_string(denom), std::to_string(fr.pairs.size())});
+                 std::to_string(mc), std::to_string(ml), std::to_string(denom), std::to_string(fr.pairs.size()),
+                 std::to_string(ar), std::to_string(ac), std::to_string(al)});
         std::fflush(stdout);
       }
     }
@@ -258,7 +263,7 @@ int main(int argc, char** argv) {
     run_pile(o, csv);
   } else {
     CsvWriter csv(o.csv, {"shape", "objects", "fraction", "mode", "rebuild_ms", "compared_ms", "listed_ms",
-                          "all_moving_ms", "pairs"});
+                          "all_moving_ms", "pairs", "rebuild_mean_ms", "compared_mean_ms", "listed_mean_ms"});
     run_fractions(o, csv);
   }
   return 0;

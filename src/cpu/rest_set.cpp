@@ -20,6 +20,16 @@ namespace {
 /// Main is rebuilt over the resting objects when its erased lanes and the objects of delta pass
 /// an eighth of all, and at least this many.
 constexpr std::size_t kMainRebuildFloor = 4096;
+/// A main rebuilt within this many frames of the last one means that objects keep starting and
+/// stopping (a new set of movers every frame): each rebuild of main costs about a rebuilt frame,
+/// and following then costs more than rebuilding (at 10^6 objects, 5 % of them drawn anew each
+/// frame: 1.2-1.5 rebuilt frames). The set then gives up and waits kChurnWait frames before it
+/// watches its sample again, twice as long after each such give-up (up to kChurnWaitMost), and
+/// back to kChurnWait after kChurnForgive followed frames without one.
+constexpr std::size_t kChurnFrames = 3;
+constexpr std::size_t kChurnWait = 8;
+constexpr std::size_t kChurnWaitMost = 256;
+constexpr std::size_t kChurnForgive = 64;
 /// Objects watched while the set is out of use; it takes over when all but 1 in kTakeOver of them
 /// rest, and gives up when more than 1 in kGiveUp objects leave their fat bounds in a frame (the
 /// gap between the two keeps a world near the limit from entering and leaving frame after frame).
@@ -167,6 +177,8 @@ std::uint64_t RestSet::memory_bytes() const {
 
 void RestSet::reset() {
   live_ = false;
+  churned_ = false;
+  frames_since_main_ = 0;
   sample_n_ = 0;
   std::fill(changed_bits_.begin(), changed_bits_.end(), std::uint64_t{0});
   std::fill(left_bits_.begin(), left_bits_.end(), std::uint64_t{0});
@@ -235,6 +247,7 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
   const std::size_t count = objs.size();
   part.count = count;
   part.erased = 0;
+  if (which == kMain) return build_main(objs, threads, pairs);
   // The same objects as at its last build (objects that move frame after frame, in recent): the
   // tree keeps its last order while its buckets stay tight (Config::keep_order's rule), and sorts
   // from it when they do not.
@@ -284,6 +297,41 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
     resize_with_headroom(part.at, sorted.size());
     parallel_for(sorted.size(), threads, [&](std::size_t q) { part.at[q] = part.ids[sorted[q]]; });
   }
+}
+
+void RestSet::build_main(std::span<const std::uint32_t> objs, int threads, std::vector<Pair>* pairs) {
+  // Main's tree takes its objects by their own index, from the whole arrays (objs ascending, its
+  // active set): nothing is copied, and its last order, in object indices, holds from one build
+  // to the next, so that the sort starts from it (from the objects' index order, a rebuild of
+  // main over 10^6 objects had cost about a rebuilt frame).
+  Part& part = parts_[kMain];
+  const std::size_t count = objs.size();
+  part.ids.assign(objs.begin(), objs.end());
+  const bool boxes = box_lanes(), use_fat = margin_ > 0;
+  const std::vector<Box>& box_of = use_fat ? fat_box_ : cur_box_;
+  if (boxes) resize_with_headroom(part.spheres, n_);  // the proxies, by object index
+  parallel_for(count, threads, [&](std::size_t k) {
+    const std::uint32_t o = objs[k];
+    if (boxes) part.spheres[o] = box_proxy(box_of[o]);
+    part_of_[o] = kMain;
+    local_[o] = o;
+  });
+  FrameStats built;
+  part.tree.set_keep_order(false);
+  part.tree.set_simd(simd_);
+  BucketBroadphase::Extras extras;
+  if (boxes) extras.boxes = std::span<const Box>(box_of.data(), n_);
+  const std::span<const Sphere> spheres = boxes     ? std::span<const Sphere>(part.spheres.data(), n_)
+                                          : use_fat ? std::span<const Sphere>(fat_sph_)
+                                                    : std::span<const Sphere>(cur_sph_);
+  if (pairs != nullptr)
+    (void)part.tree.run(spheres, objs, {}, bits_, layout_, threads, 0, *pairs, built, extras);  // no cap: never fails
+  else
+    part.tree.build(spheres, objs, bits_, layout_, threads, built, extras);
+  main_layout_ = built.layout;
+  const std::span<const std::uint32_t> sorted = part.tree.sorted_objects();  // object indices
+  resize_with_headroom(part.at, sorted.size());
+  parallel_for(sorted.size(), threads, [&](std::size_t q) { part.at[q] = sorted[q]; });
 }
 
 std::span<const std::uint32_t> RestSet::enter_main(int threads, std::vector<Pair>* pairs) {
@@ -348,6 +396,12 @@ Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int t
   if (live_ &&
       (n != n_ || s.kind != kind_ || in.margin != margin_ || in.layout != layout_ || set.version() != static_version_))
     reset();
+  if (live_ && churned_) {  // the last frame found main due again too soon
+    reset();
+    churn_wait_ = churn_backoff_;
+    churn_backoff_ = std::min(churn_backoff_ * 2, kChurnWaitMost);
+    ++churn_giveups_;
+  }
   Status status;
   if (live_) {
     Stopwatch sw;
@@ -365,6 +419,10 @@ Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int t
     }
     status = update(in, set, st, threads, stats);
   } else {
+    if (churn_wait_ > 0) {
+      --churn_wait_;
+      return {};
+    }
     if (!sample_rests(s, in.margin)) return {};
     status = enter(in, set, st, threads, stats);
   }
@@ -707,7 +765,15 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   // Main rebuilt when its lanes hold too many erased objects or too many rest outside it, over
   // the resting objects: this frame's movers stay in recent (objects that move frame after frame
   // would otherwise be built into main only to be erased from it again the next frame).
+  ++frames_since_main_;
+  if (++calm_frames_ >= kChurnForgive) churn_backoff_ = kChurnWait;
   if (parts_[kMain].erased + delta.count > std::max(kMainRebuildFloor, n_ / 8)) {
+    if (frames_since_main_ < kChurnFrames) {
+      churned_ = true;  // the next frame gives up (this one's candidates are complete already)
+      calm_frames_ = 0;
+      return {};
+    }
+    frames_since_main_ = 0;
     scratch_.clear();
     for (std::uint32_t k = 0; k < n_; ++k)
       if (part_of_[k] != kRecent) scratch_.push_back(k);

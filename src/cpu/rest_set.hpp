@@ -84,6 +84,9 @@ class RestSet {
   [[nodiscard]] std::size_t packs() const { return packs_; }
   /// For tests: how often main was rebuilt over the resting objects since then.
   [[nodiscard]] std::size_t main_rebuilds() const { return main_rebuilds_; }
+  /// For tests: how often the set gave up because main came due again within a few frames (new
+  /// objects starting and stopping every frame), since the detector was made.
+  [[nodiscard]] std::size_t churn_giveups() const { return churn_giveups_; }
 
  private:
   // One tree and what its objects are: the shapes its lanes hold (sphere lanes: `spheres`; box
@@ -110,6 +113,8 @@ class RestSet {
   /// the part as the objects' home.
   void build_part(Part& part, std::span<const std::uint32_t> objs, std::uint8_t which, bool fat, int threads,
                   std::vector<Pair>* pairs);
+  /// build_part() for main: its tree's ids are the object indices.
+  void build_main(std::span<const std::uint32_t> objs, int threads, std::vector<Pair>* pairs);
   /// Builds main over every object (their fat bounds; the pairs among them when `pairs` is not
   /// null) and empties delta and recent. Returns the object indices 0..N-1 (in scratch_).
   std::span<const std::uint32_t> enter_main(int threads, std::vector<Pair>* pairs);
@@ -192,6 +197,12 @@ class RestSet {
   bool merge_ = false;             // this frame's emit() merges found_ into the candidates
   std::size_t packs_ = 0;          // pack() calls since enter()
   std::size_t main_rebuilds_ = 0;  // main rebuilt by update() since enter()
+  // Churn (rest_set.cpp, kChurnFrames): followed frames since main was built; whether the last
+  // frame found it due again too soon; frames still to wait, and the next wait; followed frames
+  // since the last such find; give-ups for churn (for tests).
+  std::size_t frames_since_main_ = 0;
+  bool churned_ = false;
+  std::size_t churn_wait_ = 0, churn_backoff_ = 8, calm_frames_ = 0, churn_giveups_ = 0;
 
   // The sample watched while the set is out of use.
   std::vector<std::uint32_t> sample_index_;

@@ -319,6 +319,39 @@ TEST(RestSet, ManyMoversFallBackAndComeBack) {
   EXPECT_GE(followed, 15);
 }
 
+TEST(RestSet, NewMoversEveryFrameGiveUpAndWait) {
+  // A new random twentieth of the objects moves each frame (and the last frame's stop): main comes
+  // due again every other frame, which costs more than rebuilding, so the set gives up and waits
+  // longer each time; then the same few objects move and it follows again. Exact throughout.
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<float> u(-30, 30), step(-0.3f, 0.3f);
+  std::vector<Sphere> s(40000);
+  for (auto& x : s) x = {u(rng), u(rng), u(rng) * 0.2f, 0.5f};
+  auto a = make_cpu_detector();
+  std::uniform_int_distribution<std::uint32_t> pick(0, 39999);
+  FrameResult f;
+  int followed_churning = 0, followed_after = 0;
+  for (int frame = 0; frame < 120; ++frame) {
+    SCOPED_TRACE("frame " + std::to_string(frame));
+    const bool churning = frame < 60;
+    for (int t = 0; t < (churning ? 2000 : 100); ++t) {
+      const std::uint32_t k = churning ? pick(rng) : static_cast<std::uint32_t>(t * 397);
+      s[k].x += step(rng);
+      s[k].y += step(rng);
+    }
+    ASSERT_TRUE(a->detect(s, nullptr, f).ok());
+    if (frame % 10 == 0) {
+      EXPECT_TRUE(test::same_pairs(f.pairs, test::oracle_pairs(s)));
+    }
+    if (churning && frame >= 20) followed_churning += f.stats.followed_change;
+    if (!churning) followed_after += f.stats.followed_change;
+  }
+  const auto& rest = detail::backend_as<detail::CpuDetector>(*a).rest_set();
+  EXPECT_GE(rest.churn_giveups(), 2u);
+  EXPECT_LE(followed_churning, 20) << "new movers every frame should mostly rebuild";
+  EXPECT_GE(followed_after, 15) << "the same few movers should be followed again";
+}
+
 TEST(RestSet, DegenerateCounts) {
   for (const std::size_t n : {0u, 1u, 2u, 15u, 16u, 17u, 100u, 4095u, 4097u}) {
     SCOPED_TRACE(n);
