@@ -33,9 +33,10 @@ constexpr std::size_t kChurnForgive = 64;
 /// Objects watched while the set is out of use; it takes over when all but 1 in kTakeOver of them
 /// rest, and gives up when more than 1 in kGiveUp objects leave their fat bounds in a frame (the
 /// gap between the two keeps a world near the limit from entering and leaving frame after frame).
-/// Each object placed again costs about 8 times what it costs in a rebuild (a walk of the trees
-/// whose buckets lie far apart in memory, and its candidates merged into the list), so that
-/// following pays up to about 12 % (docs/benchmarks.md, "Cost follows change").
+/// An object placed again costs several times what it costs in a rebuild (walks of trees whose
+/// buckets lie far apart in memory, and its candidates merged into the list): at 10^6 objects a
+/// frame with a tenth moving costs about 0.42 of a rebuilt one (docs/benchmarks.md, "Walks of the
+/// moving buckets"). Past 1 in 8 main would also come due every frame.
 constexpr std::size_t kSample = 256;
 constexpr std::size_t kTakeOver = 10;
 constexpr std::size_t kGiveUp = 8;
