@@ -34,7 +34,8 @@ inline Aabb lane_box(const BoxLanes& ln, std::uint32_t l) { return ln.box(l); }
 
 /// How cross_pairs() walks the other tree, chosen from how many objects each tree holds: the
 /// fewer the moving objects, the farther apart they lie, and the larger the boxes of their buckets
-/// and groups are beside the other tree's buckets. Limits measured at 10^6 objects of which 1-10 %
+/// and groups are beside the other tree's buckets (when both sets spread over the same space, as
+/// the moving and resting objects of one world do). Limits measured at 10^6 objects of which 1-10 %
 /// move (docs/benchmarks.md, "Walks of the moving buckets").
 struct CrossWalk {
   bool group = true;    ///< first one walk per group of 16 buckets (up to 512 buckets met)

@@ -291,7 +291,6 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
     (void)part.tree.run(spheres, ids, {}, bits_, layout_, threads, 0, *pairs, built, extras);  // no cap: never fails
   else
     part.tree.build(spheres, ids, bits_, layout_, threads, built, extras);
-  if (which == kMain) main_layout_ = built.layout;
   if (which != kNowhere && !(placed && built.order_kept)) {
     // The object at each sorted position, for the movers' searches (cross_pairs() reports those).
     const std::span<const std::uint32_t> sorted = part.tree.sorted_objects();

@@ -152,7 +152,10 @@ bool StaticTree::pairs(const BucketBroadphase& moving, std::span<const Filter> m
           if (!check || pair_passes_filter(mf, s->filter_at[q]))
             list.push_back(std::uint64_t{mids[p]} << 32 | s->reported_at[q]);
         };
-        const CrossWalk walk = cross_walk_for(n, s->count);
+        // The group walk first, whatever the counts: the moving objects and the static ones may
+        // lie in different places (a ring of movers among a million static objects), so the counts
+        // alone do not say how many buckets a group's box meets.
+        const CrossWalk walk{true, cross_walk_for(n, s->count).bucket};
         auto fetch = [&](std::size_t q) {
           __builtin_prefetch(&s->reported_at[q]);
           if (check) __builtin_prefetch(&s->filter_at[q]);
