@@ -20,8 +20,10 @@ namespace {
 /// Main is rebuilt over the resting objects when its erased lanes and the objects of delta pass
 /// an eighth of all, and at least this many.
 constexpr std::size_t kMainRebuildFloor = 4096;
-/// A main rebuilt within this many frames of the last one means that objects keep starting and
-/// stopping (a new set of movers every frame): each rebuild of main costs about a rebuilt frame,
+/// A main due again within this many frames of the last build, with delta (the objects that came
+/// to rest since) a quarter of what makes it due, means that objects keep starting and stopping (a
+/// new set of movers every frame; the same movers frame after frame leave main once and stay in
+/// recent): each rebuild of main costs about a rebuilt frame,
 /// and following then costs more than rebuilding (at 10^6 objects, 5 % of them drawn anew each
 /// frame: 1.2-1.5 rebuilt frames). The set then gives up and waits kChurnWait frames before it
 /// watches its sample again, twice as long after each such give-up (up to kChurnWaitMost), and
@@ -36,10 +38,11 @@ constexpr std::size_t kChurnForgive = 64;
 /// An object placed again costs several times what it costs in a rebuild (walks of trees whose
 /// buckets lie far apart in memory, and its candidates merged into the list): at 10^6 objects a
 /// frame with a tenth moving costs about 0.42 of a rebuilt one (docs/benchmarks.md, "Walks of the
-/// moving buckets"). Past 1 in 8 main would also come due every frame.
+/// moving buckets"), 0.45-0.51 with 15 % moving, and about a rebuilt one past 20 % (5 in 6 resting
+/// to take over: a sample of 256 with 18 % moving does in about a third of the frames).
 constexpr std::size_t kSample = 256;
-constexpr std::size_t kTakeOver = 10;
-constexpr std::size_t kGiveUp = 8;
+constexpr std::size_t kTakeOver = 6;
+constexpr std::size_t kGiveUp = 5;
 
 [[nodiscard]] std::uint64_t key(std::uint32_t i, std::uint32_t j) { return std::uint64_t{i} << 32 | j; }
 
@@ -768,7 +771,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   ++frames_since_main_;
   if (++calm_frames_ >= kChurnForgive) churn_backoff_ = kChurnWait;
   if (parts_[kMain].erased + delta.count > std::max(kMainRebuildFloor, n_ / 8)) {
-    if (frames_since_main_ < kChurnFrames) {
+    if (frames_since_main_ < kChurnFrames && delta.count * 4 > std::max(kMainRebuildFloor, n_ / 8)) {
       churned_ = true;  // the next frame gives up (this one's candidates are complete already)
       calm_frames_ = 0;
       return {};

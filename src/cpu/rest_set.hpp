@@ -20,13 +20,14 @@
 // recent).
 //
 // A frame costs the pass over the bounds (none with FrameInput::moved), the movers' tree and its
-// searches, and one merging pass over the candidates and pairs. When more than 1 in 8 objects
+// searches, and one merging pass over the candidates and pairs. When more than 1 in 5 objects
 // leave their fat bounds in a frame, when the object count, their kind, the static set, the layout
 // or the margin change, when culling leaves fewer than half of the objects active (the
 // candidates of culled objects would cost more than a culled rebuild saves), or when main comes
-// due again within 3 frames of its last build (new objects start and stop moving every frame),
+// due again within 3 frames of its last build with many objects come to rest in delta (new
+// objects start and stop moving every frame),
 // the set lets the frame rebuild and starts again later: while it is not in use it watches a
-// sample of 256 objects (a new one each frame), and takes over when 9 in 10 of them rest (after
+// sample of 256 objects (a new one each frame), and takes over when 5 in 6 of them rest (after
 // such a give-up for churn, only after a wait that doubles each time).
 // docs/architecture.md, "Resting objects".
 

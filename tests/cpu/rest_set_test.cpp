@@ -352,6 +352,34 @@ TEST(RestSet, NewMoversEveryFrameGiveUpAndWait) {
   EXPECT_GE(followed_after, 15) << "the same few movers should be followed again";
 }
 
+TEST(RestSet, TheSameSixthMovingIsFollowed) {
+  // The same 15 % move every frame: they leave main once (main is rebuilt over the others at once,
+  // which is not churn: nothing came to rest) and are recent's from then on.
+  std::mt19937_64 rng(12);
+  std::uniform_real_distribution<float> u(-30, 30), step(-0.2f, 0.2f);
+  std::vector<Sphere> s(30000);
+  for (auto& x : s) x = {u(rng), u(rng), u(rng) * 0.2f, 0.5f};
+  auto a = make_cpu_detector();
+  FrameResult f;
+  int followed = 0;
+  for (int frame = 0; frame < 30; ++frame) {
+    SCOPED_TRACE("frame " + std::to_string(frame));
+    if (frame > 0)
+      for (std::size_t k = 0; k < s.size(); k += 7) {  // 1 in 7: 14.3 %
+        s[k].x += step(rng);
+        s[k].y += step(rng);
+      }
+    ASSERT_TRUE(a->detect(s, nullptr, f).ok());
+    if (frame % 6 == 5) {
+      EXPECT_TRUE(test::same_pairs(f.pairs, test::oracle_pairs(s)));
+    }
+    followed += f.stats.followed_change;
+  }
+  const auto& rest = detail::backend_as<detail::CpuDetector>(*a).rest_set();
+  EXPECT_EQ(rest.churn_giveups(), 0u);
+  EXPECT_GE(followed, 20);
+}
+
 TEST(RestSet, DegenerateCounts) {
   for (const std::size_t n : {0u, 1u, 2u, 15u, 16u, 17u, 100u, 4095u, 4097u}) {
     SCOPED_TRACE(n);
