@@ -23,6 +23,10 @@ namespace viscd::detail {
 void sort_chunk_pairs(std::span<const std::vector<std::uint64_t>> lists, std::uint32_t objects,
                       std::vector<std::uint32_t>& offsets, std::vector<Pair>& scratch, std::vector<Pair>& out,
                       int threads);
+/// sort_chunk_pairs() into keys (i << 32 | j, sorted) instead of pairs.
+void sort_chunk_keys(std::span<const std::vector<std::uint64_t>> lists, std::uint32_t objects,
+                     std::vector<std::uint32_t>& offsets, std::vector<std::uint64_t>& scratch,
+                     std::vector<std::uint64_t>& out, int threads);
 
 /// Stage 8's pair lists, shared by the broadphases. The items searched (leaves or buckets) are cut
 /// into chunks, several per thread because the work per item varies, and each chunk keeps its own

@@ -12,6 +12,7 @@
 #include "cpu/bucket_search.hpp"
 #include "cpu/cross_pairs.hpp"
 #include "cpu/grow.hpp"
+#include "cpu/pair_collector.hpp"
 #include "cpu/parallel.hpp"
 
 namespace viscd::detail {
@@ -48,53 +49,6 @@ constexpr std::size_t kGiveUp = 5;
 
 [[nodiscard]] std::uint32_t key_i(std::uint64_t k) { return static_cast<std::uint32_t>(k >> 32); }
 [[nodiscard]] std::uint32_t key_j(std::uint64_t k) { return static_cast<std::uint32_t>(k); }
-
-/// Sorts the keys of `lists` (pairs key(i, j), i < n) into `out`: one counting pass by the high
-/// bits of i into buckets of about 32 keys, then each bucket sorted on its own; the lists counted
-/// and scattered in parallel, and the buckets sorted so. Two passes over the keys and small sorts:
-/// sorting each chunk's list and merging the lists had cost a fifth of the movers' searches when
-/// a tenth of 10^6 objects moved (docs/benchmarks.md, "Walks of the moving buckets").
-/// `hist` and `starts` are scratch.
-void sort_keys(std::span<const std::vector<std::uint64_t>* const> lists, std::size_t n, int threads,
-               std::vector<std::uint32_t>& hist, std::vector<std::uint32_t>& starts, std::vector<std::uint64_t>& out) {
-  std::size_t total = 0;
-  for (const std::vector<std::uint64_t>* l : lists) total += l->size();
-  resize_with_headroom(out, total);
-  if (total == 0) return;
-  const auto n_bits = static_cast<int>(std::bit_width(std::max<std::size_t>(n, 2) - 1));
-  const int b_bits = std::min({static_cast<int>(std::bit_width(total / 32)), 16, n_bits});
-  const int shift = 32 + n_bits - b_bits;  // key >> shift: the top b_bits of i's n_bits
-  const std::size_t buckets = std::size_t{1} << b_bits, count = lists.size();
-  hist.assign(count * buckets, 0);
-  resize_with_headroom(starts, buckets + 1);
-  const std::size_t chunks = threads_for(total, threads) == 1 ? 1 : count;
-  for_chunks(count, chunks, [&](std::size_t b, std::size_t e, std::size_t) {
-    for (std::size_t l = b; l < e; ++l) {
-      std::uint32_t* const h = hist.data() + l * buckets;
-      for (const std::uint64_t k : *lists[l]) ++h[k >> shift];
-    }
-  });
-  std::uint32_t sum = 0;  // offsets in (bucket, list) order, so each bucket's keys lie together
-  for (std::size_t d = 0; d < buckets; ++d) {
-    starts[d] = sum;
-    for (std::size_t l = 0; l < count; ++l) {
-      const std::uint32_t c = hist[l * buckets + d];
-      hist[l * buckets + d] = sum;
-      sum += c;
-    }
-  }
-  starts[buckets] = sum;
-  for_chunks(count, chunks, [&](std::size_t b, std::size_t e, std::size_t) {
-    for (std::size_t l = b; l < e; ++l) {
-      std::uint32_t* const h = hist.data() + l * buckets;
-      for (const std::uint64_t k : *lists[l]) out[h[k >> shift]++] = k;
-    }
-  });
-  for_chunks(buckets, chunks == 1 ? 1 : std::min<std::size_t>(buckets, 8 * static_cast<std::size_t>(threads)),
-             [&](std::size_t b, std::size_t e, std::size_t) {
-               for (std::size_t d = b; d < e; ++d) std::sort(out.begin() + starts[d], out.begin() + starts[d + 1]);
-             });
-}
 
 /// Bit k of a bitset (one bit per object: 125 KB for 10^6 objects, which stays in cache while the
 /// candidates stream past).
@@ -175,6 +129,7 @@ std::uint64_t RestSet::memory_bytes() const {
   for (const Part& p : parts_) b += p.memory_bytes();
   b += exact_.memory_bytes();
   for (const auto& l : chunk_keys_) b += bytes_of(l);
+  b += bytes_of(key_offsets_) + bytes_of(key_scratch_);
   for (const auto& l : chunk_left_) b += bytes_of(l);
   return b;
 }
@@ -714,12 +669,15 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
         }
       }
     });
+    // Sorted all at once with the pairs among the movers (found_, as one more list), as stage 8
+    // sorts its pairs: bucketed by the high bits of the first index, each bucket sorted on its own
+    // (sorting each chunk's list and merging the lists in turn had cost 3.8 ms at 10 % of 10^6
+    // moving).
     const std::size_t used = std::min(chunks, groups);
-    lists_.clear();
-    lists_.push_back(&found_);
-    for (std::size_t c = 0; c < used; ++c) lists_.push_back(&chunk_keys_[c]);
-    sort_keys(lists_, n_, threads, key_hist_, key_starts_, merged_);
-    found_.swap(merged_);
+    if (chunk_keys_.size() < used + 1) chunk_keys_.resize(used + 1);
+    chunk_keys_[used].swap(found_);
+    sort_chunk_keys(std::span<const std::vector<std::uint64_t>>(chunk_keys_.data(), used + 1),
+                    static_cast<std::uint32_t>(n_), key_offsets_, key_scratch_, found_, threads);
   }
 
   // The static pairs of the objects that changed, from a tree of their exact shapes.

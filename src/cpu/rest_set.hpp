@@ -190,8 +190,8 @@ class RestSet {
   std::vector<Segment> segs_;
   std::vector<std::uint64_t> cuts_;
   std::vector<std::vector<std::uint64_t>> chunk_keys_;
-  std::vector<const std::vector<std::uint64_t>*> lists_;  // update(): the movers' new candidates, per chunk
-  std::vector<std::uint32_t> key_hist_, key_starts_;      // update(): their sort's scratch
+  std::vector<std::uint32_t> key_offsets_;  // update(): the sort of the movers' new candidates
+  std::vector<std::uint64_t> key_scratch_;
   std::vector<Pair> local_pairs_, pair_buf_;
   std::vector<std::uint8_t> active_mask_;
   // emit()'s chunks: where each starts in found_ and stat_, where its output may start (the sizes
