@@ -36,6 +36,14 @@ struct Scenario {
 
 Box box_of(const Sphere& s) { return Box{{s.x - s.r, s.y - s.r, s.z - s.r}, {s.x + s.r, s.y + s.r, s.z + s.r}}; }
 
+// n spheres of radius 0.5 in a slab 60 wide and 12 deep (about one neighbour each at 40 000).
+std::vector<Sphere> slab_of(std::size_t n, std::mt19937_64& rng) {
+  std::uniform_real_distribution<float> u(-30, 30);
+  std::vector<Sphere> s(n);
+  for (auto& x : s) x = {u(rng), u(rng), u(rng) * 0.2f, 0.5f};
+  return s;
+}
+
 // The oracle: pairs of the active moving objects (by the exact tests), and of each active moving
 // object with each static object, filters applied, sorted.
 std::vector<Pair> oracle(const std::vector<Sphere>& sph, const std::vector<Box>& bx, bool boxes,
@@ -324,9 +332,8 @@ TEST(RestSet, NewMoversEveryFrameGiveUpAndWait) {
   // due again every other frame, which costs more than rebuilding, so the set gives up and waits
   // longer each time; then the same few objects move and it follows again. Exact throughout.
   std::mt19937_64 rng(9);
-  std::uniform_real_distribution<float> u(-30, 30), step(-0.3f, 0.3f);
-  std::vector<Sphere> s(40000);
-  for (auto& x : s) x = {u(rng), u(rng), u(rng) * 0.2f, 0.5f};
+  std::uniform_real_distribution<float> step(-0.3f, 0.3f);
+  std::vector<Sphere> s = slab_of(40000, rng);
   auto a = make_cpu_detector();
   std::uniform_int_distribution<std::uint32_t> pick(0, 39999);
   FrameResult f;
@@ -356,9 +363,8 @@ TEST(RestSet, TheSameSixthMovingIsFollowed) {
   // The same 15 % move every frame: they leave main once (main is rebuilt over the others at once,
   // which is not churn: nothing came to rest) and are recent's from then on.
   std::mt19937_64 rng(12);
-  std::uniform_real_distribution<float> u(-30, 30), step(-0.2f, 0.2f);
-  std::vector<Sphere> s(30000);
-  for (auto& x : s) x = {u(rng), u(rng), u(rng) * 0.2f, 0.5f};
+  std::uniform_real_distribution<float> step(-0.2f, 0.2f);
+  std::vector<Sphere> s = slab_of(30000, rng);
   auto a = make_cpu_detector();
   FrameResult f;
   int followed = 0;
