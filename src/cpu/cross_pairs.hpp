@@ -75,10 +75,12 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
   auto walked_box = [&](std::uint32_t sb) { return leaves[sb / kWide].child(sb % kWide); };
   const std::size_t buckets = buckets_for(moving.sorted_objects().size());
   const std::size_t b0 = g * kWide, b1 = std::min(buckets, b0 + kWide);
-  auto bucket_pair = [&](std::size_t b, std::uint32_t sb) {
+  // The pairs of the moving lanes `lanes` of bucket b with bucket sb of `other`: each of those
+  // lanes against all 16 of sb's by K's exact test.
+  auto emit_lanes = [&](std::size_t b, std::uint32_t sb, std::uint32_t lanes) {
     const std::size_t m_first = b * kBucket, s_first = std::size_t{sb} * kBucket;
-    for (std::uint32_t near = K::near(ml[b], sboxes[sb]); near; near &= near - 1) {
-      const auto i = static_cast<std::uint32_t>(std::countr_zero(near));
+    for (; lanes; lanes &= lanes - 1) {
+      const auto i = static_cast<std::uint32_t>(std::countr_zero(lanes));
       for (std::uint32_t m = K::exact(sl[sb], ml[b], i); m; m &= m - 1)
         emit(m_first + i, s_first + static_cast<std::size_t>(std::countr_zero(m)));
     }
@@ -107,20 +109,25 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
       for (std::uint32_t l = count % kWide; l != 0 && l < kWide; ++l) box[count / kWide].set_child(l, Aabb{});
       for (std::size_t b = b0; b < b1; ++b)
         for (std::uint32_t k = 0; k * kWide < count; ++k)
-          for (std::uint32_t m = Simd::node_children(box[k], mboxes[b]); m; m &= m - 1)
-            bucket_pair(b, index[k * kWide + static_cast<std::uint32_t>(std::countr_zero(m))]);
+          for (std::uint32_t m = Simd::node_children(box[k], mboxes[b]); m; m &= m - 1) {
+            const std::uint32_t sb = index[k * kWide + static_cast<std::uint32_t>(std::countr_zero(m))];
+            emit_lanes(b, sb, K::near(ml[b], sboxes[sb]));
+          }
       return;
     }
   }
   // The buckets met are listed first, their lanes prefetched, and tested afterwards: the lanes of
   // buckets scattered over the world miss the cache, and this way the misses overlap instead of
-  // queueing. met[t] is a bucket of `other`; mask_of[t] the moving lanes that reach it (a bucket's
-  // walk) or the one lane that does (an object's walk, its index).
+  // queueing. met[t] is a bucket of `other`, reach[t] the moving lanes that reach it (a
+  // bucket's walk) or the one lane whose walk met it (an object's walk).
   constexpr std::uint32_t kMet = 256, kBucketMet = 64;
-  std::uint32_t met[kMet], mask_of[kMet];
+  std::uint32_t met[kMet], reach[kMet];
   for (std::size_t b = b0; b < b1; ++b) {
-    const std::size_t m_first = b * kBucket;
     std::uint32_t count_met = 0;
+    auto test_met = [&] {
+      for (std::uint32_t t = 0; t < count_met; ++t) emit_lanes(b, met[t], reach[t]);
+      count_met = 0;
+    };
     if (walk.bucket) {
       bool over = false;
       for_each_wide_overlap<Simd>(other.tree(), mboxes[b], [&](std::uint32_t sb) {
@@ -131,29 +138,16 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
         if (const std::uint32_t near = K::near(ml[b], walked_box(sb)); near != 0) {
           prefetch(sb);
           met[count_met] = sb;
-          mask_of[count_met++] = near;
+          reach[count_met++] = near;
         }
         return true;
       });
       if (!over) {
-        for (std::uint32_t t = 0; t < count_met; ++t)
-          for (std::uint32_t near = mask_of[t]; near; near &= near - 1) {
-            const auto i = static_cast<std::uint32_t>(std::countr_zero(near));
-            for (std::uint32_t m = K::exact(sl[met[t]], ml[b], i); m; m &= m - 1)
-              emit(m_first + i, std::size_t{met[t]} * kBucket + static_cast<std::size_t>(std::countr_zero(m)));
-          }
+        test_met();
         continue;
       }
       count_met = 0;
     }
-    auto test_met = [&] {
-      for (std::uint32_t t = 0; t < count_met; ++t) {
-        const std::uint32_t sb = met[t], i = mask_of[t];
-        for (std::uint32_t m = K::exact(sl[sb], ml[b], i); m; m &= m - 1)
-          emit(m_first + i, std::size_t{sb} * kBucket + static_cast<std::size_t>(std::countr_zero(m)));
-      }
-      count_met = 0;
-    };
     for (std::uint32_t i = 0; i < kBucket; ++i) {
       const Aabb own = lane_box(ml[b], i);
       if (!(own.lo.x <= own.hi.x)) continue;  // padding (NaN) or an erased lane
@@ -161,7 +155,7 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
         if (count_met == kMet) test_met();
         prefetch(sb);
         met[count_met] = sb;
-        mask_of[count_met++] = i;
+        reach[count_met++] = 1u << i;
       });
     }
     test_met();

@@ -264,7 +264,7 @@ void RestSet::build_main(std::span<const std::uint32_t> objs, int threads, std::
   // main over 10^6 objects had cost about a rebuilt frame).
   Part& part = parts_[kMain];
   const std::size_t count = objs.size();
-  part.ids.assign(objs.begin(), objs.end());
+  part.by_index = true;
   const bool boxes = box_lanes(), use_fat = margin_ > 0;
   const std::vector<Box>& box_of = use_fat ? fat_box_ : cur_box_;
   if (boxes) resize_with_headroom(part.spheres, n_);  // the proxies, by object index
@@ -287,9 +287,6 @@ void RestSet::build_main(std::span<const std::uint32_t> objs, int threads, std::
   else
     part.tree.build(spheres, objs, bits_, layout_, threads, built, extras);
   main_layout_ = built.layout;
-  const std::span<const std::uint32_t> sorted = part.tree.sorted_objects();  // object indices
-  resize_with_headroom(part.at, sorted.size());
-  parallel_for(sorted.size(), threads, [&](std::size_t q) { part.at[q] = sorted[q]; });
 }
 
 std::span<const std::uint32_t> RestSet::enter_main(int threads, std::vector<Pair>* pairs) {
@@ -647,14 +644,14 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
     const std::size_t chunks =
         threads_for(left_.size() * 8, threads) == 1 ? 1 : std::min<std::size_t>(groups, 4 * threads);
     if (chunk_keys_.size() < chunks) chunk_keys_.resize(chunks);
-    const std::uint32_t* const mat = recent.at.data();
+    const std::uint32_t* const mat = recent.objects_by_position().data();
     for_chunks(groups, chunks, [&](std::size_t gb, std::size_t ge, std::size_t c) {
       std::vector<std::uint64_t>& list = chunk_keys_[c];
       list.clear();
       for (const std::uint8_t p : {kMain, kDelta}) {
         const Part& other = parts_[p];
         if (other.count == other.erased) continue;
-        const std::uint32_t* const at = other.at.data();
+        const std::uint32_t* const at = other.objects_by_position().data();
         auto found = [&](std::size_t pos, std::size_t q) {
           const std::uint32_t a = mat[pos], b = at[q];
           list.push_back(a < b ? key(a, b) : key(b, a));

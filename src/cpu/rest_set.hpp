@@ -100,8 +100,14 @@ class RestSet {
     std::vector<Sphere> spheres;
     std::vector<Box> boxes;
     std::vector<std::uint32_t> ids, iota;
-    std::vector<std::uint32_t> at;  // main, delta and recent: the object index at each sorted position
+    std::vector<std::uint32_t> at;  // delta and recent: the object index at each sorted position
     std::size_t count = 0, erased = 0;
+    bool by_index = false;  // main: the tree's ids are the object indices (build_main())
+    /// The object index at each sorted position, for the movers' searches (cross_pairs() reports
+    /// those): main's tree holds them itself.
+    [[nodiscard]] std::span<const std::uint32_t> objects_by_position() const {
+      return by_index ? tree.sorted_objects() : std::span<const std::uint32_t>(at);
+    }
     [[nodiscard]] std::uint64_t memory_bytes() const;
   };
   enum : std::uint8_t { kMain = 0, kDelta = 1, kRecent = 2, kNowhere = 3 };
