@@ -80,10 +80,11 @@ inline std::vector<Sphere> float_boundary_pairs(int count, unsigned seed) {
 
 /// The pairs among spheres[active] (or all) by spheres_overlap(), the oracle written independently
 /// here: every pair is tested that a sweep along x cannot rule out, in the order of brute force
-/// (by position in `active`). The sweep is conservative: the float test accepts a pair only when
-/// |x_a - x_b| is within r_a + r_b plus a few ulps of the coordinates and radii (or a tiny
-/// absolute amount where the squares underflow), and each x interval here is widened by far more:
-/// 2^-12 of (max |coordinate| + r), plus 1e-18. Spheres with a coordinate or radius above 1e15 in
+/// (by position in `active`); a pair whose y intervals are apart is not tested either. The sweep is
+/// conservative: the float test accepts a pair only when |x_a - x_b| (and |y_a - y_b|) is within
+/// r_a + r_b plus a few ulps of the coordinates and radii (or a tiny absolute amount where the
+/// squares underflow), and each interval here is widened by far more: 2^-12 of (max |coordinate|
+/// + r), plus 1e-18. Spheres with a coordinate or radius above 1e15 in
 /// magnitude (where the squares may overflow), a negative radius or one not finite are tested
 /// against every other one.
 inline std::vector<Pair> oracle_pairs(std::span<const Sphere> s, const std::vector<std::uint32_t>* active = nullptr) {
@@ -94,7 +95,7 @@ inline std::vector<Pair> oracle_pairs(std::span<const Sphere> s, const std::vect
   }
   const std::vector<std::uint32_t>& act = *active;
   const std::size_t n = act.size();
-  std::vector<double> lo(n), hi(n);
+  std::vector<double> lo(n), hi(n), ylo(n), yhi(n);
   std::vector<std::uint32_t> swept, odd;  // positions in `act`
   for (std::uint32_t a = 0; a < n; ++a) {
     const Sphere& p = s[act[a]];
@@ -102,6 +103,8 @@ inline std::vector<Pair> oracle_pairs(std::span<const Sphere> s, const std::vect
     const double r = static_cast<double>(p.r) + (m + std::fabs(p.r)) * 0x1p-12 + 1e-18;
     lo[a] = static_cast<double>(p.x) - r;
     hi[a] = static_cast<double>(p.x) + r;
+    ylo[a] = static_cast<double>(p.y) - r;
+    yhi[a] = static_cast<double>(p.y) + r;
     (m <= 1e15 && p.r >= 0 ? swept : odd).push_back(a);  // false for NaN
   }
   std::sort(swept.begin(), swept.end(), [&](std::uint32_t a, std::uint32_t b) { return lo[a] < lo[b]; });
@@ -109,8 +112,13 @@ inline std::vector<Pair> oracle_pairs(std::span<const Sphere> s, const std::vect
   auto test = [&](std::uint32_t a, std::uint32_t b) {
     if (spheres_overlap(s[act[a]], s[act[b]])) found.emplace_back(std::min(a, b), std::max(a, b));
   };
-  for (std::size_t k = 0; k < swept.size(); ++k)
-    for (std::size_t l = k + 1; l < swept.size() && lo[swept[l]] <= hi[swept[k]]; ++l) test(swept[k], swept[l]);
+  for (std::size_t k = 0; k < swept.size(); ++k) {
+    const std::uint32_t a = swept[k];
+    for (std::size_t l = k + 1; l < swept.size() && lo[swept[l]] <= hi[a]; ++l) {
+      const std::uint32_t b = swept[l];
+      if (ylo[b] <= yhi[a] && ylo[a] <= yhi[b]) test(a, b);
+    }
+  }
   for (std::size_t k = 0; k < odd.size(); ++k) {
     for (std::uint32_t b : swept) test(odd[k], b);
     for (std::size_t l = k + 1; l < odd.size(); ++l) test(odd[k], odd[l]);

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "cpu/pipeline.hpp"
@@ -55,35 +56,56 @@ struct MapComparison {
   std::uint32_t worst_object = 0;  ///< the largest difference of one object's pixel count
 };
 
-/// Runs `in` on `gl` and on `ref` (a reference or cpu detector, whose box maps are equal bit for
-/// bit, with the same Config and static set) into `a` and `b`. Without a rendered map, pairs and states must be equal.
-/// With one (a camera and a Config that uses the map): the maps per object within 4 pixels, static objects included;
-/// then `ref` runs again on gl's map (static ids written as background, as the caller's map
-/// holds them) and pixels, states, active count, mu, m and pairs must equal gl's exactly; when
-/// the maps are equal, so must the reference's own frame be. `sync` says whether gl chose m from
-/// this frame (sync_layout or a first frame): only then is its m compared.
+/// `ref`'s frame of an input and its map (ids empty when the frame drew none), run once and
+/// compared with any number of gl detectors' frames of the same input (the reference's brute-force
+/// map costs pixels x objects ray casts, the most of a test's time under the sanitizers).
+struct ReferenceFrame {
+  FrameResult result;
+  std::vector<std::uint32_t> ids;
+  int width = 0, height = 0;
+};
+
+inline ReferenceFrame run_reference(Detector& ref, const FrameInput& in) {
+  ReferenceFrame r;
+  const Status s = ref.detect(in, r.result);
+  EXPECT_TRUE(s.ok()) << s.error();
+  if (!s.ok()) return r;
+  const detail::VisibilityMap& map = detail::backend_as<detail::PipelineDetector>(ref).visibility_map();
+  r.ids.assign(map.ids.begin(), map.ids.end());
+  r.width = map.width;
+  r.height = map.height;
+  return r;
+}
+
+/// Runs `in` on `gl` into `a` and compares it with `ref`'s frame of it, `r` (run_reference(): a
+/// reference or cpu detector, whose box maps are equal bit for bit, with the same Config and
+/// static set). Without a rendered map, pairs and states must be equal. With one (a camera and a
+/// Config that uses the map): the maps per object within 4 pixels, static objects included; then
+/// `ref` runs again on gl's map (static ids written as background, as the caller's map holds them)
+/// and pixels, states, active count, mu, m and pairs must equal gl's exactly; when the maps are
+/// equal, so must the reference's own frame be. `sync` says whether gl chose m from this frame
+/// (sync_layout or a first frame): only then is its m compared.
 inline MapComparison compare_with_reference(GlUnderTest& gl, Detector& ref, const FrameInput& in, FrameResult& a,
-                                            FrameResult& b, bool sync = true) {
+                                            const ReferenceFrame& r, bool sync = true) {
   MapComparison m;
-  const Status sa = gl.detect(in, a), sb = ref.detect(in, b);
+  const Status sa = gl.detect(in, a);
   EXPECT_TRUE(sa.ok()) << sa.error();
-  EXPECT_TRUE(sb.ok()) << sb.error();
-  if (!sa.ok() || !sb.ok()) return m;
+  if (!sa.ok()) return m;
+  const FrameResult& b = r.result;
   EXPECT_EQ(a.stats.objects, b.stats.objects);
   EXPECT_EQ(a.stats.static_objects, b.stats.static_objects);
   const std::size_t n = a.stats.objects, total = n + a.stats.static_objects;
-  const detail::VisibilityMap& ref_map = detail::backend_as<detail::PipelineDetector>(ref).visibility_map();
-  if (ref_map.ids.empty()) {
+  if (r.ids.empty()) {
     EXPECT_TRUE(a.pairs == b.pairs);
     EXPECT_TRUE(a.state == b.state);
     EXPECT_EQ(a.stats.active, b.stats.active);
     return m;
   }
   const std::vector<std::uint32_t> ids = gl.inspect().read_id_map();
-  EXPECT_EQ(ids.size(), ref_map.ids.size());
-  if (ids.size() != ref_map.ids.size()) return m;
-  for (std::size_t i = 0; i < ids.size(); ++i) m.differing_pixels += ids[i] != ref_map.ids[i];
-  const auto hg = id_histogram(ids, total), hr = id_histogram(ref_map.ids, total);
+  EXPECT_EQ(ids.size(), r.ids.size());
+  if (ids.size() != r.ids.size()) return m;
+  for (std::size_t i = 0; i < ids.size(); ++i) m.differing_pixels += ids[i] != r.ids[i];
+  const auto hg = id_histogram(ids, total), hr = id_histogram(r.ids, total);
   for (std::size_t k = 1; k <= total; ++k) {
     const std::uint32_t d = hg[k] > hr[k] ? hg[k] - hr[k] : hr[k] - hg[k];
     EXPECT_LE(d, 4u) << "object " << k - 1 << ": gl " << hg[k] << " pixels, reference " << hr[k];
@@ -100,8 +122,8 @@ inline MapComparison compare_with_reference(GlUnderTest& gl, Detector& ref, cons
     if (id > n) id = 0;
   FrameInput from_map = in;
   from_map.id_map = moving_ids;
-  from_map.id_map_width = ref_map.width;
-  from_map.id_map_height = ref_map.height;
+  from_map.id_map_width = r.width;
+  from_map.id_map_height = r.height;
   const Config own = ref.config();
   Config no_shade = own;
   no_shade.shade = false;  // the caller's map has no normals
@@ -119,6 +141,15 @@ inline MapComparison compare_with_reference(GlUnderTest& gl, Detector& ref, cons
   if (sync) {
     EXPECT_EQ(a.stats.bits, c.stats.bits);
   }
+  return m;
+}
+
+/// compare_with_reference() with `ref`'s frame run here, into `b`.
+inline MapComparison compare_with_reference(GlUnderTest& gl, Detector& ref, const FrameInput& in, FrameResult& a,
+                                            FrameResult& b, bool sync = true) {
+  ReferenceFrame r = run_reference(ref, in);
+  const MapComparison m = compare_with_reference(gl, ref, in, a, r, sync);
+  b = std::move(r.result);
   return m;
 }
 
