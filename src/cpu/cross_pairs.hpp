@@ -67,7 +67,6 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
   const auto ml = lanes_of<K>(moving);
   const auto sl = lanes_of<K>(other);
   const std::span<const Aabb> mboxes = moving.leaf_boxes();
-  const std::span<const Aabb> sboxes = other.leaf_boxes();
   // Bucket sb's box as the walk just tested it: the lowest level's nodes hold the leaf boxes
   // (bit for bit), on lines the walk read, where leaf_boxes()[sb] would be one more miss.
   const std::span<const WideNode> leaves =
@@ -110,8 +109,8 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
       for (std::size_t b = b0; b < b1; ++b)
         for (std::uint32_t k = 0; k * kWide < count; ++k)
           for (std::uint32_t m = Simd::node_children(box[k], mboxes[b]); m; m &= m - 1) {
-            const std::uint32_t sb = index[k * kWide + static_cast<std::uint32_t>(std::countr_zero(m))];
-            emit_lanes(b, sb, K::near(ml[b], sboxes[sb]));
+            const auto l = static_cast<std::uint32_t>(std::countr_zero(m));
+            emit_lanes(b, index[k * kWide + l], K::near(ml[b], box[k].child(l)));
           }
       return;
     }

@@ -12,15 +12,15 @@ namespace viscd::detail {
 
 namespace {
 
-// A sorted entry as a Pair or as its key i << 32 | j.
-[[nodiscard]] std::uint64_t key_of(const Pair& q) { return std::uint64_t{q.i} << 32 | q.j; }
+// A sorted entry as a Pair or as its key (pair_key()).
+[[nodiscard]] std::uint64_t key_of(const Pair& q) { return pair_key(q.i, q.j); }
 [[nodiscard]] std::uint64_t key_of(std::uint64_t k) { return k; }
 [[nodiscard]] std::uint32_t first_of(const Pair& q) { return q.i; }
-[[nodiscard]] std::uint32_t first_of(std::uint64_t k) { return static_cast<std::uint32_t>(k >> 32); }
+[[nodiscard]] std::uint32_t first_of(std::uint64_t k) { return key_i(k); }
 template <class T>
 [[nodiscard]] T entry_of(std::uint64_t k) {
   if constexpr (std::is_same_v<T, Pair>)
-    return Pair{static_cast<std::uint32_t>(k >> 32), static_cast<std::uint32_t>(k)};
+    return Pair{key_i(k), key_j(k)};
   else
     return k;
 }

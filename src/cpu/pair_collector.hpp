@@ -16,6 +16,11 @@
 
 namespace viscd::detail {
 
+/// A pair as one key that sorts by (i, j): i << 32 | j, the entries of the lists below.
+[[nodiscard]] inline std::uint64_t pair_key(std::uint32_t i, std::uint32_t j) { return std::uint64_t{i} << 32 | j; }
+[[nodiscard]] inline std::uint32_t key_i(std::uint64_t k) { return static_cast<std::uint32_t>(k >> 32); }
+[[nodiscard]] inline std::uint32_t key_j(std::uint64_t k) { return static_cast<std::uint32_t>(k); }
+
 /// Writes the pairs of per-chunk lists (keys i << 32 | j, i < j < objects) into `out` sorted by
 /// (i, j), with up to `threads` threads: O(pairs + objects / 1024 per list). `offsets` and
 /// `scratch` are kept between frames: (lists + 1) (objects / 1024 + 1) + 1 offsets, and per thread
@@ -44,7 +49,7 @@ class PairCollector {
         : local_(local), published_(published), stop_(stop), allowed_(allowed) {}
     void operator()(std::uint32_t a, std::uint32_t b) {
       constexpr std::size_t kPublish = 4096;
-      local_.push_back(a < b ? (std::uint64_t{a} << 32 | b) : (std::uint64_t{b} << 32 | a));
+      local_.push_back(a < b ? pair_key(a, b) : pair_key(b, a));
       if (local_.size() % kPublish == 0 &&
           published_.fetch_add(kPublish, std::memory_order_relaxed) + kPublish > allowed_)
         stop_.store(true, std::memory_order_relaxed);

@@ -45,11 +45,6 @@ constexpr std::size_t kSample = 256;
 constexpr std::size_t kTakeOver = 6;
 constexpr std::size_t kGiveUp = 5;
 
-[[nodiscard]] std::uint64_t key(std::uint32_t i, std::uint32_t j) { return std::uint64_t{i} << 32 | j; }
-
-[[nodiscard]] std::uint32_t key_i(std::uint64_t k) { return static_cast<std::uint32_t>(k >> 32); }
-[[nodiscard]] std::uint32_t key_j(std::uint64_t k) { return static_cast<std::uint32_t>(k); }
-
 /// Bit k of a bitset (one bit per object: 125 KB for 10^6 objects, which stays in cache while the
 /// candidates stream past).
 [[nodiscard]] std::uint64_t bit(const std::uint64_t* b, std::uint32_t k) { return (b[k >> 6] >> (k & 63)) & 1; }
@@ -436,7 +431,7 @@ Status RestSet::enter(const Input& in, const StaticSet& set, StaticTree& st, int
   resize_with_headroom(hit_, local_pairs_.size());
   parallel_for(local_pairs_.size(), threads, [&](std::size_t k) {
     const Pair p = local_pairs_[k];
-    cand_[k] = key(p.i, p.j);
+    cand_[k] = pair_key(p.i, p.j);
     hit_[k] = margin_ == 0 || s.overlap(p.i, p.j);
   });
   stat_.clear();
@@ -579,7 +574,7 @@ bool RestSet::static_pairs_of(const BucketBroadphase& tree, std::span<const std:
                               int threads, std::vector<std::uint64_t>& out) {
   if (!st.pairs(tree, {}, false, simd_, threads, std::numeric_limits<std::size_t>::max(), out)) return false;
   // Tree ids to object indices: `ids` ascend, so the order stays.
-  parallel_for(out.size(), threads, [&](std::size_t k) { out[k] = key(ids[key_i(out[k])], key_j(out[k])); });
+  parallel_for(out.size(), threads, [&](std::size_t k) { out[k] = pair_key(ids[key_i(out[k])], key_j(out[k])); });
   return true;
 }
 
@@ -638,7 +633,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   // Their new candidates: among themselves, and with main's and delta's objects.
   found_.resize(local_pairs_.size());
   for (std::size_t k = 0; k < local_pairs_.size(); ++k)
-    found_[k] = key(recent.ids[local_pairs_[k].i], recent.ids[local_pairs_[k].j]);  // ids ascend: i < j stays
+    found_[k] = pair_key(recent.ids[local_pairs_[k].i], recent.ids[local_pairs_[k].j]);  // ids ascend: i < j stays
   if (!left_.empty()) {
     const std::size_t groups = (buckets_for(left_.size()) + kWide - 1) / kWide;
     const std::size_t chunks =
@@ -654,7 +649,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
         const std::uint32_t* const at = other.objects_by_position().data();
         auto found = [&](std::size_t pos, std::size_t q) {
           const std::uint32_t a = mat[pos], b = at[q];
-          list.push_back(a < b ? key(a, b) : key(b, a));
+          list.push_back(a < b ? pair_key(a, b) : pair_key(b, a));
         };
         auto fetch = [&](std::size_t q) { __builtin_prefetch(&at[q]); };  // a bucket's 16: one line
         const CrossWalk walk = cross_walk_for(recent.count, other.count - other.erased);

@@ -7,6 +7,7 @@
 
 #include "cpu/bucket_search.hpp"
 #include "cpu/cross_pairs.hpp"
+#include "cpu/pair_collector.hpp"
 #include "cpu/parallel.hpp"
 #include "cpu/wide_tree.hpp"
 
@@ -149,8 +150,7 @@ bool StaticTree::pairs(const BucketBroadphase& moving, std::span<const Filter> m
         const bool check = filtered && (!moving_filters.empty() || s->rejects_default);
         auto emit = [&](std::size_t p, std::size_t q) {
           const Filter mf = moving_filters.empty() ? Filter{} : moving_filters[p];
-          if (!check || pair_passes_filter(mf, s->filter_at[q]))
-            list.push_back(std::uint64_t{mids[p]} << 32 | s->reported_at[q]);
+          if (!check || pair_passes_filter(mf, s->filter_at[q])) list.push_back(pair_key(mids[p], s->reported_at[q]));
         };
         // The group walk first, whatever the counts: the moving objects and the static ones may
         // lie in different places (a ring of movers among a million static objects), so the counts
