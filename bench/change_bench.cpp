@@ -36,7 +36,7 @@ struct Options {
   int frames = 20, warmup = 3, threads = 0;
   bool redraw = false, pile = false, run_fractions = false, stages = false;
   std::vector<std::string> variants{"rebuild", "compared", "listed"};
-  float margin = 0.02f, jiggle = 0.004f, rest_margin = 0.0f;
+  float margin = 0.02f, jiggle = 0.004f, rest_margin = 0.0f, move_margin = Config{}.move_margin;
   std::string csv;
 };
 
@@ -94,6 +94,7 @@ void run_fractions(const Options& o, CsvWriter& csv) {
         rebuild.follow_change = false;
         follow.follow_change = true;
         follow.rest_margin = o.rest_margin;
+        follow.move_margin = o.move_margin;
         auto d_rebuild = make_cpu_detector(rebuild), d_compared = make_cpu_detector(follow),
              d_listed = make_cpu_detector(follow);
         FrameResult fr, fc, fl;
@@ -188,6 +189,7 @@ void run_pile(const Options& o, CsvWriter& csv) {
     rebuild.threads = follow.threads = o.threads;
     rebuild.follow_change = false;
     follow.rest_margin = o.margin;
+    follow.move_margin = o.move_margin;
     auto a = make_cpu_detector(rebuild), b = make_cpu_detector(follow);
     FrameResult fa, fb;
     std::vector<double> ta, tb;
@@ -244,6 +246,8 @@ int main(int argc, char** argv) {
   app.add_flag("--redraw", o.redraw, "a new random set of movers every frame (--fractions)");
   app.add_option("--margin", o.margin, "Config::rest_margin (--pile)");
   app.add_option("--rest-margin", o.rest_margin, "Config::rest_margin of the following detectors (--fractions)");
+  app.add_option("--move-margin", o.move_margin, "Config::move_margin of the following detectors")
+      ->capture_default_str();
   app.add_option("--jiggle", o.jiggle, "how far a grain strays from its place, each axis (--pile)");
   app.add_option("--frames", o.frames, "timed frames");
   app.add_option("--warmup", o.warmup, "untimed frames first");

@@ -82,6 +82,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   on.contact_events = true;
   on.threads = (flags & 64) ? 2 : 1;
   if (flags & 2) on.rest_margin = static_cast<float>(in.byte()) / 64.0f;
+  on.move_margin = static_cast<float>(in.byte() % 17);  // 0 (none) to 16 moves
   Config off = on;
   off.follow_change = false;
   auto a = make_cpu_detector(on);

@@ -149,6 +149,9 @@ const std::vector<Keyword>& keywords() {
                     "cpu: keep resting objects in trees across frames (cost follows change)", &Config::follow_change),
       field_keyword("rest_margin", "float", "0.0", "cpu: how far an object may stray and still rest (0: bit for bit)",
                     &Config::rest_margin),
+      field_keyword("move_margin", "float", "8.0",
+                    "cpu: margins of their own for moving objects, in moves (0: placed again every change)",
+                    &Config::move_margin),
       {"simd", false, "\"best\" | \"sse2\" | \"scalar\"", "\"best\"", "widest SIMD kernels the cpu backend may use",
        [](py::handle v, const std::string& k, Config& c, GlOptions&) {
          static constexpr Simd kSimd[] = {Simd::best, Simd::sse2, Simd::scalar};

@@ -86,6 +86,11 @@ void add_cpu_kernel_options(CLI::App& cmd, PipelineOptions& o) {
                  "cpu backend: how far (world units) an object may stray and still rest; 0 = only bit-for-bit\n"
                  "unchanged bounds rest")
       ->capture_default_str();
+  cmd.add_option("--move-margin", o.move_margin,
+                 "cpu backend: margins of their own for moving objects: an object that leaves its bounds is\n"
+                 "placed again with this many times its last move as margin (at most half its size), so that\n"
+                 "a body that keeps moving is placed again every few frames; 0 = every frame it changes")
+      ->capture_default_str();
 }
 
 void add_scene_options(CLI::App& cmd, SceneOptions& o) {
@@ -207,6 +212,10 @@ Result<Config> make_config(const PipelineOptions& o) {
   if (!(std::isfinite(c.rest_margin) && c.rest_margin >= 0))
     return Result<Config>::failure(ErrorKind::invalid_input, "--rest-margin " + std::to_string(c.rest_margin) +
                                                                  ": expected a finite distance >= 0");
+  c.move_margin = o.move_margin;
+  if (!(std::isfinite(c.move_margin) && c.move_margin >= 0))
+    return Result<Config>::failure(
+        ErrorKind::invalid_input, "--move-margin " + std::to_string(c.move_margin) + ": expected a finite factor >= 0");
   if (!o.map_size.empty()) {
     auto s = parse_size(o.map_size, "--map-size");
     if (!s) return Result<Config>::failure(s.status());

@@ -44,11 +44,13 @@ struct PipelineOptions {
   std::string keep_order;     ///< on | off; empty: VISCD_KEEP_ORDER or on (run and pairs only)
   std::string follow_change;  ///< on | off; empty: on (run and pairs only)
   float rest_margin = 0;      ///< Config::rest_margin (run and pairs only)
+  float move_margin = 8;      ///< Config::move_margin (run and pairs only)
 };
 
 /// Registers the pipeline options on `cmd`; `backend_auto` offers --backend auto in the help.
 void add_pipeline_options(CLI::App& cmd, PipelineOptions& o, bool backend_auto);
-/// Registers --simd, --keep-order, --follow-change and --rest-margin (the cpu backend's) on `cmd`.
+/// Registers --simd, --keep-order, --follow-change, --rest-margin and --move-margin (the cpu
+/// backend's) on `cmd`.
 void add_cpu_kernel_options(CLI::App& cmd, PipelineOptions& o);
 
 /// The simulated scene's options, shared by `run` and `view`.

@@ -103,6 +103,7 @@ class Detector:
         keep_order: bool = True,
         follow_change: bool = True,
         rest_margin: float = 0.0,
+        move_margin: float = 8.0,
         simd: Literal["best", "sse2", "scalar"] = "best",
         gl_geometry: Literal["impostor", "mesh", "splat"] = "impostor",
         gl_counter: Literal["ssbo", "atomic_uint"] = "ssbo",

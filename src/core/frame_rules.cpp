@@ -17,6 +17,9 @@ Status validate_frame(const Shapes& objects, const Camera* camera, const Config&
   if (!(config.rest_margin >= 0) || !std::isfinite(config.rest_margin))
     return Status::failure(ErrorKind::invalid_input, "Config::rest_margin = " + std::to_string(config.rest_margin) +
                                                          ": expected a finite distance >= 0");
+  if (!(config.move_margin >= 0) || !std::isfinite(config.move_margin))
+    return Status::failure(ErrorKind::invalid_input, "Config::move_margin = " + std::to_string(config.move_margin) +
+                                                         ": expected a finite factor >= 0");
   if (check_objects)
     if (Status s = objects.is_box() ? validate_boxes(objects.boxes) : validate_spheres(objects.spheres); !s) return s;
   if (camera) {

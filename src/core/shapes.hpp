@@ -47,6 +47,13 @@ struct Shapes {
   }
   /// What stages 4-6 see of object k: the sphere itself, or box_proxy().
   [[nodiscard]] Sphere proxy(std::size_t k) const { return is_box() ? box_proxy(boxes[k]) : spheres[k]; }
+  /// Fetches object k into the cache ahead of a test.
+  void prefetch(std::size_t k) const {
+    if (is_box())
+      __builtin_prefetch(&boxes[k]);
+    else
+      __builtin_prefetch(&spheres[k]);
+  }
   /// The exact overlap test of objects a and b (the same kind).
   [[nodiscard]] bool overlap(std::size_t a, std::size_t b) const {
     return is_box() ? box_overlap_exact(boxes[a], boxes[b]) : overlap_exact(spheres[a], spheres[b]);

@@ -27,6 +27,8 @@ namespace viscd::detail {
 template <class Simd>
 struct SphereTests {
   using Lanes = BucketLanes;
+  /// The bytes of a bucket's lanes that `exact` reads of the other bucket: x, y, z and r.
+  static constexpr std::size_t kExactBytes = offsetof(BucketLanes, h);
   static std::uint32_t near(const BucketLanes& l, const Aabb& box) { return Simd::box_lanes(l, box); }
   static std::uint32_t exact(const BucketLanes& l, const BucketLanes& o, std::uint32_t i) {
     return Simd::sphere_lanes(l, o.x[i], o.y[i], o.z[i], o.r[i]);
@@ -35,6 +37,7 @@ struct SphereTests {
 template <class Simd>
 struct BoxTests {
   using Lanes = BoxLanes;
+  static constexpr std::size_t kExactBytes = sizeof(BoxLanes);
   static std::uint32_t near(const BoxLanes& l, const Aabb& box) { return Simd::node_children(l, box); }
   static std::uint32_t exact(const BoxLanes& l, const BoxLanes& o, std::uint32_t i) {
     return Simd::node_children(l, o.box(i));

@@ -36,14 +36,14 @@ static_assert(kBucket == 16, "the SIMD kernels (cpu/simd.hpp) test 16 lanes");
 inline constexpr std::size_t kPrefetchAhead = 64;
 
 /// The objects of one bucket in lanes; unused lanes hold NaN centres, which overlap nothing.
-struct alignas(32) BucketLanes {
+struct alignas(64) BucketLanes {
   float x[kBucket], y[kBucket], z[kBucket], r[kBucket];
   float h[kBucket];  ///< half extent of the object's conservative_box()
 };
 
 /// The boxes of one bucket's objects (box frames) in lanes, named as WideNode's children so that
 /// the same SIMD test (node_children(), the exact box test) serves both; unused lanes hold NaN.
-struct alignas(32) BoxLanes {
+struct alignas(64) BoxLanes {
   float lo_x[kBucket], lo_y[kBucket], lo_z[kBucket], hi_x[kBucket], hi_y[kBucket], hi_z[kBucket];
   [[nodiscard]] Aabb box(std::uint32_t l) const {
     return Aabb{{lo_x[l], lo_y[l], lo_z[l]}, {hi_x[l], hi_y[l], hi_z[l]}};

@@ -84,6 +84,7 @@ Status CpuDetector::follow_change(const FrameInput& in, const Shapes& objects, s
   ri.moved_listed = in.moved_listed;
   ri.verify_moved = config_.verify_moved;
   ri.margin = config_.rest_margin;
+  ri.move_margin = config_.move_margin;
   ri.layout = config_.layout;
   ri.bits = bits;
   ri.pair_memory_cap = config_.pair_memory_cap;

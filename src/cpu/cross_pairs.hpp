@@ -59,9 +59,11 @@ struct CrossWalk {
 /// they report per sorted position, so that the reads of one bucket's objects share cache lines).
 /// `fetch(q)`, called for the first sorted position q of each bucket of `other` whose lanes the
 /// walks of single buckets and objects will read, prefetches what emit() reads for that bucket.
+/// `search` (when not null) holds per bucket of `moving` the lanes that search; the others find
+/// nothing.
 template <class Simd, template <class> class Tests, class Emit, class Fetch>
 void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, std::size_t g, CrossWalk walk,
-                 Emit&& emit, Fetch&& fetch) {
+                 const std::uint16_t* search, Emit&& emit, Fetch&& fetch) {
   using K = Tests<Simd>;
   constexpr std::uint32_t kMaxCandidates = 512;
   const auto ml = lanes_of<K>(moving);
@@ -74,6 +76,12 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
   auto walked_box = [&](std::uint32_t sb) { return leaves[sb / kWide].child(sb % kWide); };
   const std::size_t buckets = buckets_for(moving.sorted_objects().size());
   const std::size_t b0 = g * kWide, b1 = std::min(buckets, b0 + kWide);
+  auto searching = [&](std::size_t b) -> std::uint32_t { return search != nullptr ? search[b] : 0xFFFFu; };
+  if (search != nullptr) {
+    std::uint32_t any = 0;
+    for (std::size_t b = b0; b < b1; ++b) any |= search[b];
+    if (any == 0) return;
+  }
   // The pairs of the moving lanes `lanes` of bucket b with bucket sb of `other`: each of those
   // lanes against all 16 of sb's by K's exact test.
   auto emit_lanes = [&](std::size_t b, std::uint32_t sb, std::uint32_t lanes) {
@@ -84,10 +92,11 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
         emit(m_first + i, s_first + static_cast<std::size_t>(std::countr_zero(m)));
     }
   };
-  // The lanes of a bucket of `other` and what emit() reads for it, fetched before they are tested.
+  // The lanes of a bucket of `other` that K's exact test reads (a sphere lane's h is not one of
+  // them), and what emit() reads for it, fetched before they are tested.
   auto prefetch = [&](std::uint32_t sb) {
     const char* lanes = reinterpret_cast<const char*>(&sl[sb]);
-    for (std::size_t line = 0; line < sizeof(sl[sb]); line += 64) __builtin_prefetch(lanes + line);
+    for (std::size_t line = 0; line < K::kExactBytes; line += 64) __builtin_prefetch(lanes + line);
     fetch(std::size_t{sb} * kBucket);
   };
   if (walk.group) {
@@ -106,12 +115,15 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
     });
     if (!overflow) {
       for (std::uint32_t l = count % kWide; l != 0 && l < kWide; ++l) box[count / kWide].set_child(l, Aabb{});
-      for (std::size_t b = b0; b < b1; ++b)
+      for (std::size_t b = b0; b < b1; ++b) {
+        const std::uint32_t lanes = searching(b);
+        if (lanes == 0) continue;
         for (std::uint32_t k = 0; k * kWide < count; ++k)
           for (std::uint32_t m = Simd::node_children(box[k], mboxes[b]); m; m &= m - 1) {
             const auto l = static_cast<std::uint32_t>(std::countr_zero(m));
-            emit_lanes(b, index[k * kWide + l], K::near(ml[b], box[k].child(l)));
+            emit_lanes(b, index[k * kWide + l], K::near(ml[b], box[k].child(l)) & lanes);
           }
+      }
       return;
     }
   }
@@ -119,22 +131,26 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
   // buckets scattered over the world miss the cache, and this way the misses overlap instead of
   // queueing. met[t] is a bucket of `other`, reach[t] the moving lanes that reach it (a
   // bucket's walk) or the one lane whose walk met it (an object's walk).
-  constexpr std::uint32_t kMet = 256, kBucketMet = 64;
+  constexpr std::uint32_t kMet = 256, kBucketMet = 64, kFewLanes = 2;
   std::uint32_t met[kMet], reach[kMet];
   for (std::size_t b = b0; b < b1; ++b) {
+    const std::uint32_t lanes = searching(b);
+    if (lanes == 0) continue;
     std::uint32_t count_met = 0;
     auto test_met = [&] {
       for (std::uint32_t t = 0; t < count_met; ++t) emit_lanes(b, met[t], reach[t]);
       count_met = 0;
     };
-    if (walk.bucket) {
+    // A bucket with few lanes that search walks them one by one: its box would meet what the
+    // other lanes reach too.
+    if (walk.bucket && static_cast<std::uint32_t>(std::popcount(lanes)) > kFewLanes) {
       bool over = false;
       for_each_wide_overlap<Simd>(other.tree(), mboxes[b], [&](std::uint32_t sb) {
         if (count_met == kBucketMet) {
           over = true;
           return false;
         }
-        if (const std::uint32_t near = K::near(ml[b], walked_box(sb)); near != 0) {
+        if (const std::uint32_t near = K::near(ml[b], walked_box(sb)) & lanes; near != 0) {
           prefetch(sb);
           met[count_met] = sb;
           reach[count_met++] = near;
@@ -148,6 +164,7 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
       count_met = 0;
     }
     for (std::uint32_t i = 0; i < kBucket; ++i) {
+      if (!((lanes >> i) & 1)) continue;
       const Aabb own = lane_box(ml[b], i);
       if (!(own.lo.x <= own.hi.x)) continue;  // padding (NaN) or an erased lane
       for_each_wide_overlap<Simd>(other.tree(), own, [&](std::uint32_t sb) {
@@ -165,26 +182,27 @@ void cross_pairs(const BucketBroadphase& moving, const BucketBroadphase& other, 
 /// cross_pairs() with every call inlined into code compiled for AVX-512 (cpu/simd.hpp).
 template <template <class> class Tests, class Emit, class Fetch>
 VISCD_AVX512_FLATTEN void cross_pairs_avx512(const BucketBroadphase& moving, const BucketBroadphase& other,
-                                             std::size_t g, CrossWalk walk, Emit& emit, Fetch& fetch) {
-  cross_pairs<SimdAvx512, Tests>(moving, other, g, walk, emit, fetch);
+                                             std::size_t g, CrossWalk walk, const std::uint16_t* search, Emit& emit,
+                                             Fetch& fetch) {
+  cross_pairs<SimdAvx512, Tests>(moving, other, g, walk, search, emit, fetch);
 }
 #endif
 
 /// cross_pairs() with the kernels of `level` (a usable level: simd_level_for(), usable_simd_level()).
 template <template <class> class Tests, class Emit, class Fetch>
 void cross_pairs_at(SimdLevel level, const BucketBroadphase& moving, const BucketBroadphase& other, std::size_t g,
-                    CrossWalk walk, Emit& emit, Fetch& fetch) {
+                    CrossWalk walk, const std::uint16_t* search, Emit& emit, Fetch& fetch) {
   switch (level) {
 #if VISCD_HAVE_AVX512
     case SimdLevel::avx512:
-      return cross_pairs_avx512<Tests>(moving, other, g, walk, emit, fetch);
+      return cross_pairs_avx512<Tests>(moving, other, g, walk, search, emit, fetch);
 #endif
 #if defined(__SSE2__)
     case SimdLevel::sse2:
-      return cross_pairs<SimdSse2, Tests>(moving, other, g, walk, emit, fetch);
+      return cross_pairs<SimdSse2, Tests>(moving, other, g, walk, search, emit, fetch);
 #endif
     default:
-      return cross_pairs<SimdScalar, Tests>(moving, other, g, walk, emit, fetch);
+      return cross_pairs<SimdScalar, Tests>(moving, other, g, walk, search, emit, fetch);
   }
 }
 

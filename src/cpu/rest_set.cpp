@@ -44,6 +44,13 @@ constexpr std::size_t kChurnForgive = 64;
 constexpr std::size_t kSample = 256;
 constexpr std::size_t kTakeOver = 6;
 constexpr std::size_t kGiveUp = 5;
+/// A candidate's byte: bit 0 its exact result, kRecheck set when one of its objects may move
+/// inside its own fat bounds (found by a search of recent with Config::move_margin), so that the
+/// merge reads the changed bits only for those.
+constexpr std::uint8_t kRecheck = 2;
+/// Set on a candidate that holds not, whose objects both hold their exact bounds again (out of
+/// recent, no rest margin): it is no candidate any more, and the next merge drops it.
+constexpr std::uint8_t kDrop = 4;
 
 /// Bit k of a bitset (one bit per object: 125 KB for 10^6 objects, which stays in cache while the
 /// candidates stream past).
@@ -159,9 +166,33 @@ void RestSet::clear_bits() {
   for (const std::uint32_t k : left_) clear_bit(left_bits_, k);
 }
 
-void RestSet::place(const Shapes& s, std::size_t k) {
+float RestSet::margin_of(const Shapes& s, std::size_t k) const {
+  if (move_margin_ <= 0) return margin_;
+  // Its own: move_margin times how far it moved since the last frame (its copy, cur_, still the
+  // last frame's), at most half its size, and none when it moved farther than that (a jump: the
+  // next frame is not likely to be near).
+  float size = 0, moved = 0;
+  if (s.is_box()) {
+    const Box& a = s.boxes[k];
+    const Box& b = cur_box_[k];
+    size = 0.5f * std::max({a.max[0] - a.min[0], a.max[1] - a.min[1], a.max[2] - a.min[2]});
+    for (int c = 0; c < 3; ++c)
+      moved = std::max({moved, std::fabs(a.min[c] - b.min[c]), std::fabs(a.max[c] - b.max[c])});
+  } else {
+    const Sphere& a = s.spheres[k];
+    const Sphere& b = cur_sph_[k];
+    const float dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
+    size = a.r;
+    moved = std::sqrt(dx * dx + dy * dy + dz * dz) + std::fabs(a.r - b.r);
+  }
+  if (!(moved >= 0)) return margin_;  // an infinite move (validation allows huge coordinates)
+  const float cap = 0.5f * size;
+  const float own = moved <= cap ? std::min(move_margin_ * moved, cap) : 0.0f;
+  return std::max(margin_, own);
+}
+
+void RestSet::place(const Shapes& s, std::size_t k, float m) {
   constexpr float kInf = std::numeric_limits<float>::infinity();
-  const float m = margin_;
   if (s.is_box()) {
     // The box grown by the margin, rounded outward: it holds the box grown by exactly the margin.
     const Box& b = s.boxes[k];
@@ -215,7 +246,8 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
     for (std::size_t k = old; k < count; ++k) part.iota[k] = static_cast<std::uint32_t>(k);
   }
   const bool boxes = fat ? box_lanes() : kind_ == ShapeKind::box;
-  const bool use_fat = fat && margin_ > 0;
+  // Recent holds its objects' own fat bounds (move_margin); main and delta the rest margin's.
+  const bool use_fat = fat && (margin_ > 0 || (move_margin_ > 0 && which == kRecent));
   resize_with_headroom(part.spheres, count);
   resize_with_headroom(part.boxes, boxes ? count : 0);
   parallel_for(count, threads, [&](std::size_t k) {
@@ -343,8 +375,8 @@ Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int t
     reset();
     return {};
   }
-  if (live_ &&
-      (n != n_ || s.kind != kind_ || in.margin != margin_ || in.layout != layout_ || set.version() != static_version_))
+  if (live_ && (n != n_ || s.kind != kind_ || in.margin != margin_ || in.move_margin != move_margin_ ||
+                in.layout != layout_ || set.version() != static_version_))
     reset();
   if (live_ && churned_) {  // the last frame found main due again too soon
     reset();
@@ -402,6 +434,7 @@ Status RestSet::enter(const Input& in, const StaticSet& set, StaticTree& st, int
   kind_ = s.kind;
   n_ = n;
   margin_ = in.margin;
+  move_margin_ = in.move_margin;
   layout_ = in.layout;
   bits_ = in.bits;
   static_version_ = set.version();
@@ -414,11 +447,12 @@ Status RestSet::enter(const Input& in, const StaticSet& set, StaticTree& st, int
     parallel_for(n, threads, [&](std::size_t k) { cur_sph_[k] = s.spheres[k]; });
     cur_box_.clear();
   }
-  const bool fat = margin_ > 0;
-  resize_with_headroom(fat_box_, fat && s.is_box() ? n : 0);
-  resize_with_headroom(fat_sph_, fat && !s.is_box() ? n : 0);
-  resize_with_headroom(fat_r_, fat && !s.is_box() ? n : 0);
-  if (fat) parallel_for(n, threads, [&](std::size_t k) { place(s, k); });
+  const bool any_fat = fat();
+  resize_with_headroom(fat_box_, any_fat && s.is_box() ? n : 0);
+  resize_with_headroom(fat_sph_, any_fat && !s.is_box() ? n : 0);
+  resize_with_headroom(fat_r_, any_fat && !s.is_box() ? n : 0);
+  recent_bits_.assign((n + 63) / 64, 0);
+  if (margin_ > 0) parallel_for(n, threads, [&](std::size_t k) { place(s, k, margin_); });
   part_of_.assign(n, kNowhere);
   changed_bits_.assign((n + 63) / 64, 0);
   left_bits_.assign((n + 63) / 64, 0);
@@ -460,20 +494,38 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
   const std::size_t count = listed ? in.moved.size() : (n_ + 63) / 64;
   const std::size_t chunks = std::max<std::size_t>(1, ranges_for(listed ? count : n_, threads));
   chunk_left_.resize(std::max(chunk_left_.size(), chunks));
+  chunk_margin_.resize(std::max(chunk_margin_.size(), chunks));
   std::atomic<std::size_t> left_total{0};
   std::atomic<bool> over{false};
   const bool boxes = s.is_box();
-  // Whether object k stays inside its fat bounds (margin > 0; find_changes() took its shape).
-  const auto stays = [&](std::uint32_t k) { return margin_ > 0 && inside_fat(s, k); };
+  // Whether object k (changed: its new shape in s) stays inside its fat bounds: the rest
+  // margin's, or its own in recent (move_margin). Those in recent are counted (pending_).
+  const bool own = move_margin_ > 0;
+  const std::uint64_t* const in_recent = recent_bits_.data();
+  std::atomic<std::size_t> pending_total{0};
+  const auto stays = [&](std::uint32_t k, std::size_t& pending) {
+    if (margin_ > 0) {
+      if (!inside_fat(s, k)) return false;
+      pending += own && bit(in_recent, k);
+      return true;
+    }
+    if (!own || !bit(in_recent, k) || !inside_fat(s, k)) return false;
+    ++pending;
+    return true;
+  };
   std::atomic<std::size_t> changed_total{0};
   for_chunks(count, chunks, [&](std::size_t b, std::size_t e, std::size_t c) {
     std::vector<std::uint32_t>& left = chunk_left_[c];
-    std::size_t changed_in_chunk = 0;
+    std::vector<float>& margin = chunk_margin_[c];
+    std::size_t changed_in_chunk = 0, pending = 0;
     left.clear();
-    // One that left: its bit and list entry; false once the frame has too many to follow.
+    margin.clear();
+    // One that left (its copy not yet taken: margin_of() reads it): its bit, list entry and
+    // margin; false once the frame has too many to follow.
     const auto note_left = [&](std::uint32_t k, std::uint64_t* word) {
       *word |= std::uint64_t{1} << (k & 63);
       left.push_back(k);
+      if (fat()) margin.push_back(margin_of(s, k));
       if ((left.size() & 63) == 0 && left_total.fetch_add(64, std::memory_order_relaxed) + 64 > limit) {
         over.store(true, std::memory_order_relaxed);
         return false;
@@ -498,15 +550,17 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
         changed_in_chunk += static_cast<std::size_t>(std::popcount(mask));  // the list comes from the bits
         for (std::uint64_t m = mask; m; m &= m - 1) {
           const auto k = static_cast<std::uint32_t>(first + static_cast<std::size_t>(std::countr_zero(m)));
+          const bool go_on = stays(k, pending) || note_left(k, &left_bits_[w]);
           if (boxes)
             cur_box_[k] = s.boxes[k];
           else
             cur_sph_[k] = s.spheres[k];
-          if (!stays(k) && !note_left(k, &left_bits_[w])) break;
+          if (!go_on) break;
         }
         if (over.load(std::memory_order_relaxed)) break;
       }
       changed_total.fetch_add(changed_in_chunk, std::memory_order_relaxed);
+      pending_total.fetch_add(pending, std::memory_order_relaxed);
       return;
     }
     // The chunk's ends moved past entries of the word before them, so that no two chunks set
@@ -529,31 +583,37 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
           __builtin_prefetch(&cur_sph_[ahead]);
         }
       }
-      if (boxes) {
-        if (same_bits(s.boxes[k], cur_box_[k])) continue;
-        cur_box_[k] = s.boxes[k];
-      } else {
-        if (same_bits(s.spheres[k], cur_sph_[k])) continue;
-        cur_sph_[k] = s.spheres[k];
-      }
+      if (boxes ? same_bits(s.boxes[k], cur_box_[k]) : same_bits(s.spheres[k], cur_sph_[k])) continue;
       ++changed_in_chunk;
       changed_bits_[k >> 6] |= std::uint64_t{1} << (k & 63);
-      if (stays(k)) continue;
-      if (!note_left(k, &left_bits_[k >> 6])) break;
+      const bool go_on = stays(k, pending) || note_left(k, &left_bits_[k >> 6]);
+      if (boxes)
+        cur_box_[k] = s.boxes[k];
+      else
+        cur_sph_[k] = s.spheres[k];
+      if (!go_on) break;
     }
     changed_total.fetch_add(changed_in_chunk, std::memory_order_relaxed);
+    pending_total.fetch_add(pending, std::memory_order_relaxed);
   });
   few = !over.load();
   left_.clear();
   const std::size_t used = std::min(chunks, count);
-  for (std::size_t c = 0; c < used; ++c) left_.insert(left_.end(), chunk_left_[c].begin(), chunk_left_[c].end());
+  left_margin_.clear();
+  for (std::size_t c = 0; c < used; ++c) {
+    left_.insert(left_.end(), chunk_left_[c].begin(), chunk_left_[c].end());
+    left_margin_.insert(left_margin_.end(), chunk_margin_[c].begin(), chunk_margin_[c].end());
+  }
   // The changed objects are the bits alone: counted here, listed on demand (changed_list()).
   // Every object in a jiggling pile changes, and a list of them all cost a store per object; with
   // a tenth of 10^6 objects listed in FrameInput::moved, the list made the listed pass slower
   // than comparing every object.
   changed_count_ = changed_total.load();
   changed_listed_ = false;
-  if (left_.size() > limit) few = false;
+  pending_ = pending_total.load();
+  // Recent is built over the objects that left and those of its own that moved inside their
+  // bounds: both count against the limit.
+  if (left_.size() + pending_ > limit) few = false;
   if (listed && in.verify_moved) {
     // Every object the list leaves out must be bit for bit the previous frame's.
     std::size_t at = 0;
@@ -610,32 +670,65 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
         ++erased[p][c];
         part_of_[k] = kNowhere;
       }
-      if (margin_ > 0) place(s, k);
+      if (fat()) place(s, k, left_margin_[t]);
     }
   });
   for (std::size_t p = 0; p < 3; ++p)
     for (std::size_t c = 0; c < erase_chunks; ++c) parts_[p].erased += erased[p][c];
-  // The old recent objects that did not move again come to rest in delta.
+  // The old recent objects that did not move again come to rest in delta; with move_margin, those
+  // that moved inside their own bounds stay in recent, in their order, and the objects that left
+  // join them. Only the ones that left search.
   Part& delta = parts_[kDelta];
   Part& recent = parts_[kRecent];
+  const bool own = move_margin_ > 0;
+  const std::uint64_t* const left_bits = left_bits_.data();
+  const std::uint64_t* const changed_bits = changed_bits_.data();
   scratch_.clear();
-  for (const std::uint32_t o : recent.ids)
-    if (part_of_[o] == kRecent && !bit(left_bits_.data(), o)) scratch_.push_back(o);
+  recent_next_.clear();
+  for (const std::uint32_t o : recent.ids) {
+    if (part_of_[o] != kRecent) continue;
+    if (bit(left_bits, o) || (own && bit(changed_bits, o)))
+      recent_next_.push_back(o);
+    else
+      scratch_.push_back(o);
+  }
+  for (const std::uint32_t o : left_)
+    if (part_of_[o] != kRecent) recent_next_.push_back(o);
+  if (!own) recent_next_.assign(left_.begin(), left_.end());  // ascending, as before
+  if (own) {
+    for (const std::uint32_t o : scratch_) recent_bits_[o >> 6] &= ~(std::uint64_t{1} << (o & 63));
+    for (const std::uint32_t o : recent_next_) recent_bits_[o >> 6] |= std::uint64_t{1} << (o & 63);
+  }
   if (!scratch_.empty()) {
     for (const std::uint32_t o : delta.ids)
       if (part_of_[o] == kDelta) scratch_.push_back(o);
     build_part(delta, scratch_, kDelta, true, threads, nullptr);
   }
   // The objects that left their fat bounds, placed again: their tree, and its pairs.
+  // When every object of recent left, its own search finds their pairs among themselves; else
+  // the ones that left search recent below, as they search main and delta.
+  const bool all_search = recent_next_.size() == left_.size();
   local_pairs_.clear();
-  build_part(recent, left_, kRecent, true, threads, &local_pairs_);
+  build_part(recent, recent_next_, kRecent, true, threads, all_search ? &local_pairs_ : nullptr);
   stats.ms(Stage::build) += sw.lap();
   // Their new candidates: among themselves, and with main's and delta's objects.
   found_.resize(local_pairs_.size());
-  for (std::size_t k = 0; k < local_pairs_.size(); ++k)
-    found_[k] = pair_key(recent.ids[local_pairs_[k].i], recent.ids[local_pairs_[k].j]);  // ids ascend: i < j stays
+  for (std::size_t k = 0; k < local_pairs_.size(); ++k) {
+    const std::uint32_t a = recent.ids[local_pairs_[k].i], b = recent.ids[local_pairs_[k].j];
+    found_[k] = a < b ? pair_key(a, b) : pair_key(b, a);
+  }
+  // The lanes of recent's buckets whose objects search (all of them unless some only moved
+  // inside their own bounds).
+  const std::uint16_t* search = nullptr;
+  if (!all_search) {
+    const std::span<const std::uint32_t> by_pos = recent.objects_by_position();
+    search_.assign(buckets_for(recent.count), 0);
+    for (std::size_t q = 0; q < by_pos.size(); ++q)
+      search_[q / kBucket] |= static_cast<std::uint16_t>(bit(left_bits, by_pos[q]) << (q % kBucket));
+    search = search_.data();
+  }
   if (!left_.empty()) {
-    const std::size_t groups = (buckets_for(left_.size()) + kWide - 1) / kWide;
+    const std::size_t groups = (buckets_for(recent.count) + kWide - 1) / kWide;
     const std::size_t chunks =
         threads_for(left_.size() * 8, threads) == 1 ? 1 : std::min<std::size_t>(groups, 4 * threads);
     if (chunk_keys_.size() < chunks) chunk_keys_.resize(chunks);
@@ -643,21 +736,25 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
     for_chunks(groups, chunks, [&](std::size_t gb, std::size_t ge, std::size_t c) {
       std::vector<std::uint64_t>& list = chunk_keys_[c];
       list.clear();
-      for (const std::uint8_t p : {kMain, kDelta}) {
+      for (const std::uint8_t p : {kMain, kDelta, kRecent}) {
         const Part& other = parts_[p];
-        if (other.count == other.erased) continue;
+        if (other.count == other.erased || (p == kRecent && all_search)) continue;
         const std::uint32_t* const at = other.objects_by_position().data();
+        // Recent against itself: each pair once (a searching lane meets itself, and two
+        // searching lanes meet each other twice).
+        const bool self = p == kRecent;
         auto found = [&](std::size_t pos, std::size_t q) {
+          if (self && (q == pos || ((search[q / kBucket] >> (q % kBucket)) & 1 && q < pos))) return;
           const std::uint32_t a = mat[pos], b = at[q];
           list.push_back(a < b ? pair_key(a, b) : pair_key(b, a));
         };
         auto fetch = [&](std::size_t q) { __builtin_prefetch(&at[q]); };  // a bucket's 16: one line
-        const CrossWalk walk = cross_walk_for(recent.count, other.count - other.erased);
+        const CrossWalk walk = cross_walk_for(left_.size(), other.count - other.erased);
         for (std::size_t g = gb; g < ge; ++g) {
           if (box_lanes())
-            cross_pairs_at<BoxTests>(simd_, recent.tree, other.tree, g, walk, found, fetch);
+            cross_pairs_at<BoxTests>(simd_, recent.tree, other.tree, g, walk, search, found, fetch);
           else
-            cross_pairs_at<SphereTests>(simd_, recent.tree, other.tree, g, walk, found, fetch);
+            cross_pairs_at<SphereTests>(simd_, recent.tree, other.tree, g, walk, search, found, fetch);
         }
       }
     });
@@ -675,9 +772,9 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   // The static pairs of the objects that changed, from a tree of their exact shapes.
   stat_found_.clear();
   if (!set.empty()) {
-    const BucketBroadphase* exact = &recent.tree;  // margin 0: the changed objects are the movers
+    const BucketBroadphase* exact = &recent.tree;  // no fat bounds: the changed objects are the movers
     std::span<const std::uint32_t> ids = recent.ids;
-    if (margin_ > 0) {
+    if (fat()) {
       build_part(exact_, changed_list(), kNowhere, false, threads, nullptr);
       exact = &exact_.tree;
       ids = exact_.ids;
@@ -690,7 +787,10 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   // them changed, merged with the new ones (tested then): emit() does it while it writes the
   // pairs. When no object left its fat bounds (objects jiggling in place), the list stays: tested
   // again in place here.
-  if (left_.empty()) {
+  if (margin_ == 0 && move_margin_ > 0) {
+    retest_marked(s, threads);
+    if (!left_.empty()) merge_ = true;
+  } else if (left_.empty()) {
     for_chunks(segs_.size(), segs_.size(), [&](std::size_t c, std::size_t, std::size_t) {
       for (std::size_t a = segs_[c].begin; a < segs_[c].end; ++a) {
         const std::uint32_t i = key_i(cand_[a]), j = key_j(cand_[a]);
@@ -737,6 +837,66 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
     stats.ms(Stage::build) += sw.lap();
   }
   return {};
+}
+
+void RestSet::retest_marked(const Shapes& s, int threads) {
+  const std::uint64_t* const left = left_bits_.data();
+  const std::uint64_t* const in_recent = recent_bits_.data();
+  const std::uint64_t* const changed = changed_bits_.data();
+  constexpr std::size_t kAhead = 16;  // re-tests whose shapes are in flight
+  // found_, in chunks: each key's exact result.
+  found_hit_.resize(found_.size());
+  const std::size_t fchunks = ranges_for(found_.size(), threads);
+  for_chunks(found_.size(), fchunks, [&](std::size_t b, std::size_t e, std::size_t) {
+    for (std::size_t t = b; t < e; ++t) {
+      if (t + kAhead < e) {
+        s.prefetch(key_i(found_[t + kAhead]));
+        s.prefetch(key_j(found_[t + kAhead]));
+      }
+      found_hit_[t] = static_cast<std::uint8_t>(kRecheck | std::uint8_t{s.overlap(key_i(found_[t]), key_j(found_[t]))});
+    }
+  });
+  // The kept candidates: the marked ones found first (a byte each, eight at a time), then tested.
+  if (retest_.size() < segs_.size()) retest_.resize(segs_.size());
+  for_chunks(segs_.size(), segs_.size(), [&](std::size_t c, std::size_t, std::size_t) {
+    std::vector<std::uint32_t>& list = retest_[c];
+    list.clear();
+    const std::size_t b = segs_[c].begin, e = segs_[c].end;
+    std::uint8_t* const h = hit_.data();
+    const std::uint64_t* const k = cand_.data();
+    // A marked candidate: dropped by the merge if one of its objects left; no longer marked
+    // when neither is in recent (then neither changed, and both hold exact bounds: one that
+    // holds not is no candidate); tested again when one of them changed.
+    auto consider = [&](std::size_t a) {
+      const std::uint32_t i = key_i(k[a]), j = key_j(k[a]);
+      if (bit(left, i) | bit(left, j)) return;
+      if (!(bit(in_recent, i) | bit(in_recent, j))) {
+        h[a] = (h[a] & 1) != 0 ? std::uint8_t{1} : kDrop;
+        return;
+      }
+      if (bit(changed, i) | bit(changed, j)) list.push_back(static_cast<std::uint32_t>(a - b));
+    };
+    std::size_t a = b;
+    for (; a < e && a % 8 != 0; ++a)
+      if (h[a] & kRecheck) consider(a);
+    constexpr std::uint64_t kMarks = 0x0101010101010101ull * kRecheck;
+    for (; a + 8 <= e; a += 8) {
+      std::uint64_t w;
+      std::memcpy(&w, h + a, 8);
+      for (w &= kMarks; w != 0; w &= w - 1) consider(a + static_cast<std::size_t>(std::countr_zero(w)) / 8);
+    }
+    for (; a < e; ++a)
+      if (h[a] & kRecheck) consider(a);
+    for (std::size_t t = 0; t < list.size(); ++t) {
+      if (t + kAhead < list.size()) {
+        const std::uint64_t f = k[b + list[t + kAhead]];
+        s.prefetch(key_i(f));
+        s.prefetch(key_j(f));
+      }
+      const std::size_t at = b + list[t];
+      h[at] = static_cast<std::uint8_t>(kRecheck | std::uint8_t{s.overlap(key_i(k[at]), key_j(k[at]))});
+    }
+  });
 }
 
 Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::vector<Pair>& pairs) {
@@ -789,10 +949,13 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
   // pair is written and the count moved past it only if it holds: no branch on the result.
   const std::uint64_t* const left = left_bits_.data();
   const std::uint64_t* const changed = changed_bits_.data();
-  auto chunk = [&]<bool kMerge, bool kCheck, bool kRetest>(std::size_t c) {
+  // kRetest: 0, none (no fat bounds); 1, every candidate with an object that changed (the rest
+  // margin); 2, own margins alone: retest_marked() has tested the candidates again and found_.
+  auto chunk = [&]<bool kMerge, bool kCheck, int kRetest>(std::size_t c) {
     const std::uint64_t* const ak = cand_.data();
     const std::uint8_t* const ah = hit_.data();
     const std::uint64_t* const bk = b_keys.data();
+    const std::uint8_t* const fh = found_hit_.data();
     const std::uint64_t* const sk = s_keys.data();
     std::uint64_t* const nk = kMerge ? cand_next_.data() + cand_ub_[c] : nullptr;
     std::uint8_t* const nh = kMerge ? hit_next_.data() + cand_ub_[c] : nullptr;
@@ -801,10 +964,10 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     const std::size_t ae = segs_[c].end, be = b_at_[c + 1], te = s_at_[c + 1];
     std::size_t kept = 0, out = 0;
     // A candidate kept (when merging) with its result, and its pair if it holds.
-    auto take = [&](std::uint64_t k, std::uint32_t i, std::uint32_t j, bool hit) {
+    auto take = [&](std::uint64_t k, std::uint32_t i, std::uint32_t j, bool hit, std::uint8_t mark) {
       if constexpr (kMerge) {
         nk[kept] = k;
-        nh[kept] = hit;
+        nh[kept] = static_cast<std::uint8_t>(mark | std::uint8_t{hit});
         ++kept;
       }
       po[out] = Pair{i, j};
@@ -817,13 +980,16 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
       for (; a < ae && ak[a] < below; ++a) {
         const std::uint64_t k = ak[a];
         const std::uint32_t i = key_i(k), j = key_j(k);
-        bool hit = ah[a] != 0;
+        const std::uint8_t h = ah[a];
+        bool hit = (h & 1) != 0;
         if constexpr (kMerge) {
+          if constexpr (kRetest == 2)
+            if (h & kDrop) continue;
           if (bit(left, i) | bit(left, j)) continue;  // placed again: found anew in B
-          if constexpr (kRetest)
+          if constexpr (kRetest == 1)
             if (bit(changed, i) | bit(changed, j)) hit = shapes.overlap(i, j);
         }
-        take(k, i, j, hit);
+        take(k, i, j, hit, h & kRecheck);
       }
       if (below == kEnd) break;
       if (kt < kb) {
@@ -831,7 +997,10 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
         out += static_ok(kt);
         ++t;
       } else {  // B holds keys only when merging
-        take(kb, key_i(kb), key_j(kb), !kRetest || shapes.overlap(key_i(kb), key_j(kb)));
+        if constexpr (kRetest == 2)
+          take(kb, key_i(kb), key_j(kb), (fh[b] & 1) != 0, kRecheck);
+        else
+          take(kb, key_i(kb), key_j(kb), kRetest == 0 || shapes.overlap(key_i(kb), key_j(kb)), 0);
         ++b;
       }
     }
@@ -842,19 +1011,24 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
   for_chunks(nc, nc, [&](std::size_t c, std::size_t, std::size_t) {
     if (!merge_) {
       if (check)
-        chunk.template operator()<false, true, false>(c);
+        chunk.template operator()<false, true, 0>(c);
       else
-        chunk.template operator()<false, false, false>(c);
+        chunk.template operator()<false, false, 0>(c);
     } else if (margin_ > 0) {
       if (check)
-        chunk.template operator()<true, true, true>(c);
+        chunk.template operator()<true, true, 1>(c);
       else
-        chunk.template operator()<true, false, true>(c);
+        chunk.template operator()<true, false, 1>(c);
+    } else if (move_margin_ > 0) {
+      if (check)
+        chunk.template operator()<true, true, 2>(c);
+      else
+        chunk.template operator()<true, false, 2>(c);
     } else {
       if (check)
-        chunk.template operator()<true, true, false>(c);
+        chunk.template operator()<true, true, 0>(c);
       else
-        chunk.template operator()<true, false, false>(c);
+        chunk.template operator()<true, false, 0>(c);
     }
   });
   // The pairs into the caller's list, each chunk's at once.

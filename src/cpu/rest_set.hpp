@@ -57,6 +57,7 @@ class RestSet {
     bool moved_listed = false;              ///< FrameInput::moved_listed
     bool verify_moved = false;              ///< Config::verify_moved
     float margin = 0;                       ///< Config::rest_margin
+    float move_margin = 0;                  ///< Config::move_margin
     Layout layout = Layout::extended;       ///< Config::layout
     int bits = 32;                          ///< the frame's Morton width: reported, and used by trees built this frame
     std::size_t pair_memory_cap = 0;        ///< Config::pair_memory_cap
@@ -113,8 +114,13 @@ class RestSet {
   enum : std::uint8_t { kMain = 0, kDelta = 1, kRecent = 2, kNowhere = 3 };
 
   [[nodiscard]] bool box_lanes() const { return kind_ == ShapeKind::box; }
-  /// Places object k (margin > 0): its fat box, or its fat sphere and that sphere's radius.
-  void place(const Shapes& s, std::size_t k);
+  /// Whether objects have fat bounds: all of them (rest margin), or those placed again (their own).
+  [[nodiscard]] bool fat() const { return margin_ > 0 || move_margin_ > 0; }
+  /// Places object k with margin m: its fat box, or its fat sphere and that sphere's radius.
+  void place(const Shapes& s, std::size_t k, float m);
+  /// The margin object k is placed again with: the rest margin, or its own when larger. Reads its
+  /// last copy (call before taking the new shape).
+  [[nodiscard]] float margin_of(const Shapes& s, std::size_t k) const;
   /// Whether object k of `s` lies inside its fat bounds (margin > 0).
   [[nodiscard]] bool inside_fat(const Shapes& s, std::size_t k) const;
   /// Builds `part` over `objs` (object indices): their fat bounds (`fat`) or their exact shapes
@@ -145,6 +151,10 @@ class RestSet {
   /// The frame's pairs from the candidates and static pairs; with merge_, also the next list of
   /// candidates (those of objects placed again dropped, found_ merged in, re-tested where changed).
   [[nodiscard]] Status emit(const Input& in, const StaticSet& set, int threads, std::vector<Pair>& pairs);
+  /// With own margins alone: the candidates marked kRecheck whose objects changed inside their
+  /// bounds tested again in place, and found_'s tested (found_hit_), each a tight loop whose
+  /// scattered reads are fetched ahead.
+  void retest_marked(const Shapes& s, int threads);
   /// The candidates: how many, over the segments.
   [[nodiscard]] std::size_t candidate_count() const;
   /// Packs the candidates into one run and cuts them (and the static pairs) into segments for
@@ -157,6 +167,7 @@ class RestSet {
   ShapeKind kind_ = ShapeKind::sphere;
   std::size_t n_ = 0;
   float margin_ = 0;
+  float move_margin_ = 0;  // Input::move_margin
   Layout layout_ = Layout::extended;
   int bits_ = 32;
   SimdLevel simd_ = SimdLevel::scalar;  // this frame's kernels (Input::simd)
@@ -172,6 +183,12 @@ class RestSet {
   std::vector<Box> fat_box_;
   std::vector<Sphere> fat_sph_;
   std::vector<float> fat_r_;
+  std::vector<std::uint64_t> recent_bits_;        // move_margin > 0: the objects in recent, as a bitset
+  std::vector<float> left_margin_;                // with fat bounds: the margin each object of left_ is placed with
+  std::vector<std::vector<float>> chunk_margin_;  // find_changes(): left_margin_, per chunk
+  std::vector<std::uint32_t> recent_next_;        // update(): recent's objects for this frame
+  std::vector<std::uint16_t> search_;             // update(): per bucket of recent, the lanes that search
+  std::size_t pending_ = 0;                       // find_changes(): objects in recent that changed inside their bounds
   std::vector<std::uint8_t> part_of_;
   std::vector<std::uint64_t> changed_bits_, left_bits_;  // this frame's changed_ and left_, as bitsets
   std::vector<std::uint32_t> local_;                     // the object's id in its tree
@@ -192,7 +209,8 @@ class RestSet {
     std::size_t begin = 0, end = 0;
   };
   std::vector<std::uint64_t> cand_, cand_next_, found_, merged_, stat_, stat_next_, stat_found_;
-  std::vector<std::uint8_t> hit_, hit_next_;
+  std::vector<std::uint8_t> hit_, hit_next_, found_hit_;  // found_hit_: found_'s exact results (own margins)
+  std::vector<std::vector<std::uint32_t>> retest_;        // retest_marked(): per segment
   std::vector<Segment> segs_;
   std::vector<std::uint64_t> cuts_;
   std::vector<std::vector<std::uint64_t>> chunk_keys_;

@@ -161,9 +161,9 @@ bool StaticTree::pairs(const BucketBroadphase& moving, std::span<const Filter> m
           if (check) __builtin_prefetch(&s->filter_at[q]);
         };
         if (boxes_)
-          cross_pairs_at<BoxTests>(simd, moving, s->tree, b, walk, emit, fetch);
+          cross_pairs_at<BoxTests>(simd, moving, s->tree, b, walk, nullptr, emit, fetch);
         else
-          cross_pairs_at<SphereTests>(simd, moving, s->tree, b, walk, emit, fetch);
+          cross_pairs_at<SphereTests>(simd, moving, s->tree, b, walk, nullptr, emit, fetch);
       }
       if (list.size() > max_pairs) over.store(true, std::memory_order_relaxed);
     }

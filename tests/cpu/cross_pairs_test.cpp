@@ -3,6 +3,8 @@
 // against every pair of the two sets by the exact tests. Degenerate sets: one or two objects,
 // counts around the bucket and group sizes, all centres equal, touching spheres, one huge object
 // (every group and bucket walk gives up), tiny radii, and objects taken out of the other tree.
+// With only some of the moving objects searching (the lanes cross_pairs() is given), the pairs of
+// those alone.
 
 #include <gtest/gtest.h>
 
@@ -27,6 +29,7 @@ using detail::SimdLevel;
 struct Sets {
   std::vector<Sphere> a, b;           // a: the moving tree's objects, b: the other tree's
   std::vector<std::uint32_t> erased;  // objects of b taken out of its tree
+  std::vector<std::uint8_t> search;   // per object of a, whether it searches; empty: all of them
 };
 
 // A tree over `s` (or over the boxes of `s` as box lanes).
@@ -60,6 +63,7 @@ std::vector<std::pair<std::uint32_t, std::uint32_t>> every_pair(const Sets& s, b
   std::vector<std::pair<std::uint32_t, std::uint32_t>> out;
   for (std::uint32_t i = 0; i < s.a.size(); ++i)
     for (std::uint32_t j = 0; j < s.b.size(); ++j) {
+      if (!s.search.empty() && s.search[i] == 0) continue;
       if (gone[j]) continue;
       const bool hit = as_boxes ? boxes_overlap(box_of(s.a[i]), box_of(s.b[j])) : spheres_overlap(s.a[i], s.b[j]);
       if (hit) out.emplace_back(i, j);
@@ -77,6 +81,15 @@ void check(const Sets& sets, const std::string& what) {
     tb.index_positions();
     for (const std::uint32_t k : sets.erased) tb.erase(k);
     const auto expected = every_pair(sets, as_boxes);
+    // The searching lanes per bucket of ta, from its sorted order.
+    std::vector<std::uint16_t> lanes;
+    if (!sets.search.empty()) {
+      lanes.assign(detail::buckets_for(sets.a.size()), 0);
+      for (std::size_t p = 0; p < ta.sorted_objects().size(); ++p)
+        if (sets.search[ta.sorted_objects()[p]] != 0)
+          lanes[p / detail::kBucket] |= static_cast<std::uint16_t>(1u << (p % detail::kBucket));
+    }
+    const std::uint16_t* const search = sets.search.empty() ? nullptr : lanes.data();
     const std::size_t groups = (detail::buckets_for(sets.a.size()) + detail::kWide - 1) / detail::kWide;
     for (const SimdLevel level : {SimdLevel::scalar, SimdLevel::sse2, SimdLevel::avx512}) {
       if (detail::usable_simd_level(level) != level) continue;  // not on this CPU
@@ -92,9 +105,9 @@ void check(const Sets& sets, const std::string& what) {
         auto fetch = [&](std::size_t q) { fetched += q < tb.sorted_objects().size() ? 1 : 1000000; };
         for (std::size_t g = 0; g < groups; ++g)
           if (as_boxes)
-            detail::cross_pairs_at<detail::BoxTests>(level, ta, tb, g, walk, emit, fetch);
+            detail::cross_pairs_at<detail::BoxTests>(level, ta, tb, g, walk, search, emit, fetch);
           else
-            detail::cross_pairs_at<detail::SphereTests>(level, ta, tb, g, walk, emit, fetch);
+            detail::cross_pairs_at<detail::SphereTests>(level, ta, tb, g, walk, search, emit, fetch);
         EXPECT_LT(fetched, 1000000u) << "fetch() of a position past the tree";
         std::sort(got.begin(), got.end());
         ASSERT_EQ(std::adjacent_find(got.begin(), got.end()), got.end()) << "a pair reported twice";
@@ -121,6 +134,22 @@ TEST(CrossPairs, EveryWalkFindsEveryPair) {
     s.b = random_spheres(3000, 40, 0.2f, 1.5f, na + 100);
     check(s, "moving " + std::to_string(na));
   }
+}
+
+TEST(CrossPairs, OnlySearchingLanesFindPairs) {
+  // From one searching object in 50 (buckets with one or two: each walks alone) to half of them
+  // (buckets walk as one), and none.
+  for (const std::size_t na : {17u, 600u, 3000u})
+    for (const int one_in : {50, 8, 3, 2, 1000000}) {
+      Sets s;
+      s.a = random_spheres(na, 40, 0.2f, 1.5f, na + 7);
+      s.b = random_spheres(3000, 40, 0.2f, 1.5f, na + 200);
+      std::mt19937_64 rng(static_cast<std::uint64_t>(na * 31 + static_cast<std::size_t>(one_in)));
+      s.search.resize(na);
+      for (std::uint8_t& f : s.search) f = (rng() % static_cast<std::uint64_t>(one_in)) == 0 ? 1 : 0;
+      if (one_in == 1000000) std::fill(s.search.begin(), s.search.end(), std::uint8_t{0});
+      check(s, "moving " + std::to_string(na) + ", one in " + std::to_string(one_in) + " searching");
+    }
 }
 
 TEST(CrossPairs, DegenerateSets) {

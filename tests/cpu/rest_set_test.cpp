@@ -22,7 +22,8 @@ namespace {
 struct Scenario {
   bool boxes = false;
   float margin = 0;
-  bool listed = false;  // FrameInput::moved names the movers
+  float move_margin = Config{}.move_margin;  // margins of their own for movers
+  bool listed = false;                       // FrameInput::moved names the movers
   bool with_static = false;
   bool camera = false;  // culling by the detector's own map
   bool filters = false;
@@ -84,6 +85,7 @@ int run_scenario(const Scenario& sc) {
   Config on;
   on.follow_change = true;
   on.rest_margin = sc.margin;
+  on.move_margin = sc.move_margin;
   on.contact_events = true;
   if (sc.camera) on.lambda = 10;
   Config off = on;
@@ -138,9 +140,12 @@ int run_scenario(const Scenario& sc) {
         if (!moves) continue;
         Sphere& s = sph[k];
         const float r = u01(rng);
-        if (r < 0.4f && sc.margin > 0) {  // a jiggle, inside the margin
+        if (r < 0.3f && sc.margin > 0) {  // a jiggle, inside the margin
           s.x += u(rng) * sc.margin * 0.3f;
           s.y += u(rng) * sc.margin * 0.3f;
+        } else if (r < 0.55f) {  // a glide: inside its own margin for a few frames (move_margin)
+          s.x += u(rng) * 0.03f;
+          s.z += u(rng) * 0.03f;
         } else if (r < 0.8f) {  // a step
           s.x += u(rng) * 0.5f;
           s.z += u(rng) * 0.5f;
@@ -252,6 +257,7 @@ Scenario scenario_of(int p) {
   sc.margin = (p & 2) ? 0.05f : 0.0f;
   sc.listed = p & 4;
   sc.with_static = p & 8;
+  if (p & 16) sc.move_margin = 0;
   sc.seed = static_cast<std::uint64_t>(p) + 11;
   return sc;
 }
@@ -259,7 +265,8 @@ Scenario scenario_of(int p) {
 std::string scenario_name(const ::testing::TestParamInfo<int>& info) {
   const Scenario sc = scenario_of(info.param);
   return std::string(sc.boxes ? "boxes" : "spheres") + (sc.margin > 0 ? "_margin" : "_exact") +
-         (sc.listed ? "_listed" : "_compared") + (sc.with_static ? "_static" : "");
+         (sc.listed ? "_listed" : "_compared") + (sc.with_static ? "_static" : "") +
+         (sc.move_margin > 0 ? "" : "_noMoveMargin");
 }
 
 TEST_P(RestSetTest, FramesEqualRebuiltOnes) {
@@ -299,7 +306,7 @@ TEST_P(RestSetTest, ATenthMoving) {
   EXPECT_GE(followed, sc.frames / 3);
 }
 
-INSTANTIATE_TEST_SUITE_P(Cpu, RestSetTest, ::testing::Range(0, 16), scenario_name);
+INSTANTIATE_TEST_SUITE_P(Cpu, RestSetTest, ::testing::Range(0, 32), scenario_name);
 
 TEST(RestSet, ManyMoversFallBackAndComeBack) {
   // Everything moves for a while (frames rebuild), then almost nothing (followed again).
@@ -513,16 +520,64 @@ TEST(RestSet, VerifyMovedFindsAnObjectLeftOut) {
 
 TEST(RestSet, BadMarginIsAnError) {
   const std::vector<Sphere> s(3, Sphere{0, 0, 0, 1});
-  for (const float m : {-1.0f, std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity()}) {
-    Config c;
-    c.rest_margin = m;
-    auto a = make_cpu_detector(c);
-    FrameResult f;
-    const Status st = a->detect(s, nullptr, f);
-    ASSERT_FALSE(st.ok());
-    EXPECT_EQ(st.kind(), ErrorKind::invalid_input);
-    EXPECT_NE(st.error().find("Config::rest_margin"), std::string::npos) << st.error();
+  for (const float m : {-1.0f, std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity()})
+    for (const bool own : {false, true}) {
+      Config c;
+      (own ? c.move_margin : c.rest_margin) = m;
+      auto a = make_cpu_detector(c);
+      FrameResult f;
+      const Status st = a->detect(s, nullptr, f);
+      ASSERT_FALSE(st.ok());
+      EXPECT_EQ(st.kind(), ErrorKind::invalid_input);
+      EXPECT_NE(st.error().find(own ? "Config::move_margin" : "Config::rest_margin"), std::string::npos) << st.error();
+    }
+}
+
+// One sphere of radius r gliding along x by `step` a frame among 2 000 resting ones, with
+// move_margin f: returns the frames (counted from the first followed one) in which it was placed
+// again, checking every frame's pairs.
+std::vector<int> placements(float r, float step, float f, int frames) {
+  std::vector<Sphere> s;
+  for (float x = 0; x < 20; ++x)
+    for (float y = 0; y < 10; ++y)
+      for (float z = 0; z < 10; ++z) s.push_back({3.0f * x, 3.0f * y, 3.0f * z, 1.0f});
+  s[0] = Sphere{1.5f, 1.0f, 1.0f, r};  // between the others: meets the one at (3, 0, 0) as it glides
+  Config c;
+  c.move_margin = f;
+  auto a = make_cpu_detector(c);
+  FrameResult res;
+  std::vector<int> at;
+  int first = -1;
+  for (int frame = 0; frame < frames; ++frame) {
+    s[0].x = 1.5f + step * static_cast<float>(frame);
+    EXPECT_TRUE(a->detect(s, nullptr, res).ok());
+    EXPECT_TRUE(test::same_pairs(res.pairs, test::oracle_pairs(s)));
+    if (!res.stats.followed_change || res.stats.replaced == s.size()) continue;  // not yet, or entering
+    if (first < 0) first = frame;
+    EXPECT_EQ(res.stats.moved, 1u);
+    if (res.stats.replaced == 1) at.push_back(frame - first);
   }
+  return at;
+}
+
+TEST(RestSet, MovingObjectsArePlacedEveryFewFrames) {
+  // Worked by hand: gliding 0.01 a frame with move_margin 8.5, a sphere of radius 1 is placed with
+  // a margin of 0.085 (less than half its size) and stays inside it for 8 more frames (0.08 <
+  // 0.085); the ninth takes it 0.09 away, and it is placed again.
+  const std::vector<int> glide = placements(1.0f, 0.01f, 8.5f, 40);
+  ASSERT_FALSE(glide.empty());
+  EXPECT_EQ(glide.front(), 0);  // the first followed frame takes it out of main
+  for (std::size_t k = 1; k < glide.size(); ++k) EXPECT_EQ(glide[k] - glide[k - 1], 9) << k;
+  EXPECT_GE(glide.size(), 4u);
+  // Without margins of its own it is placed again every frame it moves.
+  const std::vector<int> none = placements(1.0f, 0.01f, 0.0f, 20);
+  ASSERT_FALSE(none.empty());
+  for (std::size_t k = 0; k < none.size(); ++k) EXPECT_EQ(none[k], static_cast<int>(k));
+  // A move longer than half its size (radius 0.1, steps of 0.06): no margin of its own, placed
+  // again every frame.
+  const std::vector<int> jumps = placements(0.1f, 0.06f, 8.5f, 20);
+  ASSERT_FALSE(jumps.empty());
+  for (std::size_t k = 0; k < jumps.size(); ++k) EXPECT_EQ(jumps[k], static_cast<int>(k));
 }
 
 TEST(RestSet, MarginCarriesCandidatesOfJigglingObjects) {

@@ -68,12 +68,13 @@ def test_config_round_trip():
     det = viscd.Detector("reference", lambda_=12.5, bits=32, layout="plain", culling=False, map_width=64,
                          map_height=32, shade=True, report_pixels=True, contact_events=True, pair_memory_cap=1 << 20,
                          threads=1, keep_order=False, simd="scalar", pixels_for_32_bits=10, pixels_for_64_bits=20,
-                         follow_change=False, rest_margin=0.25)
+                         follow_change=False, rest_margin=0.25, move_margin=2.5)
     assert det.backend == "reference"
     assert det.config == {"lambda_": 12.5, "pixels_for_32_bits": 10.0, "pixels_for_64_bits": 20.0, "bits": 32,
                           "layout": "plain", "culling": False, "map_width": 64, "map_height": 32, "shade": True,
                           "report_pixels": True, "contact_events": True, "pair_memory_cap": 1 << 20, "threads": 1,
-                          "keep_order": False, "follow_change": False, "rest_margin": 0.25, "simd": "scalar"}
+                          "keep_order": False, "follow_change": False, "rest_margin": 0.25, "move_margin": 2.5,
+                          "simd": "scalar"}
     assert viscd.Detector(**{"lambda": 7}).config["lambda_"] == 7.0
     assert viscd.Detector(bits="16", culling=np.bool_(False)).config["bits"] == 16
     det.set_config(bits="adaptive", lambda_=1)
