@@ -133,6 +133,10 @@ std::uint64_t RestSet::memory_bytes() const {
   for (const auto& l : chunk_keys_) b += bytes_of(l);
   b += bytes_of(key_offsets_) + bytes_of(key_scratch_);
   for (const auto& l : chunk_left_) b += bytes_of(l);
+  for (const auto& l : chunk_margin_) b += bytes_of(l);
+  for (const auto& l : retest_) b += bytes_of(l);
+  b += bytes_of(recent_bits_) + bytes_of(left_margin_) + bytes_of(recent_next_) + bytes_of(search_) +
+       bytes_of(found_hit_);
   return b;
 }
 
