@@ -87,9 +87,10 @@ void add_cpu_kernel_options(CLI::App& cmd, PipelineOptions& o) {
                  "unchanged bounds rest")
       ->capture_default_str();
   cmd.add_option("--move-margin", o.move_margin,
-                 "cpu backend: margins of their own for moving objects: an object that leaves its bounds is\n"
-                 "placed again with this many times its last move as margin (at most half its size), so that\n"
-                 "a body that keeps moving is placed again every few frames; 0 = every frame it changes")
+                 "cpu backend: margins of their own for moving objects: an object that leaves its bounds two\n"
+                 "frames in a row is placed again with this many times its last move as margin (at most half\n"
+                 "its size), so that a body that keeps moving is placed again every few frames; 0 = every\n"
+                 "frame it changes")
       ->capture_default_str();
 }
 

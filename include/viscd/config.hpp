@@ -97,13 +97,13 @@ struct Config {
   /// re-tested. A margin pays where objects jiggle in place (a settled granular pile): about the
   /// distance they drift in a few frames. Must be finite and >= 0.
   float rest_margin = 0.0f;
-  /// cpu backend, with follow_change: margins of their own for the objects that move. An object
-  /// that leaves its bounds is placed again with a margin of move_margin times how far it moved
-  /// since the last frame (at most half its size: a sphere's radius, a box's longest half side;
-  /// none when it moved farther than that), and rests while it stays inside them: a body that
-  /// keeps moving is placed again every few frames instead of every frame, its candidates
-  /// re-tested exactly meanwhile. Objects that come to rest get their exact bounds back (with
-  /// rest_margin 0). The default, 8, measured best where 1-10 % of 10^6 objects keep moving
+  /// cpu backend, with follow_change: margins of their own for the objects that keep moving. An
+  /// object that leaves its bounds in two frames in a row is placed again with a margin of
+  /// move_margin times how far it moved since the last frame (at most half a sphere's radius, a
+  /// quarter of a box's longest side; none when it moved farther than that),
+  /// and rests while it stays inside them: a body that keeps moving is placed again every few
+  /// frames instead of every frame, its candidates re-tested exactly meanwhile. Objects that come to rest get their
+  /// exact bounds back (with rest_margin 0). The default, 8, measured best where 1-10 % of 10^6 objects keep moving
   /// (docs/benchmarks.md, "Margins of their own"); 0 places every object that changes again.
   /// Results are the same either way. Must be finite and >= 0.
   float move_margin = 8.0f;

@@ -171,7 +171,10 @@ void RestSet::clear_bits() {
 }
 
 float RestSet::margin_of(const Shapes& s, std::size_t k) const {
-  if (move_margin_ <= 0) return margin_;
+  // Only an object that moved in the last frame too (in recent) keeps moving: one that starts
+  // from rest may move once and stop (margins for those had made frames with new movers every
+  // frame a tenth dearer).
+  if (move_margin_ <= 0 || !bit(recent_bits_.data(), static_cast<std::uint32_t>(k))) return margin_;
   // Its own: move_margin times how far it moved since the last frame (its copy, cur_, still the
   // last frame's), at most half its size, and none when it moved farther than that (a jump: the
   // next frame is not likely to be near).
