@@ -104,7 +104,7 @@ struct Config {
   /// and rests while it stays inside them: a body that keeps moving is placed again every few
   /// frames instead of every frame, its candidates re-tested exactly meanwhile. Objects that come to rest get their
   /// exact bounds back (with rest_margin 0). The default, 8, measured best where 1-10 % of 10^6 objects keep moving
-  /// (docs/benchmarks.md, "Margins of their own"); 0 places every object that changes again.
+  /// (docs/benchmarks.md, "Margins of their own, kept"); 0 places every object that changes again.
   /// Results are the same either way. Must be finite and >= 0.
   float move_margin = 8.0f;
   /// Check FrameInput::moved: every object the list leaves out is compared with the previous
