@@ -100,12 +100,13 @@ struct Config {
   /// cpu backend, with follow_change: margins of their own for the objects that keep moving. An
   /// object that leaves its bounds in two frames in a row is placed again with a margin of
   /// move_margin times how far it moved since the last frame (at most half a sphere's radius, a
-  /// quarter of a box's longest side; none when it moved farther than that),
-  /// and rests while it stays inside them: a body that keeps moving is placed again every few
-  /// frames instead of every frame, its candidates re-tested exactly meanwhile. Objects that come to rest get their
-  /// exact bounds back (with rest_margin 0). The default, 8, measured best where 1-10 % of 10^6 objects keep moving
-  /// (docs/benchmarks.md, "Margins of their own, kept"); 0 places every object that changes again.
-  /// Results are the same either way. Must be finite and >= 0.
+  /// quarter of a box's longest side; none when it moved farther than that), and rests while it
+  /// stays inside them: a body that keeps moving is placed again every few frames instead of
+  /// every frame, its candidates re-tested exactly meanwhile. Objects that come to rest get their
+  /// exact bounds back (with rest_margin 0). The default, 8, measured best of 2, 4 and 8 where
+  /// 1-10 % of 10^6 objects keep moving (docs/benchmarks.md, "Margins of their own, kept"); 0
+  /// places every object that changes again. Results are the same either way. Must be finite and
+  /// >= 0.
   float move_margin = 8.0f;
   /// Check FrameInput::moved: every object the list leaves out is compared with the previous
   /// frame, and a frame where one of them changed fails with ErrorKind::invalid_input naming it
