@@ -507,7 +507,8 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
   std::atomic<bool> over{false};
   const bool boxes = s.is_box();
   // Whether object k (changed: its new shape in s) stays inside its fat bounds: the rest
-  // margin's, or its own in recent (move_margin). Those in recent are counted (pending_).
+  // margin's, or its own in recent (move_margin). Those in recent are counted: recent is built
+  // over them too.
   const bool own = move_margin_ > 0;
   const std::uint64_t* const in_recent = recent_bits_.data();
   std::atomic<std::size_t> pending_total{0};
@@ -618,10 +619,9 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
   // than comparing every object.
   changed_count_ = changed_total.load();
   changed_listed_ = false;
-  pending_ = pending_total.load();
   // Recent is built over the objects that left and those of its own that moved inside their
   // bounds: both count against the limit.
-  if (left_.size() + pending_ > limit) few = false;
+  if (left_.size() + pending_total.load() > limit) few = false;
   if (listed && in.verify_moved) {
     // Every object the list leaves out must be bit for bit the previous frame's.
     std::size_t at = 0;
@@ -695,15 +695,16 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   recent_next_.clear();
   for (const std::uint32_t o : recent.ids) {
     if (part_of_[o] != kRecent) continue;
-    if (bit(left_bits, o) || (own && bit(changed_bits, o)))
-      recent_next_.push_back(o);
-    else
+    if (!(bit(left_bits, o) || (own && bit(changed_bits, o))))
       scratch_.push_back(o);
+    else if (own)
+      recent_next_.push_back(o);
   }
-  for (const std::uint32_t o : left_)
-    if (part_of_[o] != kRecent) recent_next_.push_back(o);
-  if (!own) recent_next_.assign(left_.begin(), left_.end());  // ascending, as before
-  if (own) {
+  if (!own) {
+    recent_next_.assign(left_.begin(), left_.end());  // ascending, as before
+  } else {
+    for (const std::uint32_t o : left_)
+      if (part_of_[o] != kRecent) recent_next_.push_back(o);
     for (const std::uint32_t o : scratch_) recent_bits_[o >> 6] &= ~(std::uint64_t{1} << (o & 63));
     for (const std::uint32_t o : recent_next_) recent_bits_[o >> 6] |= std::uint64_t{1} << (o & 63);
   }

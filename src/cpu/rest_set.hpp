@@ -2,36 +2,36 @@
 // Cost follows change (Config::follow_change): the cpu backend's broadphase for frames in which
 // most objects keep their bounds. Every object sits in one of three trees of the bucket
 // broadphase's kind, kept across frames: `main` (every object, built at some frame), `delta`
-// (objects that moved since main was built and came to rest) and `recent` (the objects that
-// moved in the last frame, and with Config::move_margin those that keep moving inside margins of
-// their own). The candidate pairs of every two objects (their fat bounds overlap)
-// are kept, sorted, with the exact result of each, and so are the exact pairs with the static set.
+// (objects that moved since main was built and came to rest) and `recent` (the objects that moved
+// in the last frame, and with Config::move_margin those that keep moving inside margins of their
+// own). The candidate pairs of every two objects (their fat bounds overlap) are kept, sorted, with
+// the exact result of each, and so are the exact pairs with the static set.
 //
 // A frame finds the objects that changed (FrameInput::moved, or a pass comparing bounds) and of
 // those the ones that left their fat bounds (with Config::rest_margin 0: every one that changed).
 // Those are taken out of their trees (their lanes become padding) and placed again (one that left
-// from recent with a margin of its own, move_margin times its last move): recent is built over
-// them and over its objects that moved inside their own margins, and only the ones placed again
-// search it, main and delta for their new candidates; the objects of the old `recent` that did
-// not move again join delta with their exact bounds. Candidates of objects that changed but
-// stayed inside their fat bounds are tested again (with own margins alone only those marked as
-// found by a search of recent are looked at: retest_marked()); the rest keep their result. The frame's pairs are the candidates that hold,
-// whose objects are both active and whose filters accept each other: exactly the pairs of a frame
-// that rebuilt everything (filters, culling and never-culled flags are applied to the carried
-// candidates each frame, so they may change freely). When delta and the objects taken out of main
-// pass an eighth of the objects, main is rebuilt over the resting ones (the frame's movers stay in
-// recent).
+// from recent with a margin of its own, move_margin times its last move): recent is built over them
+// and over its objects that moved inside their own margins, and only the ones placed again search
+// it, main and delta for their new candidates; the objects of the old `recent` that did not move
+// again join delta with their exact bounds. Candidates of objects that changed but stayed inside
+// their fat bounds are tested again (with own margins alone only those marked as found by a search
+// of recent are looked at: retest_marked()); the rest keep their result. The frame's pairs are the
+// candidates that hold, whose objects are both active and whose filters accept each other: exactly
+// the pairs of a frame that rebuilt everything (filters, culling and never-culled flags are applied
+// to the carried candidates each frame, so they may change freely). When delta and the objects
+// taken out of main pass an eighth of the objects, main is rebuilt over the resting ones (the
+// frame's movers stay in recent).
 //
 // A frame costs the pass over the bounds (none with FrameInput::moved), the movers' tree and its
-// searches, and one merging pass over the candidates and pairs. When more than 1 in 5 objects
-// leave their fat bounds or move inside margins of their own in a frame, when the object count, their kind, the static set, the layout
-// or the margin change, when culling leaves fewer than half of the objects active (the
-// candidates of culled objects would cost more than a culled rebuild saves), or when main comes
-// due again within 3 frames of its last build with many objects come to rest in delta (new
-// objects start and stop moving every frame),
-// the set lets the frame rebuild and starts again later: while it is not in use it watches a
-// sample of 256 objects (a new one each frame), and takes over when 5 in 6 of them rest (after
-// such a give-up for churn, only after a wait that doubles each time).
+// searches, and one merging pass over the candidates and pairs. When more than 1 in 5 objects leave
+// their fat bounds or move inside margins of their own in a frame, when the object count, their
+// kind, the static set, the layout or the margin change, when culling leaves fewer than half of the
+// objects active (the candidates of culled objects would cost more than a culled rebuild saves), or
+// when main comes due again within 3 frames of its last build with many objects come to rest in
+// delta (new objects start and stop moving every frame), the set lets the frame rebuild and starts
+// again later: while it is not in use it watches a sample of 256 objects (a new one each frame),
+// and takes over when 5 in 6 of them rest (after such a give-up for churn, only after a wait that
+// doubles each time).
 // docs/architecture.md, "Resting objects".
 
 #include <cstdint>
@@ -191,7 +191,6 @@ class RestSet {
   std::vector<std::vector<float>> chunk_margin_;  // find_changes(): left_margin_, per chunk
   std::vector<std::uint32_t> recent_next_;        // update(): recent's objects for this frame
   std::vector<std::uint16_t> search_;             // update(): per bucket of recent, the lanes that search
-  std::size_t pending_ = 0;                       // find_changes(): objects in recent that changed inside their bounds
   std::vector<std::uint8_t> part_of_;
   std::vector<std::uint64_t> changed_bits_, left_bits_;  // this frame's changed_ and left_, as bitsets
   std::vector<std::uint32_t> local_;                     // the object's id in its tree
