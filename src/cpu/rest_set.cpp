@@ -44,13 +44,18 @@ constexpr std::size_t kChurnForgive = 64;
 constexpr std::size_t kSample = 256;
 constexpr std::size_t kTakeOver = 6;
 constexpr std::size_t kGiveUp = 5;
-/// A candidate's byte: bit 0 its exact result, kRecheck set when one of its objects may move
-/// inside its own fat bounds (found by a search of recent with Config::move_margin), so that the
-/// merge reads the changed bits only for those.
+/// A side-list entry's byte: bit 0 its exact result, kRecheck set while one of its objects may
+/// move inside its own fat bounds (found by a search of recent with Config::move_margin), so that
+/// only those are tested again.
 constexpr std::uint8_t kRecheck = 2;
-/// Set on a candidate that holds not, whose objects both hold their exact bounds again (out of
-/// recent, no rest margin): it is no candidate any more, and the next merge drops it.
+/// Set on a candidate of an object that left (dropped in place by emit() with the side list), or
+/// on a side-list entry that is no candidate any more; skipped, and dropped by the next merge.
 constexpr std::uint8_t kDrop = 4;
+
+/// With own margins alone, the side list is merged into the candidates once its unmarked entries
+/// and the candidates dropped in place pass a sixteenth of the candidates (and this floor).
+constexpr std::size_t kSideShare = 16;
+constexpr std::size_t kSideFloor = 4096;
 
 /// Bit k of a bitset (one bit per object: 125 KB for 10^6 objects, which stays in cache while the
 /// candidates stream past).
@@ -134,8 +139,7 @@ std::uint64_t RestSet::memory_bytes() const {
   b += bytes_of(key_offsets_) + bytes_of(key_scratch_);
   for (const auto& l : chunk_left_) b += bytes_of(l);
   for (const auto& l : chunk_margin_) b += bytes_of(l);
-  for (const auto& l : retest_) b += bytes_of(l);
-  for (const auto& l : marked_) b += bytes_of(l);
+  b += bytes_of(side_) + bytes_of(side_next_) + bytes_of(side_hit_) + bytes_of(side_hit_next_);
   b += bytes_of(recent_bits_) + bytes_of(left_margin_) + bytes_of(recent_next_) + bytes_of(search_) +
        bytes_of(found_hit_);
   return b;
@@ -486,6 +490,10 @@ Status RestSet::enter(const Input& in, const StaticSet& set, StaticTree& st, int
     if (!static_pairs_of(*exact, all, st, threads, stat_)) return check_pair_cap(SIZE_MAX, in.pair_memory_cap, true);
   }
   segs_.assign(1, Segment{0, cand_.size()});
+  side_.clear();
+  side_hit_.clear();
+  side_unmarked_ = dropped_ = woken_ = 0;
+  a_out_valid_ = false;
   packs_ = main_rebuilds_ = 0;
   pack(threads);
   stats.ms(Stage::query) += sw.lap();
@@ -580,16 +588,22 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
     };
     e = word_start(e);
     constexpr std::size_t kAhead = 32;  // reads in flight: each one a miss at 10^6 objects
+    const bool has_fat = fat();
     for (std::size_t t = word_start(b); t < e; ++t) {
       const std::uint32_t k = in.moved[t];
-      if (t + kAhead < e) {  // listed objects lie scattered: their shapes and last copies read ahead
+      if (t + kAhead < e) {  // listed objects lie scattered: their shapes, copies and fat bounds read ahead
         const std::uint32_t ahead = in.moved[t + kAhead];
         if (boxes) {
           __builtin_prefetch(&s.boxes[ahead]);
           __builtin_prefetch(&cur_box_[ahead]);
+          if (has_fat) __builtin_prefetch(fat_box_.data() + ahead);
         } else {
           __builtin_prefetch(&s.spheres[ahead]);
           __builtin_prefetch(&cur_sph_[ahead]);
+          if (has_fat) {
+            __builtin_prefetch(fat_sph_.data() + ahead);
+            __builtin_prefetch(fat_r_.data() + ahead);
+          }
         }
       }
       if (boxes ? same_bits(s.boxes[k], cur_box_[k]) : same_bits(s.spheres[k], cur_sph_[k])) continue;
@@ -651,6 +665,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   const Shapes& s = in.objects;
   stats.moved = static_cast<std::uint32_t>(changed_count_);
   stats.replaced = static_cast<std::uint32_t>(left_.size());
+  woken_ = 0;
   // Nothing changed: every candidate keeps its result.
   if (changed_count_ == 0) return {};
   // find_changes() took the changed shapes and set their bits. The objects that left their fat
@@ -700,11 +715,13 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
     else if (own)
       recent_next_.push_back(o);
   }
+  const std::size_t kept_moving = recent_next_.size();
   if (!own) {
     recent_next_.assign(left_.begin(), left_.end());  // ascending, as before
   } else {
     for (const std::uint32_t o : left_)
       if (part_of_[o] != kRecent) recent_next_.push_back(o);
+    woken_ = recent_next_.size() - kept_moving;
     for (const std::uint32_t o : scratch_) recent_bits_[o >> 6] &= ~(std::uint64_t{1} << (o & 63));
     for (const std::uint32_t o : recent_next_) recent_bits_[o >> 6] |= std::uint64_t{1} << (o & 63);
   }
@@ -795,10 +812,13 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   // The candidates: those of objects that stayed in their fat bounds, tested again where one of
   // them changed, merged with the new ones (tested then): emit() does it while it writes the
   // pairs. When no object left its fat bounds (objects jiggling in place), the list stays: tested
-  // again in place here.
-  if (margin_ == 0 && move_margin_ > 0) {
-    retest_marked(s, threads);
-    if (!left_.empty()) merge_ = true;
+  // again in place here. With own margins alone, the new ones and those of objects in recent live
+  // in the side list (update_side()); the candidates of objects that left are dropped in place by
+  // emit(), and it merges the side list into them only when it has grown (the rewrite of 10^6
+  // objects' candidates had cost a fifth of a frame with 1 % moving).
+  if (own_alone()) {
+    update_side(s, threads);
+    merge_ = side_unmarked_ + dropped_ > std::max(kSideFloor, candidate_count() / kSideShare);
   } else if (left_.empty()) {
     for_chunks(segs_.size(), segs_.size(), [&](std::size_t c, std::size_t, std::size_t) {
       for (std::size_t a = segs_[c].begin; a < segs_[c].end; ++a) {
@@ -848,15 +868,14 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   return {};
 }
 
-void RestSet::retest_marked(const Shapes& s, int threads) {
+void RestSet::update_side(const Shapes& s, int threads) {
   const std::uint64_t* const left = left_bits_.data();
   const std::uint64_t* const in_recent = recent_bits_.data();
   const std::uint64_t* const changed = changed_bits_.data();
-  constexpr std::size_t kAhead = 16;  // re-tests whose shapes are in flight
-  // found_, in chunks: each key's exact result.
+  constexpr std::size_t kAhead = 16;  // tests whose shapes are in flight
+  // found_, in chunks: each key's exact result (marked: found by a search of recent).
   found_hit_.resize(found_.size());
-  const std::size_t fchunks = ranges_for(found_.size(), threads);
-  for_chunks(found_.size(), fchunks, [&](std::size_t b, std::size_t e, std::size_t) {
+  for_chunks(found_.size(), ranges_for(found_.size(), threads), [&](std::size_t b, std::size_t e, std::size_t) {
     for (std::size_t t = b; t < e; ++t) {
       if (t + kAhead < e) {
         s.prefetch(key_i(found_[t + kAhead]));
@@ -865,57 +884,48 @@ void RestSet::retest_marked(const Shapes& s, int threads) {
       found_hit_[t] = static_cast<std::uint8_t>(kRecheck | std::uint8_t{s.overlap(key_i(found_[t]), key_j(found_[t]))});
     }
   });
-  // The kept candidates: the marked ones found first (a byte each, eight at a time) and their
-  // keys fetched (a few in a hundred are marked: each key on a line of its own), then each looked
-  // at, then those to test tested.
-  if (retest_.size() < segs_.size()) retest_.resize(segs_.size());
-  if (marked_.size() < segs_.size()) marked_.resize(segs_.size());
-  for_chunks(segs_.size(), segs_.size(), [&](std::size_t c, std::size_t, std::size_t) {
-    std::vector<std::uint32_t>& list = retest_[c];
-    std::vector<std::uint32_t>& marked = marked_[c];
-    list.clear();
-    marked.clear();
-    const std::size_t b = segs_[c].begin, e = segs_[c].end;
-    std::uint8_t* const h = hit_.data();
-    const std::uint64_t* const k = cand_.data();
-    auto mark = [&](std::size_t a) {
-      __builtin_prefetch(&k[a]);
-      marked.push_back(static_cast<std::uint32_t>(a - b));
-    };
-    // A marked candidate: dropped by the merge if one of its objects left; no longer marked
-    // when neither is in recent (then neither changed, and both hold exact bounds: one that
-    // holds not is no candidate); tested again when one of them changed.
-    auto consider = [&](std::size_t a) {
-      const std::uint32_t i = key_i(k[a]), j = key_j(k[a]);
-      if (bit(left, i) | bit(left, j)) return;
-      if (!(bit(in_recent, i) | bit(in_recent, j))) {
-        h[a] = (h[a] & 1) != 0 ? std::uint8_t{1} : kDrop;
-        return;
+  // The side list in place, in chunks: an entry is dropped if one of its objects left (found anew
+  // in found_); no longer marked when neither is in recent (then neither changed, and both hold
+  // exact bounds: one that holds not is no candidate and is dropped); tested again when one of
+  // them changed.
+  std::uint8_t* const h = side_hit_.data();
+  const std::uint64_t* const k = side_.data();
+  for_chunks(side_.size(), ranges_for(side_.size(), threads), [&](std::size_t b, std::size_t e, std::size_t) {
+    for (std::size_t t = b; t < e; ++t) {
+      if (t + kAhead < e) {
+        s.prefetch(key_i(k[t + kAhead]));
+        s.prefetch(key_j(k[t + kAhead]));
       }
-      if (bit(changed, i) | bit(changed, j)) list.push_back(static_cast<std::uint32_t>(a - b));
-    };
-    std::size_t a = b;
-    for (; a < e && a % 8 != 0; ++a)
-      if (h[a] & kRecheck) mark(a);
-    constexpr std::uint64_t kMarks = 0x0101010101010101ull * kRecheck;
-    for (; a + 8 <= e; a += 8) {
-      std::uint64_t w;
-      std::memcpy(&w, h + a, 8);
-      for (w &= kMarks; w != 0; w &= w - 1) mark(a + static_cast<std::size_t>(std::countr_zero(w)) / 8);
-    }
-    for (; a < e; ++a)
-      if (h[a] & kRecheck) mark(a);
-    for (const std::uint32_t m : marked) consider(b + m);
-    for (std::size_t t = 0; t < list.size(); ++t) {
-      if (t + kAhead < list.size()) {
-        const std::uint64_t f = k[b + list[t + kAhead]];
-        s.prefetch(key_i(f));
-        s.prefetch(key_j(f));
+      const std::uint32_t i = key_i(k[t]), j = key_j(k[t]);
+      if (bit(left, i) | bit(left, j)) {
+        h[t] = kDrop;
+      } else if (!(bit(in_recent, i) | bit(in_recent, j))) {
+        h[t] = (h[t] & 1) != 0 ? std::uint8_t{1} : kDrop;
+      } else if (bit(changed, i) | bit(changed, j)) {
+        h[t] = static_cast<std::uint8_t>(kRecheck | std::uint8_t{s.overlap(i, j)});
       }
-      const std::size_t at = b + list[t];
-      h[at] = static_cast<std::uint8_t>(kRecheck | std::uint8_t{s.overlap(key_i(k[at]), key_j(k[at]))});
     }
   });
+  // Merged with found_ (both sorted; a key is in one of them only: an entry of found_ has an
+  // object that left, whose entries were dropped).
+  side_next_.clear();
+  side_hit_next_.clear();
+  std::size_t f = 0, unmarked = 0;
+  for (std::size_t t = 0; t < side_.size(); ++t) {
+    if (h[t] & kDrop) continue;
+    for (; f < found_.size() && found_[f] < k[t]; ++f) {
+      side_next_.push_back(found_[f]);
+      side_hit_next_.push_back(found_hit_[f]);
+    }
+    side_next_.push_back(k[t]);
+    side_hit_next_.push_back(h[t]);
+    unmarked += (h[t] & kRecheck) == 0;
+  }
+  side_next_.insert(side_next_.end(), found_.begin() + static_cast<std::ptrdiff_t>(f), found_.end());
+  side_hit_next_.insert(side_hit_next_.end(), found_hit_.begin() + static_cast<std::ptrdiff_t>(f), found_hit_.end());
+  side_.swap(side_next_);
+  side_hit_.swap(side_hit_next_);
+  side_unmarked_ = unmarked;
 }
 
 Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::vector<Pair>& pairs) {
@@ -937,15 +947,18 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     if (masked && !mask[i]) return false;
     return pair_passes_filter(filters.empty() ? Filter{} : filters[i], set.filter(static_slot(key_j(k))));
   };
-  // Three sorted lists: the kept candidates (A, in segments), this frame's new ones (B, when
-  // merging) and the static pairs (S), merged chunk by chunk: chunk c takes segment c of A and the
-  // keys of B and S from the same cut. Keys never reach kEnd (i < 2^31).
+  // Three sorted lists: the kept candidates (A, in segments), this frame's new ones (B: found_
+  // when merging; with own margins alone the side list, always) and the static pairs (S), merged
+  // chunk by chunk: chunk c takes segment c of A and the keys of B and S from the same cut. Keys
+  // never reach kEnd (i < 2^31).
   constexpr std::uint64_t kEnd = ~std::uint64_t{0};
-  const std::span<const std::uint64_t> b_keys =
-      merge_ ? std::span<const std::uint64_t>(found_) : std::span<const std::uint64_t>();
+  const bool side = own_alone();
+  const std::span<const std::uint64_t> b_keys = side     ? std::span<const std::uint64_t>(side_)
+                                                : merge_ ? std::span<const std::uint64_t>(found_)
+                                                         : std::span<const std::uint64_t>();
   const std::span<const std::uint64_t> s_keys = stat_;
   const std::size_t nc = segs_.size();
-  for (auto* v : {&b_at_, &s_at_, &cand_ub_, &pair_ub_, &kept_, &out_}) v->assign(nc + 1, 0);
+  for (auto* v : {&b_at_, &s_at_, &cand_ub_, &pair_ub_, &kept_, &out_, &drops_}) v->assign(nc + 1, 0);
   for (std::size_t c = 1; c < nc; ++c) {
     b_at_[c] = static_cast<std::size_t>(std::lower_bound(b_keys.begin(), b_keys.end(), cuts_[c]) - b_keys.begin());
     s_at_[c] = static_cast<std::size_t>(std::lower_bound(s_keys.begin(), s_keys.end(), cuts_[c]) - s_keys.begin());
@@ -969,27 +982,39 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
   const std::uint64_t* const left = left_bits_.data();
   const std::uint64_t* const changed = changed_bits_.data();
   // kRetest: 0, none (no fat bounds); 1, every candidate with an object that changed (the rest
-  // margin); 2, own margins alone: retest_marked() has tested the candidates again and found_.
-  auto chunk = [&]<bool kMerge, bool kCheck, int kRetest>(std::size_t c) {
+  // margin); 2, own margins alone: B is the side list, tested by update_side(), and the candidates
+  // of objects that left are dropped in place unless merging (A is never marked then).
+  auto chunk = [&]<bool kMerge, bool kCheck, int kRetest, bool kDirect = false>(std::size_t c) {
     const std::uint64_t* const ak = cand_.data();
-    const std::uint8_t* const ah = hit_.data();
+    std::uint8_t* const ah = hit_.data();
     const std::uint64_t* const bk = b_keys.data();
-    const std::uint8_t* const fh = found_hit_.data();
+    const std::uint8_t* const fh = side_hit_.data();
     const std::uint64_t* const sk = s_keys.data();
     std::uint64_t* const nk = kMerge ? cand_next_.data() + cand_ub_[c] : nullptr;
     std::uint8_t* const nh = kMerge ? hit_next_.data() + cand_ub_[c] : nullptr;
-    Pair* const po = pair_buf_.data() + pair_ub_[c];
+    // kDirect: into the caller's list where the chunk's pairs go, never past the count expected
+    // (the caller checks that it was met).
+    Pair* const po = kDirect ? pairs.data() + out_[c] : pair_buf_.data() + pair_ub_[c];
+    const std::size_t lim = kDirect ? out_[c + 1] - out_[c] : 0;
+    auto put = [&](std::size_t at, Pair p) {
+      if constexpr (kDirect) {
+        if (at < lim) po[at] = p;
+      } else {
+        po[at] = p;
+      }
+    };
     std::size_t a = segs_[c].begin, b = b_at_[c], t = s_at_[c];
     const std::size_t ae = segs_[c].end, be = b_at_[c + 1], te = s_at_[c + 1];
-    std::size_t kept = 0, out = 0;
-    // A candidate kept (when merging) with its result, and its pair if it holds.
+    std::size_t kept = 0, out = 0, dropped = 0, other = 0;
+    // A candidate kept (when merging; a marked one stays in the side list) with its result, and
+    // its pair if it holds.
     auto take = [&](std::uint64_t k, std::uint32_t i, std::uint32_t j, bool hit, std::uint8_t mark) {
       if constexpr (kMerge) {
         nk[kept] = k;
-        nh[kept] = static_cast<std::uint8_t>(mark | std::uint8_t{hit});
-        ++kept;
+        nh[kept] = static_cast<std::uint8_t>(hit);
+        kept += mark == 0;
       }
-      po[out] = Pair{i, j};
+      put(out, Pair{i, j});
       if constexpr (kCheck) hit = hit && moving_ok(i, j);
       out += hit;
     };
@@ -1001,34 +1026,86 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
         const std::uint32_t i = key_i(k), j = key_j(k);
         const std::uint8_t h = ah[a];
         bool hit = (h & 1) != 0;
-        if constexpr (kMerge) {
-          if constexpr (kRetest == 2)
-            if (h & kDrop) continue;
+        if constexpr (kRetest == 2) {
+          if (h & kDrop) continue;
+          if (bit(left, i) | bit(left, j)) {  // placed again: found anew in the side list
+            if constexpr (!kMerge) {
+              ah[a] = kDrop;
+              ++dropped;
+            }
+            continue;
+          }
+        } else if constexpr (kMerge) {
           if (bit(left, i) | bit(left, j)) continue;  // placed again: found anew in B
           if constexpr (kRetest == 1)
             if (bit(changed, i) | bit(changed, j)) hit = shapes.overlap(i, j);
         }
-        take(k, i, j, hit, h & kRecheck);
+        take(k, i, j, hit, 0);
       }
       if (below == kEnd) break;
+      const std::size_t before = out;
       if (kt < kb) {
-        po[out] = Pair{key_i(kt), key_j(kt)};
+        put(out, Pair{key_i(kt), key_j(kt)});
         out += static_ok(kt);
         ++t;
-      } else {  // B holds keys only when merging
+      } else {  // B holds keys only when merging or with the side list
         if constexpr (kRetest == 2)
-          take(kb, key_i(kb), key_j(kb), (fh[b] & 1) != 0, kRecheck);
+          take(kb, key_i(kb), key_j(kb), (fh[b] & 1) != 0, fh[b] & kRecheck);
         else
           take(kb, key_i(kb), key_j(kb), kRetest == 0 || shapes.overlap(key_i(kb), key_j(kb)), 0);
         ++b;
       }
+      other += out - before;
     }
     kept_[c] = kept;
-    out_[c] = out;
+    drops_[c] = dropped;
+    if constexpr (kDirect) {
+      direct_ok_[c] = out == lim && dropped == 0;
+    } else {
+      out_[c] = out;
+      a_out_[c] = out - other;
+    }
   };
   const bool check = masked || !filters.empty();
+  // With the side list, unfiltered, when no object woke from rest (then none of the candidates
+  // is dropped: an object in recent has none but in the side list) and the candidates' pairs per
+  // chunk are known from the last frame: each chunk's count is known before it runs, and the
+  // pairs go straight into the caller's list. Should a chunk not meet its count, the frame is
+  // merged again the usual way.
+  if (side && !merge_ && !check && woken_ == 0 && a_out_valid_ && a_out_.size() == nc + 1) {
+    std::size_t total = 0;
+    for (std::size_t c = 0; c < nc; ++c) {
+      std::size_t expect = a_out_[c] + (s_at_[c + 1] - s_at_[c]);
+      for (std::size_t b = b_at_[c]; b < b_at_[c + 1]; ++b) expect += side_hit_[b] & 1;
+      out_[c] = total;
+      total += expect;
+    }
+    out_[nc] = total;
+    if (Status st = check_pair_cap(total, in.pair_memory_cap); !st) return st;
+    pairs.resize(total);
+    direct_ok_.assign(nc, 0);
+    for_chunks(nc, nc,
+               [&](std::size_t c, std::size_t, std::size_t) { chunk.template operator()<false, false, 2, true>(c); });
+    if (std::all_of(direct_ok_.begin(), direct_ok_.end(), [](std::uint8_t ok) { return ok != 0; })) {
+      ++direct_frames_;
+      return {};
+    }
+    ++direct_misses_;
+  }
+  a_out_.resize(nc + 1);
   for_chunks(nc, nc, [&](std::size_t c, std::size_t, std::size_t) {
-    if (!merge_) {
+    if (side) {
+      if (merge_) {
+        if (check)
+          chunk.template operator()<true, true, 2>(c);
+        else
+          chunk.template operator()<true, false, 2>(c);
+      } else if (check) {
+        chunk.template operator()<false, true, 2>(c);
+      } else {
+        chunk.template operator()<false, false, 2>(c);
+      }
+    } else if (!merge_) {
       if (check)
         chunk.template operator()<false, true, 0>(c);
       else
@@ -1038,11 +1115,6 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
         chunk.template operator()<true, true, 1>(c);
       else
         chunk.template operator()<true, false, 1>(c);
-    } else if (move_margin_ > 0) {
-      if (check)
-        chunk.template operator()<true, true, 2>(c);
-      else
-        chunk.template operator()<true, false, 2>(c);
     } else {
       if (check)
         chunk.template operator()<true, true, 0>(c);
@@ -1050,6 +1122,10 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
         chunk.template operator()<true, false, 0>(c);
     }
   });
+  if (side && !merge_)
+    for (std::size_t c = 0; c < nc; ++c) dropped_ += drops_[c];
+  // The candidates' pairs per chunk hold for the next frame unless they were filtered or merged.
+  a_out_valid_ = side && !merge_ && !check;
   // The pairs into the caller's list, each chunk's at once.
   std::size_t total = 0;
   for (std::size_t c = 0; c < nc; ++c) {
@@ -1068,6 +1144,17 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
   // cut again when a chunk's share of the merge has grown past twice the mean.
   cand_.swap(cand_next_);
   hit_.swap(hit_next_);
+  if (side) {  // its unmarked entries are candidates now; the marked ones stay
+    std::size_t kept = 0;
+    for (std::size_t t = 0; t < side_.size(); ++t) {
+      side_[kept] = side_[t];
+      side_hit_[kept] = side_hit_[t];
+      kept += (side_hit_[t] & kRecheck) != 0;
+    }
+    side_.resize(kept);
+    side_hit_.resize(kept);
+    side_unmarked_ = dropped_ = 0;
+  }
   std::size_t most = 0, sum = 0;
   for (std::size_t c = 0; c < nc; ++c) {
     segs_[c] = Segment{cand_ub_[c], cand_ub_[c] + kept_[c]};

@@ -14,13 +14,14 @@
 // and over its objects that moved inside their own margins, and only the ones placed again search
 // it, main and delta for their new candidates; the objects of the old `recent` that did not move
 // again join delta with their exact bounds. Candidates of objects that changed but stayed inside
-// their fat bounds are tested again (with own margins alone only those marked as found by a search
-// of recent are looked at: retest_marked()); the rest keep their result. The frame's pairs are the
-// candidates that hold, whose objects are both active and whose filters accept each other: exactly
-// the pairs of a frame that rebuilt everything (filters, culling and never-culled flags are applied
-// to the carried candidates each frame, so they may change freely). When delta and the objects
-// taken out of main pass an eighth of the objects, main is rebuilt over the resting ones (the
-// frame's movers stay in recent).
+// their fat bounds are tested again (with own margins alone, the candidates found by searches of
+// recent live in a side list, and only its marked entries are looked at: update_side(); the others
+// are rewritten only when the side list is merged into them); the rest keep their result. The
+// frame's pairs are the candidates that hold, whose objects are both active and whose filters
+// accept each other: exactly the pairs of a frame that rebuilt everything (filters, culling and
+// never-culled flags are applied to the carried candidates each frame, so they may change
+// freely). When delta and the objects taken out of main pass an eighth of the objects, main is
+// rebuilt over the resting ones (the frame's movers stay in recent).
 //
 // A frame costs the pass over the bounds (none with FrameInput::moved), the movers' tree and its
 // searches, and one merging pass over the candidates and pairs. When more than 1 in 5 objects leave
@@ -94,6 +95,10 @@ class RestSet {
   /// For tests: how often the set gave up because main came due again within a few frames (new
   /// objects starting and stopping every frame), since the detector was made.
   [[nodiscard]] std::size_t churn_giveups() const { return churn_giveups_; }
+  /// For tests: how often emit() wrote the pairs straight into the caller's list, and how often
+  /// such a pass missed the counts it expected (then it merged again), since the detector was made.
+  [[nodiscard]] std::size_t direct_frames() const { return direct_frames_; }
+  [[nodiscard]] std::size_t direct_misses() const { return direct_misses_; }
 
  private:
   // One tree and what its objects are: the shapes its lanes hold (sphere lanes: `spheres`; box
@@ -154,10 +159,13 @@ class RestSet {
   /// The frame's pairs from the candidates and static pairs; with merge_, also the next list of
   /// candidates (those of objects placed again dropped, found_ merged in, re-tested where changed).
   [[nodiscard]] Status emit(const Input& in, const StaticSet& set, int threads, std::vector<Pair>& pairs);
-  /// With own margins alone: the candidates marked kRecheck whose objects changed inside their
-  /// bounds tested again in place, and found_'s tested (found_hit_), each a tight loop whose
-  /// scattered reads are fetched ahead.
-  void retest_marked(const Shapes& s, int threads);
+  /// Whether objects have own margins and no rest margin: the candidates of objects in recent then
+  /// live in the side list.
+  [[nodiscard]] bool own_alone() const { return margin_ == 0 && move_margin_ > 0; }
+  /// With own margins alone: found_ tested (found_hit_); the side list's entries dropped (an
+  /// object left), unmarked (neither object in recent) or tested again (one changed), then merged
+  /// with found_. Each a tight loop whose scattered reads are fetched ahead.
+  void update_side(const Shapes& s, int threads);
   /// The candidates: how many, over the segments.
   [[nodiscard]] std::size_t candidate_count() const;
   /// Packs the candidates into one run and cuts them (and the static pairs) into segments for
@@ -211,8 +219,22 @@ class RestSet {
     std::size_t begin = 0, end = 0;
   };
   std::vector<std::uint64_t> cand_, cand_next_, found_, merged_, stat_, stat_next_, stat_found_;
-  std::vector<std::uint8_t> hit_, hit_next_, found_hit_;     // found_hit_: found_'s exact results (own margins)
-  std::vector<std::vector<std::uint32_t>> retest_, marked_;  // retest_marked(): per segment
+  std::vector<std::uint8_t> hit_, hit_next_, found_hit_;  // found_hit_: found_'s exact results (own margins)
+  // With own margins alone, the side list: sorted keys with their bytes (bit 0 the exact result,
+  // kRecheck while an object is in recent), the candidates found by searches of recent and those
+  // no longer marked since; merged into cand_ by emit() when merge_. The candidates in cand_ are
+  // then never marked; those dropped in place (kDrop) are counted in dropped_.
+  std::vector<std::uint64_t> side_, side_next_;
+  std::vector<std::uint8_t> side_hit_, side_hit_next_;
+  std::size_t side_unmarked_ = 0, dropped_ = 0;
+  std::size_t woken_ = 0;  // update(): objects that left and were not in recent (woke from rest)
+  // emit() with the side list: the pairs of the candidates per chunk at the last frame (valid
+  // while they were not merged or filtered since), each chunk's check in the direct pass, and how
+  // often that pass was taken and missed.
+  std::vector<std::size_t> a_out_;
+  bool a_out_valid_ = false;
+  std::vector<std::uint8_t> direct_ok_;
+  std::size_t direct_frames_ = 0, direct_misses_ = 0;
   std::vector<Segment> segs_;
   std::vector<std::uint64_t> cuts_;
   std::vector<std::vector<std::uint64_t>> chunk_keys_;
@@ -222,7 +244,7 @@ class RestSet {
   std::vector<std::uint8_t> active_mask_;
   // emit()'s chunks: where each starts in found_ and stat_, where its output may start (the sizes
   // before it), and what it kept and emitted.
-  std::vector<std::size_t> b_at_, s_at_, cand_ub_, pair_ub_, kept_, out_, pack_at_;
+  std::vector<std::size_t> b_at_, s_at_, cand_ub_, pair_ub_, kept_, out_, drops_, pack_at_;
   bool merge_ = false;             // this frame's emit() merges found_ into the candidates
   std::size_t packs_ = 0;          // pack() calls since enter()
   std::size_t main_rebuilds_ = 0;  // main rebuilt by update() since enter()
