@@ -77,6 +77,7 @@ class CpuDetector final : public PipelineDetector {
   Status follow_change(const FrameInput& in, const Shapes& objects, std::span<const std::uint32_t> active,
                        std::span<const Filter> filters, int bits, int threads, std::vector<Pair>& pairs,
                        FrameStats& stats, bool& done) override;
+  [[nodiscard]] const std::uint64_t* followed_pair_bits() const override { return rest_.pair_bits(); }
   /// After a followed frame, before a tree query: the tree over its active objects (built on the
   /// first query after the frame).
   void prepare_queries();

@@ -67,6 +67,9 @@ class PipelineDetector : public Backend {
     done = false;
     return {};
   }
+  /// After a frame that follow_change() did: the objects in its pairs, one bit each (moving
+  /// objects only), when it knows them without a pass over the pairs; else null.
+  [[nodiscard]] virtual const std::uint64_t* followed_pair_bits() const { return nullptr; }
   /// The last frame's active objects, ascending (the static set's after them unless handles_static()).
   [[nodiscard]] std::span<const std::uint32_t> last_active() const { return active_; }
 

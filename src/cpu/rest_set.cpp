@@ -140,6 +140,9 @@ std::uint64_t RestSet::memory_bytes() const {
   for (const auto& l : chunk_left_) b += bytes_of(l);
   for (const auto& l : chunk_margin_) b += bytes_of(l);
   b += bytes_of(side_) + bytes_of(side_next_) + bytes_of(side_hit_) + bytes_of(side_hit_next_);
+  b += bytes_of(a_count_) + bytes_of(a_bits_) + bytes_of(pair_bits_);
+  for (const auto& l : chunk_gone_) b += bytes_of(l);
+  for (const auto& l : chunk_added_) b += bytes_of(l);
   b += bytes_of(recent_bits_) + bytes_of(left_margin_) + bytes_of(recent_next_) + bytes_of(search_) +
        bytes_of(found_hit_);
   return b;
@@ -380,6 +383,7 @@ bool RestSet::sample_rests(const Shapes& s, float margin) {
 Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int threads, std::vector<Pair>& pairs,
                     FrameStats& stats, bool& followed) {
   followed = false;
+  pair_bits_ok_ = false;
   simd_ = in.simd;
   const Shapes& s = in.objects;
   const std::size_t n = s.size();
@@ -494,6 +498,7 @@ Status RestSet::enter(const Input& in, const StaticSet& set, StaticTree& st, int
   side_hit_.clear();
   side_unmarked_ = dropped_ = woken_ = 0;
   a_out_valid_ = false;
+  count_candidates();
   packs_ = main_rebuilds_ = 0;
   pack(threads);
   stats.ms(Stage::query) += sw.lap();
@@ -868,6 +873,62 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   return {};
 }
 
+void RestSet::count_candidates() {
+  a_count_.clear();
+  a_bits_.clear();
+  if (!own_alone()) return;
+  a_count_.assign(n_, 0);
+  a_bits_.assign((n_ + 63) / 64, 0);
+  for (const Segment& g : segs_)
+    for (std::size_t a = g.begin; a < g.end; ++a)
+      if (hit_[a] & 1) {
+        ++a_count_[key_i(cand_[a])];
+        ++a_count_[key_j(cand_[a])];
+      }
+  for (std::uint32_t k = 0; k < n_; ++k)
+    if (a_count_[k] > 0) a_bits_[k >> 6] |= std::uint64_t{1} << (k & 63);
+}
+
+template <class StaticOk>
+void RestSet::note_pairs(bool known, const StaticOk& static_ok) {
+  // Counts first, then the bits of every object whose count moved (one may lose a candidate and
+  // gain another in the same frame).
+  for (const auto& list : chunk_gone_)
+    for (const std::uint64_t k : list) {
+      --a_count_[key_i(k)];
+      --a_count_[key_j(k)];
+    }
+  for (const auto& list : chunk_added_)
+    for (const std::uint64_t k : list) {
+      ++a_count_[key_i(k)];
+      ++a_count_[key_j(k)];
+    }
+  auto settle = [&](std::uint32_t o) {
+    const std::uint64_t m = std::uint64_t{1} << (o & 63);
+    a_bits_[o >> 6] = a_count_[o] > 0 ? a_bits_[o >> 6] | m : a_bits_[o >> 6] & ~m;
+  };
+  for (const auto* lists : {&chunk_gone_, &chunk_added_})
+    for (const auto& list : *lists)
+      for (const std::uint64_t k : list) {
+        settle(key_i(k));
+        settle(key_j(k));
+      }
+  if (!known) return;
+  // The frame's pairs: the candidates' that hold, the side list's that hold, and every static
+  // pair's moving object.
+  resize_with_headroom(pair_bits_, a_bits_.size());
+  std::copy(a_bits_.begin(), a_bits_.end(), pair_bits_.begin());
+  auto set = [&](std::uint32_t o) { pair_bits_[o >> 6] |= std::uint64_t{1} << (o & 63); };
+  for (std::size_t t = 0; t < side_.size(); ++t)
+    if (side_hit_[t] & 1) {
+      set(key_i(side_[t]));
+      set(key_j(side_[t]));
+    }
+  for (const std::uint64_t k : stat_)
+    if (static_ok(k)) set(key_i(k));
+  pair_bits_ok_ = true;
+}
+
 void RestSet::update_side(const Shapes& s, int threads) {
   const std::uint64_t* const left = left_bits_.data();
   const std::uint64_t* const in_recent = recent_bits_.data();
@@ -1006,6 +1067,8 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     std::size_t a = segs_[c].begin, b = b_at_[c], t = s_at_[c];
     const std::size_t ae = segs_[c].end, be = b_at_[c + 1], te = s_at_[c + 1];
     std::size_t kept = 0, out = 0, dropped = 0, other = 0;
+    std::vector<std::uint64_t>& gone = chunk_gone_[c];    // candidates that held, dropped
+    std::vector<std::uint64_t>& added = chunk_added_[c];  // side-list entries that hold, merged in
     // A candidate kept (when merging; a marked one stays in the side list) with its result, and
     // its pair if it holds.
     auto take = [&](std::uint64_t k, std::uint32_t i, std::uint32_t j, bool hit, std::uint8_t mark) {
@@ -1033,6 +1096,7 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
               ah[a] = kDrop;
               ++dropped;
             }
+            if (hit) gone.push_back(k);
             continue;
           }
         } else if constexpr (kMerge) {
@@ -1049,9 +1113,12 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
         out += static_ok(kt);
         ++t;
       } else {  // B holds keys only when merging or with the side list
-        if constexpr (kRetest == 2)
-          take(kb, key_i(kb), key_j(kb), (fh[b] & 1) != 0, fh[b] & kRecheck);
-        else
+        if constexpr (kRetest == 2) {
+          const std::uint8_t fb = fh[b];
+          take(kb, key_i(kb), key_j(kb), (fb & 1) != 0, fb & kRecheck);
+          if constexpr (kMerge)
+            if ((fb & 1) && !(fb & kRecheck)) added.push_back(kb);  // a candidate of cand_'s now
+        } else
           take(kb, key_i(kb), key_j(kb), kRetest == 0 || shapes.overlap(key_i(kb), key_j(kb)), 0);
         ++b;
       }
@@ -1067,6 +1134,12 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     }
   };
   const bool check = masked || !filters.empty();
+  if (chunk_gone_.size() < nc) chunk_gone_.resize(nc);
+  if (chunk_added_.size() < nc) chunk_added_.resize(nc);
+  for (std::size_t c = 0; c < nc; ++c) {
+    chunk_gone_[c].clear();
+    chunk_added_[c].clear();
+  }
   // With the side list, unfiltered, when no object woke from rest (then none of the candidates
   // is dropped: an object in recent has none but in the side list) and the candidates' pairs per
   // chunk are known from the last frame: each chunk's count is known before it runs, and the
@@ -1075,8 +1148,9 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
   if (side && !merge_ && !check && woken_ == 0 && a_out_valid_ && a_out_.size() == nc + 1) {
     std::size_t total = 0;
     for (std::size_t c = 0; c < nc; ++c) {
-      std::size_t expect = a_out_[c] + (s_at_[c + 1] - s_at_[c]);
+      std::size_t expect = a_out_[c];
       for (std::size_t b = b_at_[c]; b < b_at_[c + 1]; ++b) expect += side_hit_[b] & 1;
+      for (std::size_t t = s_at_[c]; t < s_at_[c + 1]; ++t) expect += static_ok(s_keys[t]);
       out_[c] = total;
       total += expect;
     }
@@ -1088,6 +1162,7 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
                [&](std::size_t c, std::size_t, std::size_t) { chunk.template operator()<false, false, 2, true>(c); });
     if (std::all_of(direct_ok_.begin(), direct_ok_.end(), [](std::uint8_t ok) { return ok != 0; })) {
       ++direct_frames_;
+      note_pairs(true, static_ok);
       return {};
     }
     ++direct_misses_;
@@ -1139,7 +1214,10 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
   for_chunks(nc, nc, [&](std::size_t c, std::size_t, std::size_t) {
     std::copy_n(pair_buf_.data() + pair_ub_[c], out_[c + 1] - out_[c], pairs.data() + out_[c]);
   });
-  if (!merge_) return {};
+  if (!merge_) {
+    if (side) note_pairs(!check, static_ok);
+    return {};
+  }
   // The merged list becomes the candidates, in segments where the chunks wrote them; packed and
   // cut again when a chunk's share of the merge has grown past twice the mean.
   cand_.swap(cand_next_);
@@ -1154,6 +1232,7 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     side_.resize(kept);
     side_hit_.resize(kept);
     side_unmarked_ = dropped_ = 0;
+    note_pairs(!check, static_ok);
   }
   std::size_t most = 0, sum = 0;
   for (std::size_t c = 0; c < nc; ++c) {

@@ -86,6 +86,9 @@ class RestSet {
     return kind_ == ShapeKind::box ? Shapes(std::span<const Box>(cur_box_)) : Shapes(std::span<const Sphere>(cur_sph_));
   }
   [[nodiscard]] std::uint64_t memory_bytes() const;
+  /// The objects in the last followed frame's pairs, one bit each, when the set knew them without
+  /// a pass over the pairs (own margins alone, nothing filtered or culled); else null.
+  [[nodiscard]] const std::uint64_t* pair_bits() const { return pair_bits_ok_ ? pair_bits_.data() : nullptr; }
   /// For tests: the segments the candidates lie in now, and how often they were packed and cut
   /// again since the set last started following.
   [[nodiscard]] std::size_t segments() const { return segs_.size(); }
@@ -235,6 +238,19 @@ class RestSet {
   bool a_out_valid_ = false;
   std::vector<std::uint8_t> direct_ok_;
   std::size_t direct_frames_ = 0, direct_misses_ = 0;
+  // With the side list: per object, how many of cand_'s live candidates that hold it is in, and
+  // the objects in one or more as a bitset (kept as candidates are dropped and merged: emit()'s
+  // chunks list those in chunk_gone_ and chunk_added_); the frame's pair_bits() from them.
+  std::vector<std::uint32_t> a_count_;
+  std::vector<std::uint64_t> a_bits_, pair_bits_;
+  std::vector<std::vector<std::uint64_t>> chunk_gone_, chunk_added_;
+  bool pair_bits_ok_ = false;
+  /// a_count_ and a_bits_ over cand_ (enter()).
+  void count_candidates();
+  /// The chunks' dropped and merged candidates taken into a_count_ and a_bits_; then the frame's
+  /// pair_bits_ when `known` (static pairs: those `static_ok` accepts).
+  template <class StaticOk>
+  void note_pairs(bool known, const StaticOk& static_ok);
   std::vector<Segment> segs_;
   std::vector<std::uint64_t> cuts_;
   std::vector<std::vector<std::uint64_t>> chunk_keys_;

@@ -412,8 +412,8 @@ TEST(RestSet, GlidersWriteTheirPairsStraightIntoTheList) {
   // The same 1 in 50 glide a little every frame, inside margins of their own; every 7th frame a
   // resting one wakes and jumps (its candidates are dropped, and that frame merges as usual).
   // Frames where nothing woke write the pairs straight into the caller's list, each chunk where
-  // the counts kept from the last frame put it; the pairs equal the oracle's every frame, and no
-  // such frame misses its counts.
+  // the counts kept from the last frame put it; the pairs and states equal the oracle's every
+  // frame, and no such frame misses its counts.
   for (const bool listed : {false, true}) {
     SCOPED_TRACE(listed ? "listed" : "compared");
     std::mt19937_64 rng(21);
@@ -446,7 +446,12 @@ TEST(RestSet, GlidersWriteTheirPairsStraightIntoTheList) {
         in.moved_listed = true;
       }
       ASSERT_TRUE(a->detect(in, f).ok());
-      EXPECT_TRUE(test::same_pairs(f.pairs, test::oracle_pairs(s)));
+      const std::vector<Pair> want = test::oracle_pairs(s);
+      EXPECT_TRUE(test::same_pairs(f.pairs, want));
+      // The states come from what the set keeps, not from a pass over the pairs: checked here.
+      std::vector<ObjectState> state(s.size(), ObjectState::free);
+      for (const Pair& p : want) state[p.i] = state[p.j] = ObjectState::colliding;
+      EXPECT_EQ(f.state, state);
       followed += f.stats.followed_change;
     }
     const auto& rest = detail::backend_as<detail::CpuDetector>(*a).rest_set();
