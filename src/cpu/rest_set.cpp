@@ -4,6 +4,7 @@
 #include <atomic>
 #include <bit>
 #include <cmath>
+#include <cstddef>
 #include <cstring>
 #include <limits>
 
@@ -14,6 +15,7 @@
 #include "cpu/grow.hpp"
 #include "cpu/pair_collector.hpp"
 #include "cpu/parallel.hpp"
+#include "cpu/simd.hpp"
 
 namespace viscd::detail {
 namespace {
@@ -69,6 +71,59 @@ void clear_bit(std::vector<std::uint64_t>& b, std::uint32_t k) { b[k >> 6] &= ~(
 [[nodiscard]] std::size_t merge_chunks(std::size_t keys, int threads) {
   return threads_for(keys, threads) == 1 ? 1 : 4 * static_cast<std::size_t>(std::max(1, threads));
 }
+
+/// The direct pass's run of candidates from `a` up to the first key at or past `below` (or `ae`):
+/// each live one that holds (its byte exactly 1: not dropped) written as a pair at po[out], none
+/// past `lim` (then `over` is set). No object of theirs left this frame (none woke from rest: an
+/// object in recent has no candidates here). Returns where the run ends.
+std::size_t direct_run_scalar(const std::uint64_t* ak, const std::uint8_t* ah, std::size_t a, std::size_t ae,
+                              std::uint64_t below, Pair* po, std::size_t& out, std::size_t lim, bool& over) {
+  for (; a < ae && ak[a] < below; ++a) {
+    const std::uint8_t h = ah[a];
+    if (h & kDrop) continue;
+    if (out < lim) po[out] = Pair{key_i(ak[a]), key_j(ak[a])};
+    out += h & 1u;
+  }
+  over |= out > lim;
+  return a;
+}
+
+#if VISCD_HAVE_AVX512
+// GCC 12 takes the undefined pass-through operands inside some AVX-512 intrinsics for
+// uninitialised variables.
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+/// direct_run_scalar() eight candidates at a time: the keys below `below` and the bytes equal to
+/// 1 as masks, the keys' halves swapped into pairs and compressed into the output.
+VISCD_AVX512_TARGET std::size_t direct_run_avx512(const std::uint64_t* ak, const std::uint8_t* ah, std::size_t a,
+                                                  std::size_t ae, std::uint64_t below, Pair* po, std::size_t& out,
+                                                  std::size_t lim, bool& over) {
+  static_assert(sizeof(Pair) == 8 && offsetof(Pair, i) == 0 && offsetof(Pair, j) == 4);
+  const __m512i vbelow = _mm512_set1_epi64(static_cast<long long>(below));
+  const __m512i one = _mm512_set1_epi64(1);
+  while (a + 8 <= ae) {
+    const __m512i k = _mm512_loadu_si512(ak + a);
+    const __mmask8 run = _mm512_cmplt_epu64_mask(k, vbelow);  // a prefix: the keys ascend
+    const __m128i bytes = _mm_loadl_epi64(reinterpret_cast<const __m128i*>(ah + a));
+    const __mmask8 take = run & _mm512_cmpeq_epi64_mask(_mm512_cvtepu8_epi64(bytes), one);
+    const auto count = static_cast<std::size_t>(std::popcount(static_cast<unsigned>(take)));
+    if (out + count > lim) {
+      over = true;
+      return ae;
+    }
+    _mm512_mask_compressstoreu_epi64(po + out, take, _mm512_ror_epi64(k, 32));  // {i, j}: j high
+    out += count;
+    if (run != 0xFF) return a + static_cast<std::size_t>(std::popcount(static_cast<unsigned>(run)));
+    a += 8;
+  }
+  return direct_run_scalar(ak, ah, a, ae, below, po, out, lim, over);
+}
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
+#endif
 
 }  // namespace
 
@@ -1042,6 +1097,7 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
   // pair is written and the count moved past it only if it holds: no branch on the result.
   const std::uint64_t* const left = left_bits_.data();
   const std::uint64_t* const changed = changed_bits_.data();
+  const bool wide = simd_ == SimdLevel::avx512;  // the direct pass's runs eight at a time
   // kRetest: 0, none (no fat bounds); 1, every candidate with an object that changed (the rest
   // margin); 2, own margins alone: B is the side list, tested by update_side(), and the candidates
   // of objects that left are dropped in place unless merging (A is never marked then).
@@ -1067,6 +1123,7 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     std::size_t a = segs_[c].begin, b = b_at_[c], t = s_at_[c];
     const std::size_t ae = segs_[c].end, be = b_at_[c + 1], te = s_at_[c + 1];
     std::size_t kept = 0, out = 0, dropped = 0, other = 0;
+    bool over = false;                                    // kDirect: the chunk's count was passed
     std::vector<std::uint64_t>& gone = chunk_gone_[c];    // candidates that held, dropped
     std::vector<std::uint64_t>& added = chunk_added_[c];  // side-list entries that hold, merged in
     // A candidate kept (when merging; a marked one stays in the side list) with its result, and
@@ -1084,6 +1141,15 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     for (;;) {
       const std::uint64_t kb = b < be ? bk[b] : kEnd, kt = t < te ? sk[t] : kEnd;
       const std::uint64_t below = std::min(kb, kt);
+      if constexpr (kDirect) {
+#if VISCD_HAVE_AVX512
+        if (wide)
+          a = direct_run_avx512(ak, ah, a, ae, below, po, out, lim, over);
+        else
+#endif
+          a = direct_run_scalar(ak, ah, a, ae, below, po, out, lim, over);
+        if (over) break;
+      }
       for (; a < ae && ak[a] < below; ++a) {
         const std::uint64_t k = ak[a];
         const std::uint32_t i = key_i(k), j = key_j(k);
@@ -1127,7 +1193,7 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     kept_[c] = kept;
     drops_[c] = dropped;
     if constexpr (kDirect) {
-      direct_ok_[c] = out == lim && dropped == 0;
+      direct_ok_[c] = !over && out == lim && dropped == 0;
     } else {
       out_[c] = out;
       a_out_[c] = out - other;

@@ -414,12 +414,16 @@ TEST(RestSet, GlidersWriteTheirPairsStraightIntoTheList) {
   // Frames where nothing woke write the pairs straight into the caller's list, each chunk where
   // the counts kept from the last frame put it; the pairs and states equal the oracle's every
   // frame, and no such frame misses its counts.
-  for (const bool listed : {false, true}) {
-    SCOPED_TRACE(listed ? "listed" : "compared");
+  // Both kernels of that pass run: the widest this CPU has, and the scalar one.
+  for (const int variant : {0, 1, 2}) {
+    const bool listed = variant == 1;
+    SCOPED_TRACE(std::string(listed ? "listed" : "compared") + (variant == 2 ? ", scalar" : ""));
     std::mt19937_64 rng(21);
     std::uniform_real_distribution<float> step(-0.04f, 0.04f);
     std::vector<Sphere> s = slab_of(12000, rng);
-    auto a = make_cpu_detector();
+    Config config;
+    if (variant == 2) config.simd = Simd::scalar;
+    auto a = make_cpu_detector(config);
     FrameResult f;
     int followed = 0;
     std::vector<std::uint32_t> moved;
