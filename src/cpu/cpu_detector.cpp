@@ -1,6 +1,7 @@
 #include "cpu/cpu_detector.hpp"
 
 #include <algorithm>
+#include <utility>
 
 #include "core/brute_queries.hpp"
 #include "core/frame_rules.hpp"
@@ -71,9 +72,10 @@ Status CpuDetector::follow_change(const FrameInput& in, const Shapes& objects, s
                                   FrameStats& stats, bool& done) {
   done = false;
   followed_ = false;
+  const bool unvalidated = std::exchange(defer_validation_, false);
   if (!config_.follow_change) {
     rest_.reset();
-    return {};
+    return unvalidated ? validate_objects(objects) : Status{};
   }
   static_tree_.update(static_set_, config_.layout, threads);
   RestSet::Input ri;
@@ -89,7 +91,18 @@ Status CpuDetector::follow_change(const FrameInput& in, const Shapes& objects, s
   ri.bits = bits;
   ri.pair_memory_cap = config_.pair_memory_cap;
   ri.simd = simd_level_for(config_.simd);
-  if (Status s = rest_.run(ri, static_set_, static_tree_, threads, pairs, stats, done); !s || !done) return s;
+  ri.unvalidated = unvalidated;
+  if (Status s = rest_.run(ri, static_set_, static_tree_, threads, pairs, stats, done); !s) return s;
+  if (!done && rest_.needs_validation()) {
+    // The set did not follow the frame before it checked every object: they are checked here,
+    // and the frame runs again (or rebuilds) as it would have.
+    if (Status s = validate_objects(objects); !s) return s;
+    if (rest_.run_again()) {
+      ri.unvalidated = false;
+      if (Status s = rest_.run(ri, static_set_, static_tree_, threads, pairs, stats, done); !s) return s;
+    }
+  }
+  if (!done) return {};
   // Queries after the frame: its objects are the rest set's copy; their tree comes on demand.
   followed_ = true;
   query_tree_built_.store(false);
@@ -105,6 +118,15 @@ Status CpuDetector::follow_change(const FrameInput& in, const Shapes& objects, s
 
 Status CpuDetector::validate_frame_objects(const FrameInput& in) {
   const Shapes objects = Shapes::of(in);
+  defer_validation_ = false;
+  if (!in.moved_listed && config_.follow_change && rest_.follows(objects) && in.camera == nullptr &&
+      in.id_map.empty()) {
+    // The rest set compares every object with its copy from the last frame (valid then) and checks
+    // each that changed (cpu/rest_set.hpp, needs_validation()); follow_change() checks them all
+    // when it does not. Nothing reads them before it: no map is drawn.
+    defer_validation_ = true;
+    return {};
+  }
   if (!in.moved_listed || !config_.follow_change || !rest_.follows(objects) || config_.verify_moved)
     return validate_objects(objects);
   // The others are the objects the last frame checked, bit for bit (the list's promise).

@@ -130,6 +130,7 @@ class CpuDetector final : public PipelineDetector {
   // object; empty without), and what its queries built.
   RestSet rest_;
   bool followed_ = false;
+  bool defer_validation_ = false;  // validate_frame_objects() left the objects to follow_change()
   std::atomic<bool> query_tree_built_{false};
   std::vector<Filter> q_filters_;
   int q_bits_ = 32;

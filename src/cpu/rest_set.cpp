@@ -439,11 +439,17 @@ Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int t
                     FrameStats& stats, bool& followed) {
   followed = false;
   pair_bits_ok_ = false;
+  needs_validation_ = in.unvalidated;
+  run_again_ = false;
   simd_ = in.simd;
   const Shapes& s = in.objects;
   const std::size_t n = s.size();
   if (n == 0 || in.active.size() * 2 < n) {
     reset();
+    return {};
+  }
+  if (in.unvalidated && in.moved_listed) {  // only the comparing pass checks objects
+    run_again_ = true;
     return {};
   }
   if (live_ && (n != n_ || s.kind != kind_ || in.margin != margin_ || in.move_margin != move_margin_ ||
@@ -465,13 +471,18 @@ Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int t
       reset();
       return status;
     }
-    if (!few) {
+    if (!few) {  // too many changed, or an invalid one: the caller validates them all
       reset();
       (void)sample_rests(s, in.margin);
       return {};
     }
+    needs_validation_ = false;  // every changed object was checked
     status = update(in, set, st, threads, stats);
   } else {
+    if (in.unvalidated) {  // nothing is built over objects not validated
+      run_again_ = true;
+      return {};
+    }
     if (churn_wait_ > 0) {
       --churn_wait_;
       return {};
@@ -562,6 +573,24 @@ Status RestSet::enter(const Input& in, const StaticSet& set, StaticTree& st, int
   return {};
 }
 
+namespace {
+
+/// Whether the objects of one bitset word [first, last) that `mask` says changed are valid: each
+/// one alone when few changed, else the whole word (in cache: it was just compared).
+bool changed_valid(const Shapes& s, std::size_t first, std::size_t last, std::uint64_t mask) {
+  if (std::popcount(mask) > 8)
+    return s.is_box() ? boxes_all_valid(s.boxes.subspan(first, last - first))
+                      : spheres_all_valid(s.spheres.subspan(first, last - first));
+  bool ok = true;
+  for (std::uint64_t m = mask; m; m &= m - 1) {
+    const std::size_t k = first + static_cast<std::size_t>(std::countr_zero(m));
+    ok &= s.is_box() ? boxes_all_valid(s.boxes.subspan(k, 1)) : spheres_all_valid(s.spheres.subspan(k, 1));
+  }
+  return ok;
+}
+
+}  // namespace
+
 Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bool& few) {
   const Shapes& s = in.objects;
   const bool listed = in.moved_listed;
@@ -623,6 +652,10 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
             mask |= std::uint64_t{!same_bits(s.spheres[k], cur_sph_[k])} << (k - first);
         }
         if (mask == 0) continue;
+        if (in.unvalidated && !changed_valid(s, first, last, mask)) {
+          over.store(true, std::memory_order_relaxed);  // the caller names it; the set starts again
+          break;
+        }
         changed_bits_[w] = mask;
         changed_in_chunk += static_cast<std::size_t>(std::popcount(mask));  // the list comes from the bits
         for (std::uint64_t m = mask; m; m &= m - 1) {

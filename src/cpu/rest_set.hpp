@@ -60,6 +60,7 @@ class RestSet {
     std::span<const std::uint32_t> moved;   ///< FrameInput::moved, checked already
     bool moved_listed = false;              ///< FrameInput::moved_listed
     bool verify_moved = false;              ///< Config::verify_moved
+    bool unvalidated = false;               ///< the objects are not validated yet (see needs_validation())
     float margin = 0;                       ///< Config::rest_margin
     float move_margin = 0;                  ///< Config::move_margin
     Layout layout = Layout::extended;       ///< Config::layout
@@ -76,6 +77,16 @@ class RestSet {
   /// Config::verify_moved finds short) leaves the set out of use.
   [[nodiscard]] Status run(const Input& in, const StaticSet& set, StaticTree& st, int threads, std::vector<Pair>& pairs,
                            FrameStats& stats, bool& followed);
+  /// After run() with Input::unvalidated: whether the caller must still validate the objects
+  /// (and, when run() did not follow the frame because of it, run it again). run() checks the
+  /// objects only where it compares every one with its last copy: an object bit for bit the same
+  /// was valid then, and each changed one is checked as it is found. Anywhere else (the set not
+  /// following, giving up, or finding an invalid object) it leaves them to the caller, and before
+  /// it builds anything over them.
+  [[nodiscard]] bool needs_validation() const { return needs_validation_; }
+  /// After needs_validation(): whether run() left the frame untouched for the caller to run it
+  /// again with the objects validated (else the frame rebuilds).
+  [[nodiscard]] bool run_again() const { return run_again_; }
   /// Stops following: the next frames rebuild until the sample says the objects rest.
   void reset();
   /// Whether the set follows these objects: the last frame was followed and had as many of this
@@ -178,6 +189,8 @@ class RestSet {
   bool sample_rests(const Shapes& s, float margin);
 
   bool live_ = false;
+  bool needs_validation_ = false;  // run(): see needs_validation()
+  bool run_again_ = false;         // run(): see run_again()
   ShapeKind kind_ = ShapeKind::sphere;
   std::size_t n_ = 0;
   float margin_ = 0;
