@@ -47,12 +47,15 @@ struct Shapes {
   }
   /// What stages 4-6 see of object k: the sphere itself, or box_proxy().
   [[nodiscard]] Sphere proxy(std::size_t k) const { return is_box() ? box_proxy(boxes[k]) : spheres[k]; }
-  /// Fetches object k into the cache ahead of a test.
+  /// Fetches object k into the cache ahead of a test (a box of 24 bytes may span two lines).
   void prefetch(std::size_t k) const {
-    if (is_box())
-      __builtin_prefetch(&boxes[k]);
-    else
-      __builtin_prefetch(&spheres[k]);
+    if (is_box()) {
+      const auto* b = reinterpret_cast<const char*>(boxes.data() + k);
+      __builtin_prefetch(b);
+      __builtin_prefetch(b + sizeof(Box) - 1);
+    } else {
+      __builtin_prefetch(spheres.data() + k);
+    }
   }
   /// The exact overlap test of objects a and b (the same kind).
   [[nodiscard]] bool overlap(std::size_t a, std::size_t b) const {

@@ -1057,21 +1057,28 @@ void RestSet::update_side(const Shapes& s, int threads) {
   });
   // Merged with found_ (both sorted; a key is in one of them only: an entry of found_ has an
   // object that left, whose entries were dropped).
-  side_next_.clear();
-  side_hit_next_.clear();
-  std::size_t f = 0, unmarked = 0;
+  resize_with_headroom(side_next_, side_.size() + found_.size());
+  resize_with_headroom(side_hit_next_, side_.size() + found_.size());
+  std::uint64_t* const nk = side_next_.data();
+  std::uint8_t* const nh = side_hit_next_.data();
+  std::size_t f = 0, at = 0, unmarked = 0;
   for (std::size_t t = 0; t < side_.size(); ++t) {
     if (h[t] & kDrop) continue;
-    for (; f < found_.size() && found_[f] < k[t]; ++f) {
-      side_next_.push_back(found_[f]);
-      side_hit_next_.push_back(found_hit_[f]);
+    for (; f < found_.size() && found_[f] < k[t]; ++f, ++at) {
+      nk[at] = found_[f];
+      nh[at] = found_hit_[f];
     }
-    side_next_.push_back(k[t]);
-    side_hit_next_.push_back(h[t]);
+    nk[at] = k[t];
+    nh[at] = h[t];
+    ++at;
     unmarked += (h[t] & kRecheck) == 0;
   }
-  side_next_.insert(side_next_.end(), found_.begin() + static_cast<std::ptrdiff_t>(f), found_.end());
-  side_hit_next_.insert(side_hit_next_.end(), found_hit_.begin() + static_cast<std::ptrdiff_t>(f), found_hit_.end());
+  for (; f < found_.size(); ++f, ++at) {
+    nk[at] = found_[f];
+    nh[at] = found_hit_[f];
+  }
+  side_next_.resize(at);
+  side_hit_next_.resize(at);
   side_.swap(side_next_);
   side_hit_.swap(side_hit_next_);
   side_unmarked_ = unmarked;
