@@ -119,11 +119,12 @@ Status CpuDetector::follow_change(const FrameInput& in, const Shapes& objects, s
 Status CpuDetector::validate_frame_objects(const FrameInput& in) {
   const Shapes objects = Shapes::of(in);
   defer_validation_ = false;
-  if (!in.moved_listed && config_.follow_change && rest_.follows(objects) && in.camera == nullptr &&
-      in.id_map.empty()) {
-    // The rest set compares every object with its copy from the last frame (valid then) and checks
-    // each that changed (cpu/rest_set.hpp, needs_validation()); follow_change() checks them all
-    // when it does not. Nothing reads them before it: no map is drawn.
+  if (config_.follow_change && rest_.follows(objects) && in.camera == nullptr && in.id_map.empty() &&
+      !(in.moved_listed && config_.verify_moved)) {
+    // The rest set compares every object (or every listed one) with its copy from the last frame
+    // (valid then) and checks each that changed (cpu/rest_set.hpp, needs_validation());
+    // follow_change() checks them all when it does not. Nothing reads them before it: no map is
+    // drawn.
     defer_validation_ = true;
     return {};
   }

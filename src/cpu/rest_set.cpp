@@ -448,10 +448,6 @@ Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int t
     reset();
     return {};
   }
-  if (in.unvalidated && in.moved_listed) {  // only the comparing pass checks objects
-    run_again_ = true;
-    return {};
-  }
   if (live_ && (n != n_ || s.kind != kind_ || in.margin != margin_ || in.move_margin != move_margin_ ||
                 in.layout != layout_ || set.version() != static_version_))
     reset();
@@ -700,6 +696,10 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
         }
       }
       if (boxes ? same_bits(s.boxes[k], cur_box_[k]) : same_bits(s.spheres[k], cur_sph_[k])) continue;
+      if (in.unvalidated && !changed_valid(s, k, k + 1, 1)) {
+        over.store(true, std::memory_order_relaxed);  // the caller names it; the set starts again
+        break;
+      }
       ++changed_in_chunk;
       changed_bits_[k >> 6] |= std::uint64_t{1} << (k & 63);
       const bool go_on = stays(k, pending) || note_left(k, &left_bits_[k >> 6]);

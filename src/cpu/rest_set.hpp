@@ -79,10 +79,11 @@ class RestSet {
                            FrameStats& stats, bool& followed);
   /// After run() with Input::unvalidated: whether the caller must still validate the objects
   /// (and, when run() did not follow the frame because of it, run it again). run() checks the
-  /// objects only where it compares every one with its last copy: an object bit for bit the same
-  /// was valid then, and each changed one is checked as it is found. Anywhere else (the set not
-  /// following, giving up, or finding an invalid object) it leaves them to the caller, and before
-  /// it builds anything over them.
+  /// objects only where it compares them with their last copies (every one, or the listed ones:
+  /// the others are bit for bit the same): an object bit for bit the same was valid then, and each
+  /// changed one is checked as it is found. Anywhere else (the set not following, giving up, or
+  /// finding an invalid object) it leaves them to the caller, and before it builds anything over
+  /// them.
   [[nodiscard]] bool needs_validation() const { return needs_validation_; }
   /// After needs_validation(): whether run() left the frame untouched for the caller to run it
   /// again with the objects validated (else the frame rebuilds).

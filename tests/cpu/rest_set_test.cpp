@@ -468,50 +468,68 @@ TEST(RestSet, GlidersWriteTheirPairsStraightIntoTheList) {
 
 TEST(RestSet, InvalidObjectsAreFoundWhileComparing) {
   // Followed frames without a camera leave the objects' check to the comparing pass (an object bit
-  // for bit the same was valid last frame; each changed one is checked). A bad object among few
-  // or many changed ones, sphere or box, fails the frame naming it, as a rebuilt frame would; the
-  // frames after it are exact again.
-  for (const bool boxes : {false, true}) {
-    for (const std::size_t movers : {std::size_t{3}, std::size_t{5000}}) {
-      SCOPED_TRACE(std::string(boxes ? "boxes, " : "spheres, ") + std::to_string(movers) + " movers");
-      std::mt19937_64 rng(31);
-      std::vector<Sphere> s = slab_of(20000, rng);
-      std::vector<Box> b(s.size());
-      auto a = make_cpu_detector();
-      auto ref = make_cpu_detector();
-      FrameResult f, g;
-      auto frame = [&](bool expect_ok) {
-        FrameInput in;
-        if (boxes) {
-          for (std::size_t k = 0; k < s.size(); ++k) b[k] = box_of(s[k]);
-          in.boxes = b;
-        } else {
-          in.spheres = s;
+  // for bit the same was valid last frame; each changed one is checked), over every object or the
+  // listed ones. A bad object among few or many changed ones, sphere or box, fails the frame
+  // naming it, as a rebuilt frame would; the frames after it are exact again.
+  for (const bool listed : {false, true}) {
+    for (const bool boxes : {false, true}) {
+      for (const std::size_t movers : {std::size_t{3}, std::size_t{5000}}) {
+        SCOPED_TRACE(std::string(listed ? "listed, " : "compared, ") + (boxes ? "boxes, " : "spheres, ") +
+                     std::to_string(movers) + " movers");
+        std::mt19937_64 rng(31);
+        std::vector<Sphere> s = slab_of(20000, rng);
+        std::vector<Box> b(s.size());
+        std::vector<std::uint32_t> moved;
+        auto a = make_cpu_detector();
+        auto ref = make_cpu_detector();
+        FrameResult f, g;
+        auto frame = [&](bool expect_ok) {
+          FrameInput in;
+          if (boxes) {
+            for (std::size_t k = 0; k < s.size(); ++k) b[k] = box_of(s[k]);
+            in.boxes = b;
+          } else {
+            in.spheres = s;
+          }
+          std::sort(moved.begin(), moved.end());
+          moved.erase(std::unique(moved.begin(), moved.end()), moved.end());
+          if (listed) {
+            in.moved = moved;
+            in.moved_listed = true;
+          }
+          const Status st = a->detect(in, f);
+          in.moved = {};
+          in.moved_listed = false;
+          const Status want = ref->detect(in, g);
+          if (st.ok()) moved.clear();  // the list names every change since the last frame that ran
+          EXPECT_EQ(st.ok(), expect_ok);
+          EXPECT_EQ(st.ok(), want.ok());
+          EXPECT_EQ(st.error(), want.error());
+          if (st.ok() && want.ok()) {
+            EXPECT_TRUE(test::same_pairs(f.pairs, g.pairs));
+          }
+          return st;
+        };
+        for (int k = 0; k < 4; ++k) (void)frame(true);
+        for (std::size_t k = 0; k < movers; ++k) {
+          s[(k * 7919) % s.size()].x += 0.01f;
+          moved.push_back(static_cast<std::uint32_t>((k * 7919) % s.size()));
         }
-        const Status st = a->detect(in, f);
-        const Status want = ref->detect(in, g);
-        EXPECT_EQ(st.ok(), expect_ok);
-        EXPECT_EQ(st.ok(), want.ok());
-        EXPECT_EQ(st.error(), want.error());
-        if (st.ok() && want.ok()) {
-          EXPECT_TRUE(test::same_pairs(f.pairs, g.pairs));
+        const std::size_t bad = 12345;
+        const Sphere keep = s[bad];
+        s[bad].y = std::numeric_limits<float>::quiet_NaN();
+        moved.push_back(static_cast<std::uint32_t>(bad));
+        const Status st = frame(false);
+        EXPECT_EQ(st.kind(), ErrorKind::invalid_input);
+        EXPECT_NE(st.error().find(std::to_string(bad)), std::string::npos) << st.error();
+        s[bad] = keep;
+        for (int k = 0; k < 6; ++k) {
+          s[(k * 31) % s.size()].z += 0.02f;
+          moved.push_back(static_cast<std::uint32_t>((k * 31) % s.size()));
+          (void)frame(true);
         }
-        return st;
-      };
-      for (int k = 0; k < 4; ++k) (void)frame(true);
-      for (std::size_t k = 0; k < movers; ++k) s[(k * 7919) % s.size()].x += 0.01f;
-      const std::size_t bad = 12345;
-      const Sphere keep = s[bad];
-      s[bad].y = std::numeric_limits<float>::quiet_NaN();
-      const Status st = frame(false);
-      EXPECT_EQ(st.kind(), ErrorKind::invalid_input);
-      EXPECT_NE(st.error().find(std::to_string(bad)), std::string::npos) << st.error();
-      s[bad] = keep;
-      for (int k = 0; k < 6; ++k) {
-        s[(k * 31) % s.size()].z += 0.02f;
-        (void)frame(true);
+        EXPECT_TRUE(f.stats.followed_change);
       }
-      EXPECT_TRUE(f.stats.followed_change);
     }
   }
 }
