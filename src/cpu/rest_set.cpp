@@ -320,18 +320,33 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
   const bool use_fat = fat && (margin_ > 0 || (move_margin_ > 0 && which == kRecent));
   resize_with_headroom(part.spheres, count);
   resize_with_headroom(part.boxes, boxes ? count : 0);
-  parallel_for(count, threads, [&](std::size_t k) {
-    const std::uint32_t o = objs[k];
-    if (boxes) {
-      const Box& b = use_fat ? fat_box_[o] : cur_box_[o];
-      part.boxes[k] = b;
-      part.spheres[k] = box_proxy(b);
-    } else {
-      part.spheres[k] = use_fat ? fat_sph_[o] : cur_sph_[o];
-    }
-    if (which != kNowhere && !placed) {
-      part_of_[o] = which;
-      local_[o] = static_cast<std::uint32_t>(k);
+  // The objects' bounds gathered (they lie scattered: read ahead).
+  const Box* const box_src = use_fat ? fat_box_.data() : cur_box_.data();
+  const Sphere* const sph_src = use_fat ? fat_sph_.data() : cur_sph_.data();
+  for_chunks(count, ranges_for(count, threads), [&](std::size_t b, std::size_t e, std::size_t) {
+    constexpr std::size_t kAhead = 16;
+    for (std::size_t k = b; k < e; ++k) {
+      if (k + kAhead < e) {
+        const std::uint32_t ahead = objs[k + kAhead];
+        if (boxes) {
+          __builtin_prefetch(reinterpret_cast<const char*>(box_src + ahead));
+          __builtin_prefetch(reinterpret_cast<const char*>(box_src + ahead) + sizeof(Box) - 1);
+        } else {
+          __builtin_prefetch(sph_src + ahead);
+        }
+      }
+      const std::uint32_t o = objs[k];
+      if (boxes) {
+        const Box& bx = box_src[o];
+        part.boxes[k] = bx;
+        part.spheres[k] = box_proxy(bx);
+      } else {
+        part.spheres[k] = sph_src[o];
+      }
+      if (which != kNowhere && !placed) {
+        part_of_[o] = which;
+        local_[o] = static_cast<std::uint32_t>(k);
+      }
     }
   });
   FrameStats built;
@@ -801,7 +816,9 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   const std::uint64_t* const changed_bits = changed_bits_.data();
   scratch_.clear();
   recent_next_.clear();
-  for (const std::uint32_t o : recent.ids) {
+  for (std::size_t t = 0; t < recent.ids.size(); ++t) {
+    if (t + 16 < recent.ids.size()) __builtin_prefetch(&part_of_[recent.ids[t + 16]]);
+    const std::uint32_t o = recent.ids[t];
     if (part_of_[o] != kRecent) continue;
     if (!(bit(left_bits, o) || (own && bit(changed_bits, o))))
       scratch_.push_back(o);
