@@ -7,7 +7,9 @@
 // Checks (any failure aborts with a short message on stderr): both detectors succeed on every
 // frame; their pairs, states and contact events are equal; the pairs equal an O(N^2) loop of the
 // exact tests (and the static pairs) over the objects, filters applied; a moved list that
-// FrameInput::moved rules refuse fails on both.
+// FrameInput::moved rules refuse fails on both; a frame with an invalid object (a NaN: the
+// follower checks only the objects that changed) fails on both with the same message, and the
+// frames after it are checked as any other.
 //
 // Input format, read front to back; reads past the end give zero bytes:
 //   flags   bit 0 boxes; bit 1 a margin (the next byte / 64 world units); bit 2 the moved list is
@@ -16,14 +18,15 @@
 //   count   N = byte % 40 + 1 objects, each 3 bytes on a grid of unit 1/4 (x, y, z), radius from the
 //           third byte's top bits
 //   ops     until the input ends, a byte each: bits 0-2 what, the rest (and a following byte) whom:
-//           0 a frame; 1 move object k by a grid step; 2 jiggle object k by a 1/64 step; 3 jump object
-//           k anywhere; 4 N changes (grows or shrinks by up to 8); 5 object k's filter; 6 object k's
-//           never-culled flag; 7 a static object moves
+//           0 a frame (with bits 6-7 set: a frame in which object k is NaN, then k as it was); 1 move object k by a
+//           grid step; 2 jiggle object k by a 1/64 step; 3 jump object k anywhere; 4 N changes (grows or shrinks by up
+//           to 8); 5 object k's filter; 6 object k's never-culled flag; 7 a static object moves
 
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -111,7 +114,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   std::vector<std::uint32_t> moved;
   bool resized = false;
   FrameResult fa, fb;
-  auto frame = [&] {
+  auto frame = [&](const std::size_t* poison = nullptr) {
+    const Sphere kept = poison ? s[*poison] : Sphere{};
+    if (poison) {
+      s[*poison].y = std::numeric_limits<float>::quiet_NaN();
+      moved.push_back(static_cast<std::uint32_t>(*poison));
+    }
     std::vector<Box> bx;
     if (boxes)
       for (const Sphere& x : s) bx.push_back(box_of(x));
@@ -132,6 +140,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     fi.moved = {};
     fi.moved_listed = false;
     const Status sb = b->detect(fi, fb);
+    if (poison) {
+      s[*poison] = kept;  // the moved list keeps it: it changed since the last frame that ran
+      if (sa.ok() || sb.ok()) viscd::fuzz::fail(kTarget, "a frame with a NaN object succeeded");
+      if (sa.error() != sb.error())
+        viscd::fuzz::fail(kTarget, "the NaN's messages differ", sa.error() + " | " + sb.error());
+      return;
+    }
     if (!sa.ok() || !sb.ok()) viscd::fuzz::fail(kTarget, "a frame failed", sa.ok() ? sb.error() : sa.error());
     if (fa.pairs != fb.pairs) viscd::fuzz::fail(kTarget, "pairs differ from the rebuilding detector's");
     if (fa.state != fb.state) viscd::fuzz::fail(kTarget, "states differ");
@@ -147,7 +162,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     auto touched = [&] { moved.push_back(static_cast<std::uint32_t>(k)); };
     switch (op & 7) {
       case 0:
-        frame();
+        if ((op >> 6) == 3)
+          frame(&k);
+        else
+          frame();
         break;
       case 1:
         s[k].x += 0.25f * static_cast<float>(static_cast<int>(op >> 6) - 1);
