@@ -113,8 +113,9 @@ class BucketBroadphase {
   /// static set's). Calls for distinct objects may run from several threads at once once
   /// index_positions() has run since the tree was built.
   void erase(std::uint32_t id);
-  /// Makes the index erase() reads (object id to sorted position), if it is not made yet.
-  void index_positions();
+  /// Makes the index erase() reads (object id to sorted position), if it is not made yet, on up
+  /// to `threads` threads.
+  void index_positions(int threads = 1);
   [[nodiscard]] std::span<const std::uint32_t> sorted_objects() const { return order_.sorted_ids(); }
   [[nodiscard]] std::vector<std::uint64_t> sorted_codes() const { return order_.sorted_codes(); }
   [[nodiscard]] const SortReport& sort_report() const { return report_; }

@@ -782,8 +782,8 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   // below over the objects that left: its own among them keep their part_of_ and are not erased
   // (objects that move frame after frame would otherwise cost two scattered writes and an erase
   // each), and its others come to rest in delta.
-  parts_[kMain].tree.index_positions();
-  parts_[kDelta].tree.index_positions();
+  parts_[kMain].tree.index_positions(threads);
+  parts_[kDelta].tree.index_positions(threads);
   constexpr std::size_t kMaxChunks = 64;
   std::size_t erased[3][kMaxChunks] = {};
   const std::size_t erase_chunks = std::min(ranges_for(left_.size(), threads), kMaxChunks);
