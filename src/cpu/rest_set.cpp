@@ -321,27 +321,18 @@ void RestSet::build_part(Part& part, std::span<const std::uint32_t> objs, std::u
   resize_with_headroom(part.spheres, count);
   resize_with_headroom(part.boxes, boxes ? count : 0);
   // The objects' bounds gathered (they lie scattered: read ahead).
-  const Box* const box_src = use_fat ? fat_box_.data() : cur_box_.data();
-  const Sphere* const sph_src = use_fat ? fat_sph_.data() : cur_sph_.data();
+  const Shapes src = boxes ? Shapes(std::span<const Box>(use_fat ? fat_box_ : cur_box_))
+                           : Shapes(std::span<const Sphere>(use_fat ? fat_sph_ : cur_sph_));
   for_chunks(count, ranges_for(count, threads), [&](std::size_t b, std::size_t e, std::size_t) {
     constexpr std::size_t kAhead = 16;
     for (std::size_t k = b; k < e; ++k) {
-      if (k + kAhead < e) {
-        const std::uint32_t ahead = objs[k + kAhead];
-        if (boxes) {
-          __builtin_prefetch(reinterpret_cast<const char*>(box_src + ahead));
-          __builtin_prefetch(reinterpret_cast<const char*>(box_src + ahead) + sizeof(Box) - 1);
-        } else {
-          __builtin_prefetch(sph_src + ahead);
-        }
-      }
+      if (k + kAhead < e) src.prefetch(objs[k + kAhead]);
       const std::uint32_t o = objs[k];
       if (boxes) {
-        const Box& bx = box_src[o];
-        part.boxes[k] = bx;
-        part.spheres[k] = box_proxy(bx);
+        part.boxes[k] = src.boxes[o];
+        part.spheres[k] = box_proxy(src.boxes[o]);
       } else {
-        part.spheres[k] = sph_src[o];
+        part.spheres[k] = src.spheres[o];
       }
       if (which != kNowhere && !placed) {
         part_of_[o] = which;
@@ -693,21 +684,18 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
     e = word_start(e);
     constexpr std::size_t kAhead = 32;  // reads in flight: each one a miss at 10^6 objects
     const bool has_fat = fat();
+    const Shapes last = objects();
+    const Shapes fat_bounds =
+        boxes ? Shapes(std::span<const Box>(fat_box_)) : Shapes(std::span<const Sphere>(fat_sph_));
     for (std::size_t t = word_start(b); t < e; ++t) {
       const std::uint32_t k = in.moved[t];
       if (t + kAhead < e) {  // listed objects lie scattered: their shapes, copies and fat bounds read ahead
         const std::uint32_t ahead = in.moved[t + kAhead];
-        if (boxes) {
-          __builtin_prefetch(&s.boxes[ahead]);
-          __builtin_prefetch(&cur_box_[ahead]);
-          if (has_fat) __builtin_prefetch(fat_box_.data() + ahead);
-        } else {
-          __builtin_prefetch(&s.spheres[ahead]);
-          __builtin_prefetch(&cur_sph_[ahead]);
-          if (has_fat) {
-            __builtin_prefetch(fat_sph_.data() + ahead);
-            __builtin_prefetch(fat_r_.data() + ahead);
-          }
+        s.prefetch(ahead);
+        last.prefetch(ahead);
+        if (has_fat) {
+          fat_bounds.prefetch(ahead);
+          if (!boxes) __builtin_prefetch(fat_r_.data() + ahead);
         }
       }
       if (boxes ? same_bits(s.boxes[k], cur_box_[k]) : same_bits(s.spheres[k], cur_sph_[k])) continue;
