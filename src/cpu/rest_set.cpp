@@ -184,10 +184,10 @@ std::uint64_t RestSet::memory_bytes() const {
   std::uint64_t b = bytes_of(cur_sph_) + bytes_of(cur_box_) + bytes_of(fat_box_) + bytes_of(fat_sph_) +
                     bytes_of(fat_r_) + bytes_of(part_of_) + bytes_of(changed_bits_) + bytes_of(left_bits_) +
                     bytes_of(local_) + bytes_of(changed_) + bytes_of(left_) + bytes_of(scratch_) + bytes_of(cand_) +
-                    bytes_of(cand_next_) + bytes_of(found_) + bytes_of(merged_) + bytes_of(stat_) +
-                    bytes_of(stat_next_) + bytes_of(stat_found_) + bytes_of(hit_) + bytes_of(hit_next_) +
-                    bytes_of(local_pairs_) + bytes_of(active_mask_) + bytes_of(pair_buf_) + bytes_of(segs_) +
-                    bytes_of(cuts_) + bytes_of(sample_index_) + bytes_of(sample_);
+                    bytes_of(cand_next_) + bytes_of(found_) + bytes_of(stat_) + bytes_of(stat_next_) +
+                    bytes_of(stat_found_) + bytes_of(hit_) + bytes_of(hit_next_) + bytes_of(local_pairs_) +
+                    bytes_of(active_mask_) + bytes_of(pair_buf_) + bytes_of(segs_) + bytes_of(cuts_) +
+                    bytes_of(sample_index_) + bytes_of(sample_);
   for (const Part& p : parts_) b += p.memory_bytes();
   b += exact_.memory_bytes();
   for (const auto& l : chunk_keys_) b += bytes_of(l);

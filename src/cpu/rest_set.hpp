@@ -235,7 +235,7 @@ class RestSet {
   struct Segment {
     std::size_t begin = 0, end = 0;
   };
-  std::vector<std::uint64_t> cand_, cand_next_, found_, merged_, stat_, stat_next_, stat_found_;
+  std::vector<std::uint64_t> cand_, cand_next_, found_, stat_, stat_next_, stat_found_;
   std::vector<std::uint8_t> hit_, hit_next_, found_hit_;  // found_hit_: found_'s exact results (own margins)
   // With own margins alone, the side list: sorted keys with their bytes (bit 0 the exact result,
   // kRecheck while an object is in recent), the candidates found by searches of recent and those
