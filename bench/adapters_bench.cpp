@@ -38,6 +38,10 @@
 #include "viscd/bullet.hpp"
 #include "viscd/fcl.hpp"
 
+#if defined(__x86_64__) || defined(__i386__)
+#include <x86intrin.h>
+#endif
+
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -49,7 +53,53 @@ double median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
-// Forwards everything to the broadphase it wraps and times each step's broadphase share.
+// A cheap clock for timing the many short setAabb calls of a step: the time stamp counter where
+// there is one, converted to ms by a calibration against steady_clock, less what reading it twice
+// costs (measured once).
+class CallClock {
+ public:
+  CallClock() {
+    const auto t0 = Clock::now();
+    const std::uint64_t c0 = ticks();
+    while (ms_since(t0) < 20) {
+    }
+    const double ms = ms_since(t0);
+    ms_per_tick_ = ms / static_cast<double>(std::max<std::uint64_t>(1, ticks() - c0));
+    std::vector<double> pair;
+    for (int r = 0; r < 101; ++r) {
+      std::uint64_t sum = 0;
+      for (int k = 0; k < 1000; ++k) {
+        const std::uint64_t a = ticks();
+        sum += ticks() - a;
+      }
+      pair.push_back(static_cast<double>(sum) / 1000);
+    }
+    overhead_ = median(pair);
+  }
+  static std::uint64_t ticks() {
+#if defined(__x86_64__) || defined(__i386__)
+    return __rdtsc();
+#else
+    return static_cast<std::uint64_t>(Clock::now().time_since_epoch().count());
+#endif
+  }
+  /// A timed span of `calls` calls, `sum` ticks in all, in ms.
+  [[nodiscard]] double ms(std::uint64_t sum, std::uint64_t calls) const {
+    return std::max(0.0, static_cast<double>(sum) - overhead_ * static_cast<double>(calls)) * ms_per_tick_;
+  }
+
+ private:
+  double ms_per_tick_ = 0, overhead_ = 0;
+};
+
+const CallClock& call_clock() {
+  static const CallClock c;
+  return c;
+}
+
+// Forwards everything to the broadphase it wraps and times each step's broadphase share, and its
+// own time: the time spent inside its setAabb calls and calculateOverlappingPairs (not Bullet's
+// AABB computation between the setAabb calls).
 class TimedBroadphase final : public btBroadphaseInterface {
  public:
   explicit TimedBroadphase(std::unique_ptr<btBroadphaseInterface> inner) : inner_(std::move(inner)) {}
@@ -63,10 +113,14 @@ class TimedBroadphase final : public btBroadphaseInterface {
       in_step_ = true;
       step_start_ = Clock::now();
       changed.push_back(0);
+      set_ticks_ = set_calls_ = 0;
     }
     // Whether the box changed (proxies the world keeps awake change; sleeping ones do not).
     changed.back() += !(p->m_aabbMin == lo && p->m_aabbMax == hi);
+    const std::uint64_t t = CallClock::ticks();
     inner_->setAabb(p, lo, hi, d);
+    set_ticks_ += CallClock::ticks() - t;
+    ++set_calls_;
   }
   void getAabb(btBroadphaseProxy* p, btVector3& lo, btVector3& hi) const override { inner_->getAabb(p, lo, hi); }
   void rayTest(const btVector3& from, const btVector3& to, btBroadphaseRayCallback& cb, const btVector3& lo,
@@ -81,6 +135,7 @@ class TimedBroadphase final : public btBroadphaseInterface {
     inner_->calculateOverlappingPairs(d);
     pairs_ms.push_back(ms_since(start));
     share_ms.push_back(in_step_ ? ms_since(step_start_) : pairs_ms.back());
+    own_ms.push_back(pairs_ms.back() + (in_step_ ? call_clock().ms(set_ticks_, set_calls_) : 0));
     in_step_ = false;
     // viscd's: whether the frame followed change, and how many boxes it placed again.
     if (const auto* v = dynamic_cast<const viscd::BulletBroadphase*>(inner_.get())) {
@@ -95,6 +150,7 @@ class TimedBroadphase final : public btBroadphaseInterface {
   void printStats() override { inner_->printStats(); }
 
   std::vector<double> pairs_ms, share_ms;  // calculateOverlappingPairs; updateAabbs + it
+  std::vector<double> own_ms;              // calculateOverlappingPairs + the step's setAabb calls
   std::vector<int> changed;                // per step: setAabb calls that changed a box
   std::vector<int> followed;               // viscd's: per step, 1 when the frame followed change
   std::vector<std::uint32_t> replaced;     // viscd's: boxes placed again (all of them in a rebuild)
@@ -103,6 +159,7 @@ class TimedBroadphase final : public btBroadphaseInterface {
   std::unique_ptr<btBroadphaseInterface> inner_;
   bool in_step_ = false;
   Clock::time_point step_start_;
+  std::uint64_t set_ticks_ = 0, set_calls_ = 0;  // this step's setAabb calls: ticks inside, count
 };
 
 struct BulletRun {
@@ -113,6 +170,10 @@ struct BulletRun {
   // broadphase share's mean over the whole run.
   double quarter_step_ms[4] = {}, quarter_share_ms[4] = {};
   double mean_share_ms = 0;
+  // The broadphase's own time (setAabb calls + calculateOverlappingPairs): per quarter its median,
+  // and its mean over the run.
+  double quarter_own_ms[4] = {};
+  double mean_own_ms = 0;
   // viscd's: per quarter, the share of steps that followed change and the mean boxes placed again
   // (negative: not viscd).
   double quarter_followed[4] = {-1, -1, -1, -1}, quarter_replaced[4] = {-1, -1, -1, -1};
@@ -203,6 +264,9 @@ class BulletWorld {
         r.quarter_share_ms[q] =
             median(std::vector<double>(broadphase_.share_ms.begin() + static_cast<std::ptrdiff_t>(b),
                                        broadphase_.share_ms.begin() + static_cast<std::ptrdiff_t>(e)));
+      if (broadphase_.own_ms.size() >= e)
+        r.quarter_own_ms[q] = median(std::vector<double>(broadphase_.own_ms.begin() + static_cast<std::ptrdiff_t>(b),
+                                                         broadphase_.own_ms.begin() + static_cast<std::ptrdiff_t>(e)));
       if (broadphase_.changed.size() >= e && e > b) {
         double c = 0;
         for (std::size_t k = b; k < e; ++k) c += broadphase_.changed[k];
@@ -221,6 +285,8 @@ class BulletWorld {
     for (std::size_t k = first; k < broadphase_.share_ms.size(); ++k) r.mean_share_ms += broadphase_.share_ms[k];
     if (broadphase_.share_ms.size() > first)
       r.mean_share_ms /= static_cast<double>(broadphase_.share_ms.size() - first);
+    for (std::size_t k = first; k < broadphase_.own_ms.size(); ++k) r.mean_own_ms += broadphase_.own_ms[k];
+    if (broadphase_.own_ms.size() > first) r.mean_own_ms /= static_cast<double>(broadphase_.own_ms.size() - first);
     r.cache_pairs = broadphase_.getOverlappingPairCache()->getNumOverlappingPairs();
     for (std::size_t b = first_body_; b < rigid_.size(); ++b) r.mean_height += rigid_[b]->getCenterOfMassPosition().y();
     r.mean_height /= static_cast<double>(bodies_);
@@ -254,7 +320,7 @@ class BulletWorld {
   std::size_t first_body_ = 0;  // rigid_[first_body_..] are the falling bodies
 };
 
-void bench_bullet(int bodies, int steps, bool pillars, bool settling) {
+void bench_bullet(int bodies, int steps, bool pillars, bool settling, const std::vector<std::string>& pick) {
   std::printf("bullet: %d falling %s%s, %d steps at 60 Hz, the worlds stepped in turn (one step each, same load),\n",
               bodies, pillars ? "boxes and spheres among static pillars" : "boxes",
               settling ? " on a floor twice as wide (a world that settles)" : "", steps);
@@ -262,37 +328,43 @@ void bench_bullet(int bodies, int steps, bool pillars, bool settling) {
   std::printf("%-22s %12s %18s %10s %12s %12s\n", "broadphase", "pairs_ms", "aabbs+pairs_ms", "step_ms", "cache_pairs",
               "mean_height");
   const float extent = 1000;
-  const std::vector<std::pair<std::string, std::function<std::unique_ptr<btBroadphaseInterface>()>>> kinds = {
-      {"viscd::BulletBroadphase", [] { return std::make_unique<viscd::BulletBroadphase>(); }},
-      {"viscd, rebuilding",
+  // Each broadphase: the key --broadphases picks it by, its name, how to make one.
+  struct Kind {
+    std::string key, name;
+    std::function<std::unique_ptr<btBroadphaseInterface>()> make;
+  };
+  std::vector<Kind> kinds = {
+      {"viscd", "viscd::BulletBroadphase", [] { return std::make_unique<viscd::BulletBroadphase>(); }},
+      {"rebuilding", "viscd, rebuilding",
        [] {
          viscd::Config c;
          c.follow_change = false;
          return std::make_unique<viscd::BulletBroadphase>(c);
        }},
-      {"viscd, one thread",
+      {"one-thread", "viscd, one thread",
        [] {
          viscd::Config c;
          c.threads = 1;
          return std::make_unique<viscd::BulletBroadphase>(c);
        }},
-      {"viscd, margin 0.05",
+      {"margin", "viscd, margin 0.05",
        [] {
          viscd::Config c;
          c.rest_margin = 0.05f;
          return std::make_unique<viscd::BulletBroadphase>(c);
        }},
-      {"btDbvtBroadphase", [] { return std::make_unique<btDbvtBroadphase>(); }},
-      {"bt32BitAxisSweep3",
+      {"dbvt", "btDbvtBroadphase", [] { return std::make_unique<btDbvtBroadphase>(); }},
+      {"sweep", "bt32BitAxisSweep3",
        [&] {
          return std::make_unique<bt32BitAxisSweep3>(btVector3(-extent, -extent, -extent),
                                                     btVector3(extent, extent, extent),
                                                     static_cast<unsigned>(bodies + 1024));
        }},
   };
+  if (!pick.empty())
+    std::erase_if(kinds, [&](const Kind& k) { return std::find(pick.begin(), pick.end(), k.key) == pick.end(); });
   std::vector<std::unique_ptr<BulletWorld>> worlds;
-  for (const auto& [name, make] : kinds)
-    worlds.push_back(std::make_unique<BulletWorld>(make(), bodies, pillars, settling));
+  for (const Kind& k : kinds) worlds.push_back(std::make_unique<BulletWorld>(k.make(), bodies, pillars, settling));
   for (int s = 0; s < steps; ++s) {
     for (auto& w : worlds) w->step();
     if ((s + 1) % 100 == 0 || s + 1 == steps) std::fprintf(stderr, "step %d/%d\n", s + 1, steps);
@@ -300,9 +372,9 @@ void bench_bullet(int bodies, int steps, bool pillars, bool settling) {
   std::vector<std::pair<std::string, BulletRun>> runs;
   for (std::size_t k = 0; k < kinds.size(); ++k) {
     const BulletRun r = worlds[k]->result();
-    std::printf("%-22s %12.3f %18.3f %10.3f %12d %12.3f\n", kinds[k].first.c_str(), r.pairs_ms, r.share_ms, r.step_ms,
+    std::printf("%-22s %12.3f %18.3f %10.3f %12d %12.3f\n", kinds[k].name.c_str(), r.pairs_ms, r.share_ms, r.step_ms,
                 r.cache_pairs, r.mean_height);
-    runs.emplace_back(kinds[k].first, r);
+    runs.emplace_back(kinds[k].name, r);
   }
   worlds.clear();
   std::printf("\nper quarter of the run: median step ms | median aabbs+pairs ms; mean aabbs+pairs ms over the run\n");
@@ -312,6 +384,13 @@ void bench_bullet(int bodies, int steps, bool pillars, bool settling) {
     std::printf("%-22s %9.3f %9.3f %9.3f %9.3f | %9.3f %9.3f %9.3f %9.3f | %9.3f\n", name.c_str(), r.quarter_step_ms[0],
                 r.quarter_step_ms[1], r.quarter_step_ms[2], r.quarter_step_ms[3], r.quarter_share_ms[0],
                 r.quarter_share_ms[1], r.quarter_share_ms[2], r.quarter_share_ms[3], r.mean_share_ms);
+  std::printf(
+      "\nthe broadphase's own time (setAabb calls + calculateOverlappingPairs, not Bullet's AABB computation):\n"
+      "median ms per quarter; mean ms over the run\n");
+  std::printf("%-22s %9s %9s %9s %9s | %9s\n", "broadphase", "own Q1", "Q2", "Q3", "Q4", "own mean");
+  for (const auto& [name, r] : runs)
+    std::printf("%-22s %9.3f %9.3f %9.3f %9.3f | %9.3f\n", name.c_str(), r.quarter_own_ms[0], r.quarter_own_ms[1],
+                r.quarter_own_ms[2], r.quarter_own_ms[3], r.mean_own_ms);
   std::printf("\nboxes whose AABB changed, mean a step per quarter (the world keeps some awake)\n");
   for (const auto& [name, r] : runs)
     std::printf("%-22s %9.1f %9.1f %9.1f %9.1f\n", name.c_str(), r.quarter_changed[0], r.quarter_changed[1],
@@ -543,6 +622,12 @@ int main(int argc, char** argv) {
   app.add_option("--bodies", bodies, "falling bodies in the Bullet world")->check(CLI::Range(1, 10000000));
   app.add_option("--steps", steps, "Bullet steps (60 Hz)")->check(CLI::Range(6, 100000));
   bool pillars = false;
+  std::vector<std::string> broadphases;
+  app.add_option("--broadphases", broadphases,
+                 "Bullet world: the broadphases stepped (default all): viscd, rebuilding, one-thread, margin, dbvt, "
+                 "sweep")
+      ->delimiter(',')
+      ->check(CLI::IsMember({"viscd", "rebuilding", "one-thread", "margin", "dbvt", "sweep"}));
   app.add_flag("--pillars", pillars, "Bullet world: every other body a sphere, and static pillars in the bin");
   bool settling = false;
   app.add_flag("--settling", settling,
@@ -556,7 +641,7 @@ int main(int argc, char** argv) {
   app.add_option("--rays", rays, "rays (and aabbTest boxes) per step in the query part")->check(CLI::Range(1, 1000000));
   app.add_option("--query-steps", query_steps, "steps in the query part")->check(CLI::Range(2, 100000));
   CLI11_PARSE(app, argc, argv);
-  if (only.empty() || only == "bullet") bench_bullet(bodies, steps, pillars || settling, settling);
+  if (only.empty() || only == "bullet") bench_bullet(bodies, steps, pillars || settling, settling, broadphases);
   if (only.empty() || only == "fcl") bench_fcl(fcl_boxes, reps);
   if (only.empty() || only == "queries") bench_queries(query_bodies, rays, query_steps);
   return 0;
