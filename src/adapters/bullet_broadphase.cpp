@@ -24,7 +24,7 @@ BulletBroadphase::BulletBroadphase(const Config& config, btOverlappingPairCache*
     : state_(std::make_unique<State>(config, pair_cache)) {}
 
 BulletBroadphase::~BulletBroadphase() {
-  for (Proxy* p : state_->proxies) delete p;
+  for (Proxy* p : state_->proxies) state_->pool.release(p);
 }
 
 bool BulletBroadphase::goes_to_static_set(int collision_filter_group, int collision_filter_mask) {
@@ -41,7 +41,7 @@ btBroadphaseProxy* BulletBroadphase::createProxy(const btVector3& aabbMin, const
                                                  void* userPtr, int collisionFilterGroup, int collisionFilterMask,
                                                  btDispatcher* /*dispatcher*/) {
   State& st = *state_;
-  auto* p = new Proxy(aabbMin, aabbMax, userPtr, collisionFilterGroup, collisionFilterMask);
+  Proxy* p = st.pool.make(aabbMin, aabbMax, userPtr, collisionFilterGroup, collisionFilterMask);
   p->m_uniqueId = ++st.next_uid;
   p->list_index = static_cast<std::uint32_t>(st.proxies.size());
   st.proxies.push_back(p);
@@ -73,7 +73,7 @@ void BulletBroadphase::destroyProxy(btBroadphaseProxy* proxy, btDispatcher* disp
   last->list_index = p->list_index;
   st.proxies.pop_back();
   st.owned.erase(p);
-  delete p;
+  st.pool.release(p);
   st.queries_stale = true;
 }
 
@@ -85,7 +85,13 @@ void BulletBroadphase::setAabb(btBroadphaseProxy* proxy, const btVector3& aabbMi
   p->m_aabbMax = aabbMax;
   Box box;
   const bool valid = to_box(aabbMin, aabbMax, box);
-  if (valid == p->valid && (!valid || same_box(box, p->box))) return;  // resting bodies cost nothing
+  if (valid == p->valid && (!valid || same_box(box, p->box))) {  // resting bodies cost nothing more
+    // A moving proxy's group and mask are read here, where the proxy is at hand, so that editing
+    // them in place counts from the next frame (a pass over every proxy for them had cost more
+    // than the frame of a world at rest).
+    if (valid && !p->fixed) st.filters[p->slot] = filter_of(*p);
+    return;
+  }
   const bool was_valid = p->valid;
   p->valid = valid;
   if (valid) p->box = box;
@@ -118,9 +124,6 @@ void BulletBroadphase::getAabb(btBroadphaseProxy* proxy, btVector3& aabbMin, btV
 void BulletBroadphase::calculateOverlappingPairs(btDispatcher* dispatcher) {
   State& st = *state_;
   st.compact_if_sparse();
-  // Filters are read every frame, so that a moving proxy's group or mask edited in place counts.
-  for (std::size_t s = 0; s < st.slot_proxy.size(); ++s)
-    if (const Proxy* p = st.slot_proxy[s]) st.filters[s] = p->valid ? filter_of(*p) : kNeverPairs;
 
   FrameInput in;
   in.boxes = st.boxes;
@@ -133,7 +136,8 @@ void BulletBroadphase::calculateOverlappingPairs(btDispatcher* dispatcher) {
     in.id_map_height = st.id_map_height;
   }
   if (st.moved_complete) {
-    std::sort(st.moved.begin(), st.moved.end());
+    // Bullet updates its objects in their order, which is the slots' unless proxies came and went.
+    if (!std::is_sorted(st.moved.begin(), st.moved.end())) std::sort(st.moved.begin(), st.moved.end());
     in.moved = st.moved;
     in.moved_listed = true;
   }

@@ -9,6 +9,8 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
+#include <new>
 #include <type_traits>
 #include <unordered_set>
 #include <utility>
@@ -34,6 +36,49 @@ struct Proxy final : btBroadphaseProxy {
   std::uint32_t slot = kNoSlot;  // moving slot, or static slot (kNoSlot while out of the set)
   std::uint32_t list_index = 0;  // position in State::proxies
   Box box;
+};
+
+// Proxies made in cells of two cache lines, in slabs, in the order they are made (a destroyed
+// one's cell is reused first). A world passes its objects' AABBs in the order it made them, so
+// the proxies' memory streams past setAabb() instead of costing a miss or two per proxy (made
+// one by one with new, the 10 000 proxies of a world at rest cost 0.2-0.3 ms a step).
+class ProxyPool {
+ public:
+  ProxyPool() = default;
+  ProxyPool(const ProxyPool&) = delete;
+  ProxyPool& operator=(const ProxyPool&) = delete;
+  ~ProxyPool() = default;  // the cells' proxies are destroyed by their owner first
+
+  template <class... Args>
+  Proxy* make(Args&&... args) {
+    void* at = nullptr;
+    if (!free_.empty()) {
+      at = free_.back();
+      free_.pop_back();
+    } else {
+      if (used_ == slabs_.size() * kSlab) slabs_.push_back(std::make_unique<Slab>());
+      at = &slabs_[used_ / kSlab]->cells[used_ % kSlab];
+      ++used_;
+    }
+    return new (at) Proxy(std::forward<Args>(args)...);
+  }
+  void release(Proxy* p) {
+    p->~Proxy();
+    free_.push_back(p);
+  }
+
+ private:
+  static constexpr std::size_t kSlab = 256;
+  struct alignas(64) Cell {
+    alignas(64) unsigned char bytes[128];
+  };
+  static_assert(sizeof(Proxy) <= sizeof(Cell) && alignof(Proxy) <= alignof(Cell));
+  struct Slab {
+    Cell cells[kSlab];
+  };
+  std::vector<std::unique_ptr<Slab>> slabs_;
+  std::size_t used_ = 0;  // cells handed out at least once, in slab order
+  std::vector<void*> free_;
 };
 
 inline Proxy* as_proxy(btBroadphaseProxy* p) { return static_cast<Proxy*>(p); }
@@ -118,6 +163,7 @@ struct BulletBroadphase::State {
   btOverlappingPairCache* cache = nullptr;
   std::unique_ptr<btHashedOverlappingPairCache> owned_cache;
 
+  ProxyPool pool;               // where the proxies live
   std::vector<Proxy*> proxies;  // every live proxy, unordered
   // The moving frame, by slot.
   std::vector<Box> boxes;

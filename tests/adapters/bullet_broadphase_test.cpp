@@ -288,6 +288,35 @@ TEST(BulletBroadphase, OverlapFilterCallbackNarrows) {
   run_random_frames(bp, &bullet.dispatcher, 5, 20, 300);
 }
 
+// A moving proxy's group and mask edited in place count once Bullet passes its AABB again, the
+// box unchanged (every step for every body in a default world), and only then.
+TEST(BulletBroadphase, FiltersEditedInPlaceCountWhenTheAabbIsPassed) {
+  Bullet bullet;
+  viscd::BulletBroadphase bp;
+  const btVector3 lo(0, 0, 0), hi(1, 1, 1), shift(0.5f, 0, 0);
+  btBroadphaseProxy* a = bp.createProxy(lo, hi, BOX_SHAPE_PROXYTYPE, nullptr, btBroadphaseProxy::DefaultFilter,
+                                        btBroadphaseProxy::AllFilter, &bullet.dispatcher);
+  btBroadphaseProxy* b =
+      bp.createProxy(lo + shift, hi + shift, BOX_SHAPE_PROXYTYPE, nullptr, btBroadphaseProxy::DefaultFilter,
+                     btBroadphaseProxy::AllFilter, &bullet.dispatcher);
+  btOverlappingPairCache& cache = *bp.getOverlappingPairCache();
+  bp.calculateOverlappingPairs(&bullet.dispatcher);
+  EXPECT_EQ(cache.getNumOverlappingPairs(), 1);
+  // Edited, both boxes passed again unchanged: the rule refuses the pair.
+  a->m_collisionFilterMask = btBroadphaseProxy::StaticFilter;
+  bp.setAabb(a, lo, hi, &bullet.dispatcher);
+  bp.setAabb(b, lo + shift, hi + shift, &bullet.dispatcher);
+  bp.calculateOverlappingPairs(&bullet.dispatcher);
+  EXPECT_EQ(cache.getNumOverlappingPairs(), 0);
+  // Edited back: the pair returns once a's AABB is passed.
+  a->m_collisionFilterMask = btBroadphaseProxy::AllFilter;
+  bp.setAabb(a, lo, hi, &bullet.dispatcher);
+  bp.calculateOverlappingPairs(&bullet.dispatcher);
+  EXPECT_EQ(cache.getNumOverlappingPairs(), 1);
+  bp.destroyProxy(a, &bullet.dispatcher);
+  bp.destroyProxy(b, &bullet.dispatcher);
+}
+
 TEST(BulletBroadphase, StaticSetMembersNeverPassBulletsRule) {
   EXPECT_TRUE(viscd::BulletBroadphase::goes_to_static_set(
       btBroadphaseProxy::StaticFilter, btBroadphaseProxy::AllFilter ^ btBroadphaseProxy::StaticFilter));
