@@ -67,6 +67,13 @@ void clear_bit(std::vector<std::uint64_t>& b, std::uint32_t k) { b[k >> 6] &= ~(
 [[nodiscard]] bool same_bits(const Sphere& a, const Sphere& b) { return std::memcmp(&a, &b, sizeof(Sphere)) == 0; }
 [[nodiscard]] bool same_bits(const Box& a, const Box& b) { return std::memcmp(&a, &b, sizeof(Box)) == 0; }
 
+/// The exact test of moving object i with the static object of index `index` (static_index()):
+/// what the static trees' kernels report for the two (the static set holds the frame's kind).
+[[nodiscard]] std::uint8_t static_overlap(const Shapes& s, const StaticSet& set, std::uint32_t i, std::uint32_t index) {
+  const std::uint32_t q = static_slot(index);
+  return s.is_box() ? box_overlap_exact(s.boxes[i], set.box(q)) : overlap_exact(s.spheres[i], set.sphere(q));
+}
+
 /// Chunks of emit()'s merge for this many candidates and static pairs.
 [[nodiscard]] std::size_t merge_chunks(std::size_t keys, int threads) {
   return threads_for(keys, threads) == 1 ? 1 : 4 * static_cast<std::size_t>(std::max(1, threads));
@@ -185,11 +192,10 @@ std::uint64_t RestSet::memory_bytes() const {
                     bytes_of(fat_r_) + bytes_of(part_of_) + bytes_of(changed_bits_) + bytes_of(left_bits_) +
                     bytes_of(local_) + bytes_of(changed_) + bytes_of(left_) + bytes_of(scratch_) + bytes_of(cand_) +
                     bytes_of(cand_next_) + bytes_of(found_) + bytes_of(stat_) + bytes_of(stat_next_) +
-                    bytes_of(stat_found_) + bytes_of(hit_) + bytes_of(hit_next_) + bytes_of(local_pairs_) +
-                    bytes_of(active_mask_) + bytes_of(pair_buf_) + bytes_of(segs_) + bytes_of(cuts_) +
-                    bytes_of(sample_index_) + bytes_of(sample_);
+                    bytes_of(stat_found_) + bytes_of(stat_hit_) + bytes_of(stat_hit_next_) + bytes_of(hit_) +
+                    bytes_of(hit_next_) + bytes_of(local_pairs_) + bytes_of(active_mask_) + bytes_of(pair_buf_) +
+                    bytes_of(segs_) + bytes_of(cuts_) + bytes_of(sample_index_) + bytes_of(sample_);
   for (const Part& p : parts_) b += p.memory_bytes();
-  b += exact_.memory_bytes();
   for (const auto& l : chunk_keys_) b += bytes_of(l);
   b += bytes_of(key_offsets_) + bytes_of(key_scratch_);
   for (const auto& l : chunk_left_) b += bytes_of(l);
@@ -552,15 +558,16 @@ Status RestSet::enter(const Input& in, const StaticSet& set, StaticTree& st, int
     cand_[k] = pair_key(p.i, p.j);
     hit_[k] = margin_ == 0 || s.overlap(p.i, p.j);
   });
+  // The static candidates: from main's lanes (fat bounds with the rest margin, else exact), each
+  // tested.
   stat_.clear();
   if (!set.empty()) {
-    const BucketBroadphase* exact = &parts_[kMain].tree;
-    if (margin_ > 0) {
-      build_part(exact_, all, kNowhere, false, threads, nullptr);
-      exact = &exact_.tree;
-    }
-    if (!static_pairs_of(*exact, all, st, threads, stat_)) return check_pair_cap(SIZE_MAX, in.pair_memory_cap, true);
+    if (!static_pairs_of(parts_[kMain].tree, all, st, threads, stat_))
+      return check_pair_cap(SIZE_MAX, in.pair_memory_cap, true);
   }
+  resize_with_headroom(stat_hit_, stat_.size());
+  parallel_for(stat_.size(), threads,
+               [&](std::size_t t) { stat_hit_[t] = static_overlap(s, set, key_i(stat_[t]), key_j(stat_[t])); });
   segs_.assign(1, Segment{0, cand_.size()});
   side_.clear();
   side_hit_.clear();
@@ -893,18 +900,16 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
                     static_cast<std::uint32_t>(n_), key_offsets_, key_scratch_, found_, threads);
   }
 
-  // The static pairs of the objects that changed, from a tree of their exact shapes.
+  // The static candidates of the objects placed again, from recent's lanes (their new bounds;
+  // its objects that moved inside their own bounds keep theirs).
   stat_found_.clear();
-  if (!set.empty()) {
-    const BucketBroadphase* exact = &recent.tree;  // no fat bounds: the changed objects are the movers
-    std::span<const std::uint32_t> ids = recent.ids;
-    if (fat()) {
-      build_part(exact_, changed_list(), kNowhere, false, threads, nullptr);
-      exact = &exact_.tree;
-      ids = exact_.ids;
-    }
-    if (!static_pairs_of(*exact, ids, st, threads, stat_found_))
+  if (!set.empty() && !left_.empty()) {
+    if (!static_pairs_of(recent.tree, recent.ids, st, threads, stat_found_))
       return check_pair_cap(SIZE_MAX, in.pair_memory_cap, true);
+    if (recent.ids.size() != left_.size())
+      std::erase_if(stat_found_, [&](std::uint64_t k) { return bit(left_bits_.data(), key_i(k)) == 0; });
+    // Recent's own objects come first, in their order: its ids need not ascend.
+    if (!std::is_sorted(stat_found_.begin(), stat_found_.end())) std::sort(stat_found_.begin(), stat_found_.end());
   }
 
   // The candidates: those of objects that stayed in their fat bounds, tested again where one of
@@ -927,18 +932,41 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   } else {
     merge_ = true;  // emit() merges as it goes: one pass over the candidates for both
   }
-  // The static pairs: those of objects that did not change, merged with the changed ones' new ones.
+  // The static candidates: those of objects placed again replaced by the ones found above, and
+  // tested, the others tested again where their object changed (inside its fat bounds).
   if (!set.empty()) {
-    stat_next_.clear();
-    stat_next_.reserve(stat_.size() + stat_found_.size());
-    std::size_t b = 0;
-    for (const std::uint64_t k : stat_) {
-      if (bit(changed_bits_.data(), key_i(k))) continue;
-      while (b < stat_found_.size() && stat_found_[b] < k) stat_next_.push_back(stat_found_[b++]);
-      stat_next_.push_back(k);
+    const std::uint64_t* const left = left_bits_.data();
+    const std::uint64_t* const changed = changed_bits_.data();
+    if (stat_found_.empty()) {
+      for (std::size_t t = 0; t < stat_.size(); ++t) {
+        const std::uint32_t i = key_i(stat_[t]);
+        if (bit(changed, i)) stat_hit_[t] = static_overlap(s, set, i, key_j(stat_[t]));
+      }
+    } else {
+      resize_with_headroom(stat_next_, stat_.size() + stat_found_.size());
+      resize_with_headroom(stat_hit_next_, stat_.size() + stat_found_.size());
+      std::size_t b = 0, at = 0;
+      const auto take_found = [&](std::uint64_t below) {
+        for (; b < stat_found_.size() && stat_found_[b] < below; ++b, ++at) {
+          stat_next_[at] = stat_found_[b];
+          stat_hit_next_[at] = static_overlap(s, set, key_i(stat_found_[b]), key_j(stat_found_[b]));
+        }
+      };
+      for (std::size_t t = 0; t < stat_.size(); ++t) {
+        const std::uint64_t k = stat_[t];
+        const std::uint32_t i = key_i(k);
+        if (bit(left, i)) continue;
+        take_found(k);
+        stat_next_[at] = k;
+        stat_hit_next_[at] = bit(changed, i) ? static_overlap(s, set, i, key_j(k)) : stat_hit_[t];
+        ++at;
+      }
+      take_found(~std::uint64_t{0});
+      stat_next_.resize(at);
+      stat_hit_next_.resize(at);
+      stat_.swap(stat_next_);
+      stat_hit_.swap(stat_hit_next_);
     }
-    stat_next_.insert(stat_next_.end(), stat_found_.begin() + static_cast<std::ptrdiff_t>(b), stat_found_.end());
-    stat_.swap(stat_next_);
   }
   stats.ms(Stage::query) += sw.lap();
 
@@ -1017,8 +1045,8 @@ void RestSet::note_pairs(bool known, const StaticOk& static_ok) {
       set(key_i(side_[t]));
       set(key_j(side_[t]));
     }
-  for (const std::uint64_t k : stat_)
-    if (static_ok(k)) set(key_i(k));
+  for (std::size_t t = 0; t < stat_.size(); ++t)
+    if ((stat_hit_[t] & 1) && static_ok(stat_[t])) set(key_i(stat_[t]));
   pair_bits_ok_ = true;
 }
 
@@ -1152,6 +1180,7 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     const std::uint64_t* const bk = b_keys.data();
     const std::uint8_t* const fh = side_hit_.data();
     const std::uint64_t* const sk = s_keys.data();
+    const std::uint8_t* const sh = stat_hit_.data();
     std::uint64_t* const nk = kMerge ? cand_next_.data() + cand_ub_[c] : nullptr;
     std::uint8_t* const nh = kMerge ? hit_next_.data() + cand_ub_[c] : nullptr;
     // kDirect: into the caller's list where the chunk's pairs go, never past the count expected
@@ -1221,7 +1250,7 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
       const std::size_t before = out;
       if (kt < kb) {
         put(out, Pair{key_i(kt), key_j(kt)});
-        out += static_ok(kt);
+        out += (sh[t] & 1) && static_ok(kt);
         ++t;
       } else {  // B holds keys only when merging or with the side list
         if constexpr (kRetest == 2) {
@@ -1261,7 +1290,7 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     for (std::size_t c = 0; c < nc; ++c) {
       std::size_t expect = a_out_[c];
       for (std::size_t b = b_at_[c]; b < b_at_[c + 1]; ++b) expect += side_hit_[b] & 1;
-      for (std::size_t t = s_at_[c]; t < s_at_[c + 1]; ++t) expect += static_ok(s_keys[t]);
+      for (std::size_t t = s_at_[c]; t < s_at_[c + 1]; ++t) expect += (stat_hit_[t] & 1) && static_ok(s_keys[t]);
       out_[c] = total;
       total += expect;
     }

@@ -168,7 +168,8 @@ class RestSet {
   std::span<const std::uint32_t> changed_list();
   /// Follows one frame of changes.
   [[nodiscard]] Status update(const Input& in, const StaticSet& set, StaticTree& st, int threads, FrameStats& stats);
-  /// The static pairs of the objects in `tree` (ids through `ids`), unfiltered, sorted.
+  /// The static pairs of the objects in `tree` (ids through `ids`), unfiltered, sorted: with fat
+  /// bounds in its lanes, the static candidates of those objects.
   [[nodiscard]] bool static_pairs_of(const BucketBroadphase& tree, std::span<const std::uint32_t> ids, StaticTree& st,
                                      int threads, std::vector<std::uint64_t>& out);
   /// The frame's pairs from the candidates and static pairs; with merge_, also the next list of
@@ -220,7 +221,6 @@ class RestSet {
   std::vector<std::uint64_t> changed_bits_, left_bits_;  // this frame's changed_ and left_, as bitsets
   std::vector<std::uint32_t> local_;                     // the object's id in its tree
   Part parts_[3];
-  Part exact_;  // margin > 0: the changed objects' exact shapes, for their static pairs
   std::vector<std::uint32_t> changed_, left_, scratch_;
   std::size_t changed_count_ = 0;  // this frame's changed objects
   bool changed_listed_ = false;    // changed_ lists them (else only the bits do, until changed_list())
@@ -237,6 +237,10 @@ class RestSet {
   };
   std::vector<std::uint64_t> cand_, cand_next_, found_, stat_, stat_next_, stat_found_;
   std::vector<std::uint8_t> hit_, hit_next_, found_hit_;  // found_hit_: found_'s exact results (own margins)
+  // The static candidates, stat_ (sorted keys {object, static_index(slot)}): each object with the
+  // static objects its bounds in its tree (fat, or exact) meet, found when it was placed, with
+  // each one's exact result; tested again when the object changes inside its fat bounds.
+  std::vector<std::uint8_t> stat_hit_, stat_hit_next_;
   // With own margins alone, the side list: sorted keys with their bytes (bit 0 the exact result,
   // kRecheck while an object is in recent), the candidates found by searches of recent and those
   // no longer marked since; merged into cand_ by emit() when merge_. The candidates in cand_ are
