@@ -81,6 +81,10 @@ void BulletBroadphase::setAabb(btBroadphaseProxy* proxy, const btVector3& aabbMi
                                btDispatcher* dispatcher) {
   State& st = *state_;
   Proxy* p = as_proxy(proxy);
+  // A world passes its objects' AABBs in the order it made them, which is the pool's: the proxies
+  // it passes next are fetched while it computes their AABBs (each proxy's second line, read
+  // below, had missed the cache for every body of a large world, at rest or not).
+  ProxyPool::prefetch_after(p, 4);
   p->m_aabbMin = aabbMin;
   p->m_aabbMax = aabbMax;
   Box box;
@@ -89,7 +93,7 @@ void BulletBroadphase::setAabb(btBroadphaseProxy* proxy, const btVector3& aabbMi
     // A moving proxy's group and mask are read here, where the proxy is at hand, so that editing
     // them in place counts from the next frame (a pass over every proxy for them had cost more
     // than the frame of a world at rest).
-    if (valid && !p->fixed) st.filters[p->slot] = filter_of(*p);
+    if (valid && !p->fixed) st.set_filter(p->slot, filter_of(*p));
     return;
   }
   const bool was_valid = p->valid;
@@ -111,7 +115,7 @@ void BulletBroadphase::setAabb(btBroadphaseProxy* proxy, const btVector3& aabbMi
     }
   } else {
     st.boxes[p->slot] = valid ? box : point_box(st.boxes[p->slot]);
-    st.filters[p->slot] = valid ? filter_of(*p) : kNeverPairs;
+    st.set_filter(p->slot, valid ? filter_of(*p) : kNeverPairs);
     st.note_moved(p->slot);
   }
 }
@@ -127,7 +131,7 @@ void BulletBroadphase::calculateOverlappingPairs(btDispatcher* dispatcher) {
 
   FrameInput in;
   in.boxes = st.boxes;
-  in.filters = st.filters;
+  if (st.odd_filters > 0) in.filters = st.filters;  // else every one is Filter{}: none given, the same rule
   if (st.always_count > 0) in.always_active = st.always_active;
   if (st.camera) in.camera = &*st.camera;
   if (!st.id_map.empty()) {
@@ -181,6 +185,7 @@ void BulletBroadphase::resetPool(btDispatcher* /*dispatcher*/) {
   if (!st.proxies.empty()) return;
   st.boxes = {};
   st.filters = {};
+  st.odd_filters = 0;
   st.always_active = {};
   st.slot_proxy = {};
   st.free_slots = {};
