@@ -26,6 +26,7 @@
 #include <CLI/CLI.hpp>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -140,6 +141,7 @@ class TimedBroadphase final : public btBroadphaseInterface {
     // viscd's: whether the frame followed change, and how many boxes it placed again.
     if (const auto* v = dynamic_cast<const viscd::BulletBroadphase*>(inner_.get())) {
       followed.push_back(v->last_stats().followed_change ? 1 : 0);
+      stage_ms.push_back(v->last_stats().stage_ms);
       replaced.push_back(v->last_stats().followed_change ? v->last_stats().replaced : v->last_stats().objects);
     }
   }
@@ -154,6 +156,7 @@ class TimedBroadphase final : public btBroadphaseInterface {
   std::vector<int> changed;                // per step: setAabb calls that changed a box
   std::vector<int> followed;               // viscd's: per step, 1 when the frame followed change
   std::vector<std::uint32_t> replaced;     // viscd's: boxes placed again (all of them in a rebuild)
+  std::vector<std::array<double, viscd::kStageCount>> stage_ms;  // viscd's: its frame's stage times
 
  private:
   std::unique_ptr<btBroadphaseInterface> inner_;
@@ -178,6 +181,11 @@ struct BulletRun {
   // (negative: not viscd).
   double quarter_followed[4] = {-1, -1, -1, -1}, quarter_replaced[4] = {-1, -1, -1, -1};
   double quarter_changed[4] = {};  // per quarter, the mean boxes that changed a step
+  // viscd's: over the second half of the run, the mean ms of each stage its frames report, and of
+  // calculateOverlappingPairs (the rest is the adapter's and the detector's own work: events, the
+  // cache); empty for the others.
+  std::vector<double> late_stage_ms;
+  double late_pairs_ms = 0;
 };
 
 // One Bullet world of `bodies` falling boxes in a walled bin on a broadphase, stepped by the
@@ -287,6 +295,15 @@ class BulletWorld {
       r.mean_share_ms /= static_cast<double>(broadphase_.share_ms.size() - first);
     for (std::size_t k = first; k < broadphase_.own_ms.size(); ++k) r.mean_own_ms += broadphase_.own_ms[k];
     if (broadphase_.own_ms.size() > first) r.mean_own_ms /= static_cast<double>(broadphase_.own_ms.size() - first);
+    if (!broadphase_.stage_ms.empty() && broadphase_.stage_ms.size() == broadphase_.pairs_ms.size()) {
+      const std::size_t from = broadphase_.stage_ms.size() / 2, count = broadphase_.stage_ms.size() - from;
+      r.late_stage_ms.assign(viscd::kStageCount, 0);
+      for (std::size_t k = from; k < broadphase_.stage_ms.size(); ++k) {
+        for (std::size_t g = 0; g < viscd::kStageCount; ++g)
+          r.late_stage_ms[g] += broadphase_.stage_ms[k][g] / static_cast<double>(count);
+        r.late_pairs_ms += broadphase_.pairs_ms[k] / static_cast<double>(count);
+      }
+    }
     r.cache_pairs = broadphase_.getOverlappingPairCache()->getNumOverlappingPairs();
     for (std::size_t b = first_body_; b < rigid_.size(); ++b) r.mean_height += rigid_[b]->getCenterOfMassPosition().y();
     r.mean_height /= static_cast<double>(bodies_);
@@ -395,6 +412,24 @@ void bench_bullet(int bodies, int steps, bool pillars, bool settling, const std:
   for (const auto& [name, r] : runs)
     std::printf("%-22s %9.1f %9.1f %9.1f %9.1f\n", name.c_str(), r.quarter_changed[0], r.quarter_changed[1],
                 r.quarter_changed[2], r.quarter_changed[3]);
+  std::printf(
+      "\nviscd over the second half of the run: mean ms of calculateOverlappingPairs and of the stages its\n"
+      "frames report (the rest: events, the pair cache, the detector's own passes)\n");
+  std::printf("%-22s %9s", "broadphase", "pairs");
+  for (std::size_t g = 0; g < viscd::kStageCount; ++g)
+    if (g != static_cast<std::size_t>(viscd::Stage::shade))
+      std::printf(" %9.9s", std::string(viscd::stage_name(static_cast<viscd::Stage>(g))).c_str());
+  std::printf(" %9s\n", "rest");
+  for (const auto& [name, r] : runs) {
+    if (r.late_stage_ms.empty()) continue;
+    std::printf("%-22s %9.3f", name.c_str(), r.late_pairs_ms);
+    double sum = 0;
+    for (std::size_t g = 0; g < viscd::kStageCount; ++g) {
+      sum += r.late_stage_ms[g];
+      if (g != static_cast<std::size_t>(viscd::Stage::shade)) std::printf(" %9.3f", r.late_stage_ms[g]);
+    }
+    std::printf(" %9.3f\n", r.late_pairs_ms - sum);
+  }
   std::printf("\nviscd per quarter: steps that followed change (%%) | mean boxes placed again a step\n");
   for (const auto& [name, r] : runs) {
     if (r.quarter_followed[0] < 0) continue;
