@@ -58,14 +58,19 @@ namespace viscd {
 /// threads inside calculateOverlappingPairs() (Config::threads, Config::executor).
 class BulletBroadphase final : public btBroadphaseInterface {
  public:
-  /// Config{} and a pair cache of its own (btHashedOverlappingPairCache).
+  /// default_config() and a pair cache of its own (btHashedOverlappingPairCache).
   BulletBroadphase();
   /// `config` for the cpu detector (Config::contact_events is forced on: the cache is kept from
-  /// the events). `pair_cache`: the caller's cache (not owned; must outlive this), or nullptr for
-  /// one of its own, as btDbvtBroadphase takes one.
+  /// the events); start from default_config() to keep its rest margin. `pair_cache`: the caller's
+  /// cache (not owned; must outlive this), or nullptr for one of its own, as btDbvtBroadphase
+  /// takes one.
   explicit BulletBroadphase(const Config& config, btOverlappingPairCache* pair_cache = nullptr);
-  /// Config{} and the caller's pair cache (not owned).
+  /// default_config() and the caller's pair cache (not owned).
   explicit BulletBroadphase(btOverlappingPairCache* pair_cache);
+  /// Config{} with Config::rest_margin 0.05: btDbvtBroadphase's own margin, in Bullet's units (a
+  /// body jiggling in place in an island Bullet keeps awake stays inside its fat bounds, and costs
+  /// a test of its candidates, not a search). The pairs are exact either way.
+  [[nodiscard]] static Config default_config();
   /// Deletes the proxies still alive (a world removes its objects first) and an owned cache.
   ~BulletBroadphase() override;
   BulletBroadphase(const BulletBroadphase&) = delete;

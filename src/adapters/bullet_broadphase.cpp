@@ -18,8 +18,15 @@
 
 namespace viscd {
 
-BulletBroadphase::BulletBroadphase() : BulletBroadphase(Config{}, nullptr) {}
-BulletBroadphase::BulletBroadphase(btOverlappingPairCache* pair_cache) : BulletBroadphase(Config{}, pair_cache) {}
+BulletBroadphase::BulletBroadphase() : BulletBroadphase(default_config(), nullptr) {}
+BulletBroadphase::BulletBroadphase(btOverlappingPairCache* pair_cache)
+    : BulletBroadphase(default_config(), pair_cache) {}
+
+Config BulletBroadphase::default_config() {
+  Config c;
+  c.rest_margin = 0.05f;  // btDbvtBroadphase's DBVT_BP_MARGIN
+  return c;
+}
 BulletBroadphase::BulletBroadphase(const Config& config, btOverlappingPairCache* pair_cache)
     : state_(std::make_unique<State>(config, pair_cache)) {}
 
