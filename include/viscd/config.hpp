@@ -94,8 +94,10 @@ struct Config {
   /// was last placed with, grown by this margin on every side; its candidate pairs (fat boxes
   /// that overlap) are carried over and re-tested exactly each frame it changes. 0 (default):
   /// an object rests only while its bounds stay bit for bit the same, and no candidate is ever
-  /// re-tested. A margin pays where objects jiggle in place (a settled granular pile): about the
-  /// distance they drift in a few frames. Must be finite and >= 0.
+  /// re-tested. A margin pays where objects jiggle in place (a settled granular pile, the bodies of
+  /// an island a physics engine keeps awake): about the distance they drift in a few frames
+  /// (viscd::BulletBroadphase defaults to 0.05, btDbvtBroadphase's margin). Must be finite and
+  /// >= 0.
   float rest_margin = 0.0f;
   /// cpu backend, with follow_change: margins of their own for the objects that keep moving. An
   /// object that leaves its bounds in two frames in a row is placed again with a margin of
