@@ -62,7 +62,6 @@ constexpr std::size_t kSideFloor = 4096;
 /// Bit k of a bitset (one bit per object: 125 KB for 10^6 objects, which stays in cache while the
 /// candidates stream past).
 [[nodiscard]] std::uint64_t bit(const std::uint64_t* b, std::uint32_t k) { return (b[k >> 6] >> (k & 63)) & 1; }
-void clear_bit(std::vector<std::uint64_t>& b, std::uint32_t k) { b[k >> 6] &= ~(std::uint64_t{1} << (k & 63)); }
 
 [[nodiscard]] bool same_bits(const Sphere& a, const Sphere& b) { return std::memcmp(&a, &b, sizeof(Sphere)) == 0; }
 [[nodiscard]] bool same_bits(const Box& a, const Box& b) { return std::memcmp(&a, &b, sizeof(Box)) == 0; }
@@ -71,7 +70,7 @@ void clear_bit(std::vector<std::uint64_t>& b, std::uint32_t k) { b[k >> 6] &= ~(
 /// what the static trees' kernels report for the two (the static set holds the frame's kind).
 [[nodiscard]] std::uint8_t static_overlap(const Shapes& s, const StaticSet& set, std::uint32_t i, std::uint32_t index) {
   const std::uint32_t q = static_slot(index);
-  return s.is_box() ? box_overlap_exact(s.boxes[i], set.box(q)) : overlap_exact(s.spheres[i], set.sphere(q));
+  return s.is_box() ? s.meets_box(i, set.box(q)) : s.meets_sphere(i, set.sphere(q));
 }
 
 /// Chunks of emit()'s merge for this many candidates and static pairs.
@@ -190,11 +189,11 @@ std::uint64_t RestSet::Part::memory_bytes() const {
 std::uint64_t RestSet::memory_bytes() const {
   std::uint64_t b = bytes_of(cur_sph_) + bytes_of(cur_box_) + bytes_of(fat_box_) + bytes_of(fat_sph_) +
                     bytes_of(fat_r_) + bytes_of(part_of_) + bytes_of(changed_bits_) + bytes_of(left_bits_) +
-                    bytes_of(local_) + bytes_of(changed_) + bytes_of(left_) + bytes_of(scratch_) + bytes_of(cand_) +
-                    bytes_of(cand_next_) + bytes_of(found_) + bytes_of(stat_) + bytes_of(stat_next_) +
-                    bytes_of(stat_found_) + bytes_of(stat_hit_) + bytes_of(stat_hit_next_) + bytes_of(hit_) +
-                    bytes_of(hit_next_) + bytes_of(local_pairs_) + bytes_of(active_mask_) + bytes_of(pair_buf_) +
-                    bytes_of(segs_) + bytes_of(cuts_) + bytes_of(sample_index_) + bytes_of(sample_);
+                    bytes_of(local_) + bytes_of(left_) + bytes_of(scratch_) + bytes_of(cand_) + bytes_of(cand_next_) +
+                    bytes_of(found_) + bytes_of(stat_) + bytes_of(stat_next_) + bytes_of(stat_found_) +
+                    bytes_of(stat_hit_) + bytes_of(stat_hit_next_) + bytes_of(hit_) + bytes_of(hit_next_) +
+                    bytes_of(local_pairs_) + bytes_of(active_mask_) + bytes_of(pair_buf_) + bytes_of(segs_) +
+                    bytes_of(cuts_) + bytes_of(sample_index_) + bytes_of(sample_);
   for (const Part& p : parts_) b += p.memory_bytes();
   for (const auto& l : chunk_keys_) b += bytes_of(l);
   b += bytes_of(key_offsets_) + bytes_of(key_scratch_);
@@ -218,25 +217,9 @@ void RestSet::reset() {
   std::fill(left_bits_.begin(), left_bits_.end(), std::uint64_t{0});
 }
 
-std::span<const std::uint32_t> RestSet::changed_list() {
-  if (!changed_listed_) {
-    changed_.clear();
-    for (std::size_t w = 0; w < changed_bits_.size(); ++w)
-      for (std::uint64_t m = changed_bits_[w]; m; m &= m - 1)
-        changed_.push_back(static_cast<std::uint32_t>(w * 64 + static_cast<std::size_t>(std::countr_zero(m))));
-    changed_listed_ = true;
-  }
-  return changed_;
-}
-
 void RestSet::clear_bits() {
-  if (changed_count_ * 16 > n_ || !changed_listed_) {
-    std::fill(changed_bits_.begin(), changed_bits_.end(), std::uint64_t{0});
-    std::fill(left_bits_.begin(), left_bits_.end(), std::uint64_t{0});
-    return;
-  }
-  for (const std::uint32_t k : changed_) clear_bit(changed_bits_, k);
-  for (const std::uint32_t k : left_) clear_bit(left_bits_, k);
+  std::fill(changed_bits_.begin(), changed_bits_.end(), std::uint64_t{0});
+  std::fill(left_bits_.begin(), left_bits_.end(), std::uint64_t{0});
 }
 
 float RestSet::margin_of(const Shapes& s, std::size_t k) const {
@@ -730,12 +713,10 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
     left_.insert(left_.end(), chunk_left_[c].begin(), chunk_left_[c].end());
     left_margin_.insert(left_margin_.end(), chunk_margin_[c].begin(), chunk_margin_[c].end());
   }
-  // The changed objects are the bits alone: counted here, listed on demand (changed_list()).
-  // Every object in a jiggling pile changes, and a list of them all cost a store per object; with
-  // a tenth of 10^6 objects listed in FrameInput::moved, the list made the listed pass slower
-  // than comparing every object.
+  // The changed objects are the bits alone, counted here. Every object in a jiggling pile
+  // changes, and a list of them all cost a store per object; with a tenth of 10^6 objects listed
+  // in FrameInput::moved, the list made the listed pass slower than comparing every object.
   changed_count_ = changed_total.load();
-  changed_listed_ = false;
   // Recent is built over the objects that left and those of its own that moved inside their
   // bounds: both count against the limit.
   if (left_.size() + pending_total.load() > limit) few = false;

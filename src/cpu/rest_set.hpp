@@ -158,14 +158,11 @@ class RestSet {
   std::span<const std::uint32_t> enter_main(int threads, std::vector<Pair>* pairs);
   /// Starts following: every object placed now, every candidate found.
   [[nodiscard]] Status enter(const Input& in, const StaticSet& set, StaticTree& st, int threads, FrameStats& stats);
-  /// Finds the objects that changed (changed_) and left their fat bounds (left_); false when more
-  /// than `limit` left.
+  /// Finds the objects that changed (changed_bits_) and left their fat bounds (left_); false when
+  /// more than `limit` left.
   [[nodiscard]] Status find_changes(const Input& in, int threads, std::size_t limit, bool& few);
-  /// Clears this frame's bits of changed_ and left_.
+  /// Clears this frame's bits of the changed objects and of left_.
   void clear_bits();
-  /// The objects that changed this frame, ascending: changed_, made from the bits on the first
-  /// call when find_changes() compared every object.
-  std::span<const std::uint32_t> changed_list();
   /// Follows one frame of changes.
   [[nodiscard]] Status update(const Input& in, const StaticSet& set, StaticTree& st, int threads, FrameStats& stats);
   /// The static pairs of the objects in `tree` (ids through `ids`), unfiltered, sorted: with fat
@@ -218,12 +215,11 @@ class RestSet {
   std::vector<std::uint32_t> recent_next_;        // update(): recent's objects for this frame
   std::vector<std::uint16_t> search_;             // update(): per bucket of recent, the lanes that search
   std::vector<std::uint8_t> part_of_;
-  std::vector<std::uint64_t> changed_bits_, left_bits_;  // this frame's changed_ and left_, as bitsets
+  std::vector<std::uint64_t> changed_bits_, left_bits_;  // this frame's changed objects and left_, as bitsets
   std::vector<std::uint32_t> local_;                     // the object's id in its tree
   Part parts_[3];
-  std::vector<std::uint32_t> changed_, left_, scratch_;
-  std::size_t changed_count_ = 0;  // this frame's changed objects
-  bool changed_listed_ = false;    // changed_ lists them (else only the bits do, until changed_list())
+  std::vector<std::uint32_t> left_, scratch_;
+  std::size_t changed_count_ = 0;                       // this frame's changed objects
   std::vector<std::vector<std::uint32_t>> chunk_left_;  // find_changes(): left_, per chunk
 
   // The candidates, sorted, with each one's exact result (hit_): in segments, one per chunk of
