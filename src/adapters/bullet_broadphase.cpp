@@ -100,13 +100,7 @@ void BulletBroadphase::setAabb(btBroadphaseProxy* proxy, const btVector3& aabbMi
     // A moving proxy's group and mask are read here, where the proxy is at hand, so that editing
     // them in place counts from the next frame (a pass over every proxy for them had cost more
     // than the frame of a world at rest).
-    if (valid && !p->fixed) {
-      const Filter f = filter_of(*p);
-      if (f.group != p->filter.group || f.mask != p->filter.mask) {  // the slot's copy only when it changed
-        p->filter = f;
-        st.set_filter(p->slot, f);
-      }
-    }
+    if (valid && !p->fixed) st.set_filter(p->slot, filter_of(*p));
     return;
   }
   const bool was_valid = p->valid;
@@ -128,8 +122,7 @@ void BulletBroadphase::setAabb(btBroadphaseProxy* proxy, const btVector3& aabbMi
     }
   } else {
     st.boxes[p->slot] = valid ? box : point_box(st.boxes[p->slot]);
-    p->filter = valid ? filter_of(*p) : kNeverPairs;
-    st.set_filter(p->slot, p->filter);
+    st.set_filter(p->slot, valid ? filter_of(*p) : kNeverPairs);
     st.note_moved(p->slot);
   }
 }

@@ -36,7 +36,6 @@ struct Proxy final : btBroadphaseProxy {
   std::uint32_t slot = kNoSlot;  // moving slot, or static slot (kNoSlot while out of the set)
   std::uint32_t list_index = 0;  // position in State::proxies
   Box box;
-  Filter filter{0, 0};  // a moving proxy's filter in its slot (State::filters[slot])
 };
 
 // Proxies made in cells of two cache lines, in slabs, in the order they are made (a destroyed
@@ -327,7 +326,6 @@ struct BulletBroadphase::State {
     slot_proxy[s] = p;
     boxes[s] = p->valid ? p->box : Box{};
     set_filter(s, p->valid ? filter_of(*p) : kNeverPairs);
-    p->filter = filters[s];
     mark_moving(s);
     note_moved(s);
   }
