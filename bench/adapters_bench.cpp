@@ -264,18 +264,24 @@ class BulletWorld {
     r.share_ms = tail(broadphase_.share_ms);
     r.step_ms = tail(step_ms_);
     const std::size_t first = std::min<std::size_t>(5, step_ms_.size()), n = step_ms_.size() - first;
+    // The median of v over steps [b, e), or 0 when v does not reach e.
+    const auto span_median = [](const std::vector<double>& v, std::size_t b, std::size_t e) {
+      if (v.size() < e) return 0.0;
+      return median(
+          std::vector<double>(v.begin() + static_cast<std::ptrdiff_t>(b), v.begin() + static_cast<std::ptrdiff_t>(e)));
+    };
+    // The mean of v after the first steps.
+    const auto run_mean = [&](const std::vector<double>& v) {
+      double sum = 0;
+      for (std::size_t k = first; k < v.size(); ++k) sum += v[k];
+      return v.size() > first ? sum / static_cast<double>(v.size() - first) : 0.0;
+    };
     for (int q = 0; q < 4; ++q) {
       const std::size_t b = first + n * static_cast<std::size_t>(q) / 4,
                         e = first + n * static_cast<std::size_t>(q + 1) / 4;
-      r.quarter_step_ms[q] = median(std::vector<double>(step_ms_.begin() + static_cast<std::ptrdiff_t>(b),
-                                                        step_ms_.begin() + static_cast<std::ptrdiff_t>(e)));
-      if (broadphase_.share_ms.size() >= e)
-        r.quarter_share_ms[q] =
-            median(std::vector<double>(broadphase_.share_ms.begin() + static_cast<std::ptrdiff_t>(b),
-                                       broadphase_.share_ms.begin() + static_cast<std::ptrdiff_t>(e)));
-      if (broadphase_.own_ms.size() >= e)
-        r.quarter_own_ms[q] = median(std::vector<double>(broadphase_.own_ms.begin() + static_cast<std::ptrdiff_t>(b),
-                                                         broadphase_.own_ms.begin() + static_cast<std::ptrdiff_t>(e)));
+      r.quarter_step_ms[q] = span_median(step_ms_, b, e);
+      r.quarter_share_ms[q] = span_median(broadphase_.share_ms, b, e);
+      r.quarter_own_ms[q] = span_median(broadphase_.own_ms, b, e);
       if (broadphase_.changed.size() >= e && e > b) {
         double c = 0;
         for (std::size_t k = b; k < e; ++k) c += broadphase_.changed[k];
@@ -291,11 +297,8 @@ class BulletWorld {
         r.quarter_replaced[q] = m / static_cast<double>(e - b);
       }
     }
-    for (std::size_t k = first; k < broadphase_.share_ms.size(); ++k) r.mean_share_ms += broadphase_.share_ms[k];
-    if (broadphase_.share_ms.size() > first)
-      r.mean_share_ms /= static_cast<double>(broadphase_.share_ms.size() - first);
-    for (std::size_t k = first; k < broadphase_.own_ms.size(); ++k) r.mean_own_ms += broadphase_.own_ms[k];
-    if (broadphase_.own_ms.size() > first) r.mean_own_ms /= static_cast<double>(broadphase_.own_ms.size() - first);
+    r.mean_share_ms = run_mean(broadphase_.share_ms);
+    r.mean_own_ms = run_mean(broadphase_.own_ms);
     if (!broadphase_.stage_ms.empty() && broadphase_.stage_ms.size() == broadphase_.pairs_ms.size()) {
       const std::size_t from = broadphase_.stage_ms.size() / 2, count = broadphase_.stage_ms.size() - from;
       r.late_stage_ms.assign(viscd::kStageCount, 0);
