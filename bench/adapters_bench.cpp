@@ -582,12 +582,13 @@ void bench_fcl(int boxes, int reps) {
   }
   std::vector<fcl::CollisionObjectd*> pointers;
   for (auto& o : objects) pointers.push_back(o.get());
-  std::printf("fcl: self collision of %d boxes, counting callback, medians of %d runs (ms)\n", boxes, reps);
+  std::printf(
+      "fcl: self collision of %d boxes, counting callback, medians of %d runs (ms); the managers take\n"
+      "turns in every run, and x FCL is the median of the runs' ratios\n",
+      boxes, reps);
   // Pairs: after setup, every manager's callback count is exact or above (viscd: float boxes
   // rounded outward); after update, DynamicAABBTree keeps a leaf's old box while it contains the
   // new one, so it may count more.
-  std::printf("%-38s %14s %16s %16s %12s %14s\n", "manager", "setup+collide", "update+collide", "1%named+collide",
-              "setup_pairs", "pairs_last");
   const std::vector<std::pair<std::string, std::function<std::unique_ptr<fcl::BroadPhaseCollisionManagerd>()>>> kinds =
       {
           {"viscd::FclBroadphaseManager", [] { return std::make_unique<viscd::FclBroadphaseManager>(); }},
@@ -596,57 +597,78 @@ void bench_fcl(int boxes, int reps) {
       };
   std::vector<fcl::Transform3d> initial;
   for (auto& o : objects) initial.push_back(o->getTransform());
-  for (const auto& [name, make] : kinds) {
-    // Every manager sees the same boxes and the same moves.
-    for (std::size_t k = 0; k < objects.size(); ++k) {
-      objects[k]->setTransform(initial[k]);
-      objects[k]->computeAABB();
-    }
-    std::mt19937 moves(3);
-    std::vector<double> first, second, few;
+  struct Times {
+    std::vector<double> first, second, update, few;
     std::size_t pairs = 0, setup_pairs = 0;
-    for (int r = 0; r < reps; ++r) {
-      auto manager = make();
+  };
+  std::vector<Times> times(kinds.size());
+  for (int r = 0; r < reps; ++r) {
+    for (std::size_t kind = 0; kind < kinds.size(); ++kind) {
+      // Every manager sees the same boxes and the same moves.
+      for (std::size_t k = 0; k < objects.size(); ++k) {
+        objects[k]->setTransform(initial[k]);
+        objects[k]->computeAABB();
+      }
+      std::mt19937 moves(3 + static_cast<unsigned>(r));
+      Times& t = times[kind];
+      auto manager = kinds[kind].second();
       auto start = Clock::now();
       manager->registerObjects(pointers);
       manager->setup();
-      pairs = 0;
-      manager->collide(&pairs, count_pair);
-      first.push_back(ms_since(start));
-      setup_pairs = pairs;
+      t.pairs = 0;
+      manager->collide(&t.pairs, count_pair);
+      t.first.push_back(ms_since(start));
+      t.setup_pairs = t.pairs;
       for (auto& o : objects) {  // every box moves a little
-        fcl::Transform3d t = o->getTransform();
-        t.translation() += fcl::Vector3d(step(moves), step(moves), step(moves));
-        o->setTransform(t);
+        fcl::Transform3d pose = o->getTransform();
+        pose.translation() += fcl::Vector3d(step(moves), step(moves), step(moves));
+        o->setTransform(pose);
         o->computeAABB();
       }
       start = Clock::now();
       manager->update();
-      pairs = 0;
-      manager->collide(&pairs, count_pair);
-      second.push_back(ms_since(start));
-      // Then frames where 1 % of the boxes move and update(vector) names them.
+      t.update.push_back(ms_since(start));
+      t.pairs = 0;
+      manager->collide(&t.pairs, count_pair);
+      t.second.push_back(ms_since(start));
+      // Then frames where 1 % of the boxes move and update(vector) names them; the run's median.
+      std::vector<double> few;
       for (int f = 0; f < 10; ++f) {
         std::vector<fcl::CollisionObjectd*> named;
         for (std::size_t k = 0; k < objects.size(); k += 100) {
           auto& o = objects[(k + static_cast<std::size_t>(f) * 37) % objects.size()];
-          fcl::Transform3d t = o->getTransform();
-          t.translation() += fcl::Vector3d(step(moves), step(moves), step(moves));
-          o->setTransform(t);
+          fcl::Transform3d pose = o->getTransform();
+          pose.translation() += fcl::Vector3d(step(moves), step(moves), step(moves));
+          o->setTransform(pose);
           o->computeAABB();
           named.push_back(o.get());
         }
         start = Clock::now();
         manager->update(named);
-        pairs = 0;
-        manager->collide(&pairs, count_pair);
+        t.pairs = 0;
+        manager->collide(&t.pairs, count_pair);
         few.push_back(ms_since(start));
       }
+      t.few.push_back(median(few));
     }
-    std::printf("%-38s %14.1f %16.1f %16.2f %12zu %14zu\n", name.c_str(), median(first), median(second), median(few),
-                setup_pairs, pairs);
-    std::fflush(stdout);
   }
+  // The ratio of FCL's time (the last kind) to viscd's, per run.
+  const auto ratio = [&](std::vector<double> Times::*column) {
+    std::vector<double> r;
+    for (std::size_t k = 0; k < (times[0].*column).size(); ++k)
+      r.push_back((times.back().*column)[k] / (times[0].*column)[k]);
+    return median(r);
+  };
+  std::printf("%-38s %14s %16s %10s %16s %12s %14s\n", "manager", "setup+collide", "update+collide", "(update)",
+              "1%named+collide", "setup_pairs", "pairs_last");
+  for (std::size_t kind = 0; kind < kinds.size(); ++kind) {
+    const Times& t = times[kind];
+    std::printf("%-38s %14.1f %16.1f %10.2f %16.2f %12zu %14zu\n", kinds[kind].first.c_str(), median(t.first),
+                median(t.second), median(t.update), median(t.few), t.setup_pairs, t.pairs);
+  }
+  std::printf("%-38s %14.2f %16.2f %10s %16.2f\n", "x FCL (median of per-run ratios)", ratio(&Times::first),
+              ratio(&Times::second), "", ratio(&Times::few));
+  std::fflush(stdout);
 }
 
 }  // namespace

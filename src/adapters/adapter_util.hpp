@@ -12,29 +12,24 @@
 
 namespace viscd::adapter_detail {
 
-/// The float next to f toward -inf / +inf, for f not NaN and not already at that end: a step of
-/// its bits (what std::nextafter does, without the call: it ran for half of every bound).
-[[nodiscard]] inline float float_below(float f) {
-  if (f == 0) return -std::numeric_limits<float>::denorm_min();
-  const auto b = std::bit_cast<std::uint32_t>(f);
-  return std::bit_cast<float>(f > 0 ? b - 1 : b + 1);
-}
-[[nodiscard]] inline float float_above(float f) {
-  if (f == 0) return std::numeric_limits<float>::denorm_min();
-  const auto b = std::bit_cast<std::uint32_t>(f);
-  return std::bit_cast<float>(f > 0 ? b + 1 : b - 1);
-}
-
 /// v rounded down / up to a float: the largest float <= v, the smallest float >= v (v itself for
 /// a float). A box rounded this way holds the engine's box, so no overlap is lost. NaN stays NaN;
 /// beyond the float range, +-inf (and the largest float on the side toward v).
+///
+/// The float nearest v, then one step of its bits away from v when it overshot: for a step down
+/// the bits of a float with the sign bit clear go down by one, those of one with it set (-0
+/// included: -0 less a step is the negative float nearest zero) go up. An overshooting +0 cannot
+/// occur (a negative v rounds to -0 or below), nor a -0 rounding up. No branch: the adapters
+/// round every bound of every object each frame, and half of them took the step's branch.
 template <class T>
 [[nodiscard]] float round_down(T v) {
   if constexpr (std::is_same_v<T, float>) {
     return v;
   } else {
     const auto f = static_cast<float>(v);
-    return static_cast<T>(f) > v ? float_below(f) : f;  // f > v: not NaN, not -inf
+    const auto bits = std::bit_cast<std::uint32_t>(f);
+    const std::uint32_t step = (bits >> 31) != 0 ? 1u : ~0u;                  // +1 or -1 on the bits
+    return std::bit_cast<float>(bits + (static_cast<T>(f) > v ? step : 0u));  // f > v: not NaN, not -inf
   }
 }
 template <class T>
@@ -43,7 +38,9 @@ template <class T>
     return v;
   } else {
     const auto f = static_cast<float>(v);
-    return static_cast<T>(f) < v ? float_above(f) : f;  // f < v: not NaN, not +inf
+    const auto bits = std::bit_cast<std::uint32_t>(f);
+    const std::uint32_t step = (bits >> 31) != 0 ? ~0u : 1u;
+    return std::bit_cast<float>(bits + (static_cast<T>(f) < v ? step : 0u));  // f < v: not NaN, not +inf
   }
 }
 

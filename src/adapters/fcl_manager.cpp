@@ -44,24 +44,30 @@ constexpr double kHuge = std::numeric_limits<double>::max();
 // Pairs a grown frame may hold before a distance round falls back to visiting pairs one by one.
 constexpr std::size_t kGrownPairMemory = std::size_t{512} << 20;
 
-// The AABB grown by `grow` on every side, as a float box holding it: bounds rounded outward
-// (one double step out first, for the rounding of the sum), clamped to +-kMaxCoordinate
+// The AABB as a float box holding it: bounds rounded outward, clamped to +-kMaxCoordinate
 // (monotone, so overlaps are kept), a NaN bound spanning everything (fcl::AABB::overlap is true
-// for NaN bounds).
-Box to_box(const Aabb& a, double grow = 0) {
+// for NaN bounds). Without branches and inlined: update() converts every object's AABB.
+inline Box to_box(const Aabb& a) {
   Box b;
   for (int k = 0; k < 3; ++k) {
-    double lo = a.min_[k], hi = a.max_[k];
-    if (grow > 0) {
-      lo = std::nextafter(lo - grow, -kHuge);
-      hi = std::nextafter(hi + grow, kHuge);
-    }
-    b.min[k] =
-        std::isnan(lo) ? -kMaxCoordinate : std::clamp(adapter_detail::round_down(lo), -kMaxCoordinate, kMaxCoordinate);
-    b.max[k] =
-        std::isnan(hi) ? kMaxCoordinate : std::clamp(adapter_detail::round_up(hi), -kMaxCoordinate, kMaxCoordinate);
+    // Written so that a NaN bound fails the first comparison and lands at the far end.
+    const float down = adapter_detail::round_down(a.min_[k]), up = adapter_detail::round_up(a.max_[k]);
+    b.min[k] = down > -kMaxCoordinate ? std::min(down, kMaxCoordinate) : -kMaxCoordinate;
+    b.max[k] = up < kMaxCoordinate ? std::max(up, -kMaxCoordinate) : kMaxCoordinate;
   }
   return b;
+}
+
+// The AABB grown by `grow` on every side, as such a box (one double step out first, for the
+// rounding of the sum).
+Box to_box(const Aabb& a, double grow) {
+  if (!(grow > 0)) return to_box(a);
+  Aabb g;
+  for (int k = 0; k < 3; ++k) {
+    g.min_[k] = std::nextafter(a.min_[k] - grow, -kHuge);
+    g.max_[k] = std::nextafter(a.max_[k] + grow, kHuge);
+  }
+  return to_box(g);
 }
 
 // Half the radius each box grows by so that pairs whose computed AABB distance is at most r
@@ -342,7 +348,11 @@ void FclBroadphaseManager::update() {
       threads <= 1 ? 1 : std::clamp<std::size_t>(n / kPerChunk, 1, 2 * static_cast<std::size_t>(threads));
   const auto read_range = [&](std::size_t begin, std::size_t end) {
     for (std::size_t k = begin; k < end; ++k) {
-      if (k + kAhead < end) __builtin_prefetch(&st.objects[k + kAhead]->getAABB());
+      if (k + kAhead < end) {  // both lines an AABB (48 bytes) may span
+        const auto* ahead = reinterpret_cast<const char*>(&st.objects[k + kAhead]->getAABB());
+        __builtin_prefetch(ahead);
+        __builtin_prefetch(ahead + sizeof(Aabb) - 1);
+      }
       st.read(static_cast<std::uint32_t>(k));
     }
   };

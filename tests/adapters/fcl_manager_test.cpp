@@ -17,6 +17,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <random>
 #include <set>
@@ -459,6 +460,66 @@ TEST(FclBroadphaseManager, EmptyManagers) {
   EXPECT_EQ(d.calls, 0);
   other.clear();
   EXPECT_TRUE(other.empty());
+}
+
+// AABBs no float holds: NaN bounds (FCL's overlap test is true for them), bounds beyond the float
+// range and beyond viscd's coordinate limit, tiny ones. Every pair whose AABBs overlap is offered
+// once, through the first read, update() and collide(obj), against Naive's pairs.
+TEST(FclBroadphaseManager, BoundsNoFloatHoldsKeepEveryOverlap) {
+  const double nan = std::nan(""), max_float = std::numeric_limits<float>::max();
+  std::vector<std::unique_ptr<Object>> objects;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-2, 2);
+  auto add = [&](double x, double y, double z) {
+    fcl::Transform3d t = fcl::Transform3d::Identity();
+    t.translation() = fcl::Vector3d(x, y, z);
+    objects.push_back(std::make_unique<Object>(std::make_shared<fcl::Boxd>(1, 1, 1), t));
+    objects.back()->computeAABB();
+  };
+  for (int k = 0; k < 40; ++k) add(u(rng), u(rng), u(rng));
+  for (const double far : {1e300, -1e300, 1.5 * max_float, -1.5 * max_float, 2e18, -2e18}) add(far, u(rng), u(rng));
+  add(nan, 0, 0);
+  add(0, nan, 1);
+  add(1e-40, -1e-40, 1e-45);
+  struct Offered {
+    static bool add(Object* a, Object* b, void* data) {
+      static_cast<std::vector<std::pair<const Object*, const Object*>>*>(data)->push_back(unordered(a, b));
+      return false;
+    }
+  };
+  auto check = [&](Manager& ours, Manager& naive) {
+    std::vector<std::pair<const Object*, const Object*>> got, want;
+    ours.collide(&got, Offered::add);
+    naive.collide(&want, Offered::add);
+    const PairSet offered(got.begin(), got.end());
+    EXPECT_EQ(offered.size(), got.size()) << "a pair offered twice";
+    for (const auto& p : want) EXPECT_TRUE(offered.count(p)) << "a pair whose AABBs overlap is missing";
+    for (const auto& o : objects) {
+      std::vector<std::pair<const Object*, const Object*>> one;
+      ours.collide(o.get(), &one, Offered::add);
+      for (const auto& other : objects)
+        if (other != o && aabbs_overlap(o.get(), other.get())) {
+          EXPECT_TRUE(std::count(one.begin(), one.end(), unordered(o.get(), other.get())) == 1);
+        }
+    }
+  };
+  std::vector<Object*> all;
+  for (auto& o : objects) all.push_back(o.get());
+  viscd::FclBroadphaseManager ours;
+  fcl::NaiveCollisionManagerd naive;
+  register_both(ours, naive, all);
+  check(ours, naive);
+  std::shuffle(objects.begin(), objects.end() - 1, rng);
+  for (std::size_t k = 0; k + 1 < objects.size(); k += 2) {  // pairs of objects swap places
+    const fcl::Transform3d t = objects[k]->getTransform();
+    objects[k]->setTransform(objects[k + 1]->getTransform());
+    objects[k + 1]->setTransform(t);
+    objects[k]->computeAABB();
+    objects[k + 1]->computeAABB();
+  }
+  ours.update();
+  naive.update();
+  check(ours, naive);
 }
 
 TEST(FclBroadphaseManager, StopsWhenTheCallbackSaysSo) {
