@@ -1,6 +1,7 @@
 // viscd_microbench: Google Benchmark micro-benchmarks (docs/benchmarks.md).
 //
 //   bm_radix_sort<K>   stage 6 alone: 16/32/64-bit random keys with values 0..n-1, all threads and 1
+//   bm_pair_sort       stage 8's pair sort alone: random pairs (i < j) of n objects in 16 lists
 //   bm_cpu_frame       one whole cpu frame (detect(), no camera) on the moving ring scene
 //
 // Both use manual timing: the untimed part of each iteration (restoring the unsorted keys,
@@ -14,6 +15,7 @@
 #include <random>
 #include <vector>
 
+#include "cpu/pair_collector.hpp"
 #include "cpu/parallel.hpp"
 #include "cpu/radix_sort.hpp"
 #include "viscd/scene.hpp"
@@ -46,6 +48,33 @@ void bm_radix_sort(benchmark::State& state) {
     benchmark::DoNotOptimize(keys.data());
   }
   state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()) * state.range(0));
+}
+
+// range(0) = objects, range(1) = pairs, range(2) = threads (0 = all). The pairs are spread over
+// 16 lists (one per chunk of the search, as a frame on two threads makes them), first indices
+// uniform: object ids carry no order of place, so a frame's pairs arrive in no order either.
+void bm_pair_sort(benchmark::State& state) {
+  const auto objects = static_cast<std::uint32_t>(state.range(0));
+  const auto count = static_cast<std::size_t>(state.range(1));
+  constexpr std::size_t kLists = 16;
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<std::uint32_t> first(0, objects - 2);
+  std::vector<std::vector<std::uint64_t>> lists(kLists);
+  for (std::size_t k = 0; k < count; ++k) {
+    const std::uint32_t i = first(rng);
+    const std::uint32_t j = i + 1 + static_cast<std::uint32_t>(rng() % (objects - 1 - i));
+    lists[k % kLists].push_back(viscd::detail::pair_key(i, j));
+  }
+  std::vector<std::uint32_t> offsets;
+  std::vector<viscd::Pair> scratch, out;
+  const int threads = viscd::detail::resolve_threads(static_cast<int>(state.range(2)));
+  for (auto _ : state) {
+    const auto t0 = std::chrono::steady_clock::now();
+    viscd::detail::sort_chunk_pairs(lists, objects, offsets, scratch, out, threads);
+    state.SetIterationTime(seconds_since(t0));
+    benchmark::DoNotOptimize(out.data());
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()) * state.range(1));
 }
 
 // range(0) = N, range(1) = Config::threads (0 = all).
@@ -98,6 +127,14 @@ BENCHMARK_TEMPLATE(bm_radix_sort, std::uint64_t)
     ->Apply(size_and_thread_args)
     ->UseManualTime()
     ->Unit(benchmark::kMicrosecond);
+BENCHMARK(bm_pair_sort)
+    ->Args({100000, 97000, 0})
+    ->Args({1000000, 580000, 0})
+    ->Args({1000000, 2500000, 0})
+    ->Args({1000000, 2500000, 1})
+    ->ArgNames({"objects", "pairs", "threads"})
+    ->UseManualTime()
+    ->Unit(benchmark::kMillisecond);
 BENCHMARK(bm_cpu_frame)->Apply(size_and_thread_args)->UseManualTime()->Unit(benchmark::kMillisecond);
 
 BENCHMARK_MAIN();
