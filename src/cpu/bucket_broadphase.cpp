@@ -2,8 +2,10 @@
 
 #include <algorithm>
 
+#include "core/geometry.hpp"
 #include "core/stopwatch.hpp"
 #include "cpu/bucket_search.hpp"
+#include "cpu/grow.hpp"
 #include "cpu/parallel.hpp"
 #include "viscd/assert.hpp"
 
@@ -11,7 +13,7 @@ namespace viscd::detail {
 
 std::uint64_t BucketBroadphase::memory_bytes() const {
   std::uint64_t b = order_.memory_bytes() + buckets_.memory_bytes() + keep_order_.memory_bytes() +
-                    pairs_.memory_bytes() + bytes_of(position_);
+                    pairs_.memory_bytes() + bytes_of(position_) + bytes_of(proxies_);
   for (const auto& level : tree_.level) b += bytes_of(level);
   return b;
 }
@@ -47,6 +49,13 @@ double BucketBroadphase::fill_reading(std::span<const Sphere> spheres, std::size
   });
 }
 
+std::span<const Sphere> BucketBroadphase::box_proxies(int threads) {
+  const std::span<const Box> boxes = extras_.boxes;
+  resize_with_headroom(proxies_, boxes.size());
+  parallel_for(boxes.size(), threads, [&](std::size_t k) { proxies_[k] = box_proxy(boxes[k]); });
+  return {proxies_.data(), boxes.size()};
+}
+
 void BucketBroadphase::index_positions(int threads) {
   const std::span<const std::uint32_t> ids = order_.sorted_ids();
   if (!position_.empty() || ids.empty()) return;
@@ -70,6 +79,9 @@ void BucketBroadphase::build_tree(std::span<const Sphere> spheres, std::span<con
   position_.clear();
   Stopwatch attempt;
   if (keep_last_order(spheres, active, filters, bits, layout, threads, stats)) return;
+  // A box frame that gave no spheres: their proxies, now that stages 4-6 need them (a frame over
+  // 10^5 boxes had made them every frame, kept order or not: a pass over every box).
+  if (spheres.empty() && !extras_.boxes.empty()) spheres = box_proxies(threads);
   const double attempt_ms = attempt.lap();  // an attempt that found the buckets spread: counted in build
 
   order_.sort(spheres, active, bits, layout, threads, stats);  // stages 4-6
@@ -104,7 +116,7 @@ bool BucketBroadphase::keep_last_order(std::span<const Sphere> spheres, std::spa
                                        FrameStats& stats) {
   report_ = {};
   const std::size_t n = active.size();
-  if (bits != order_.bits() || order_.last_count() != n || !keep_order_.may_keep(spheres.size(), active, layout))
+  if (bits != order_.bits() || order_.last_count() != n || !keep_order_.may_keep(objects_in(spheres), active, layout))
     return false;
   Stopwatch sw;
   stats.bits = bits;

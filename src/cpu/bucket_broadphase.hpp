@@ -37,7 +37,9 @@
 namespace viscd::detail {
 
 /// What a frame may add to its spheres: for a box frame the boxes (then the spheres are their
-/// box_proxy(), which stages 4-6 order, and stages 7-8 pack and test the boxes themselves).
+/// box_proxy(), which stages 4-6 order, and stages 7-8 pack and test the boxes themselves). A box
+/// frame may give no spheres at all: the broadphase then makes the proxies itself, and only when
+/// the frame sorts (a frame that keeps the last order reads the boxes alone).
 struct BroadphaseExtras {
   std::span<const Box> boxes;
 };
@@ -188,9 +190,17 @@ class BucketBroadphase {
   double fill_reading(std::span<const Sphere> spheres, std::size_t n, std::span<const std::uint32_t> ids,
                       std::span<const Filter> filters, int threads);
 
+  /// The objects of this frame: its spheres, or its boxes when it gave none.
+  [[nodiscard]] std::size_t objects_in(std::span<const Sphere> spheres) const {
+    return spheres.empty() ? extras_.boxes.size() : spheres.size();
+  }
+  /// box_proxy() of each of this frame's boxes, in proxies_.
+  std::span<const Sphere> box_proxies(int threads);
+
   SimdLevel simd_ = best_simd_level();
   SortReport report_;
   Extras extras_;                        // this frame's
+  std::vector<Sphere> proxies_;          // box frames that gave no spheres, when they sort
   std::vector<std::uint32_t> position_;  // erase(): object id -> sorted position, made on first use
 };
 

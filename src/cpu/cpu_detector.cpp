@@ -5,18 +5,13 @@
 
 #include "core/brute_queries.hpp"
 #include "core/frame_rules.hpp"
+#include "core/geometry.hpp"
 #include "core/stopwatch.hpp"
 #include "cpu/parallel.hpp"
 #include "viscd/assert.hpp"
 
 namespace viscd {
 namespace detail {
-
-std::span<const Sphere> CpuDetector::box_proxies(std::span<const Box> boxes, int threads) {
-  resize_with_headroom(proxies_, boxes.size());
-  parallel_for(boxes.size(), threads, [&](std::size_t k) { proxies_[k] = box_proxy(boxes[k]); });
-  return {proxies_.data(), boxes.size()};
-}
 
 Status CpuDetector::draw_frame(const CameraRig& cam, const Camera& camera, const FrameInput& in, int threads) {
   const Shapes moving = Shapes::of(in);
@@ -151,7 +146,7 @@ void CpuDetector::prepare_queries() {
   if (objects.is_box()) {
     BucketBroadphase::Extras extras;
     extras.boxes = objects.boxes;
-    broadphase_.build(box_proxies(objects.boxes, threads), active, q_bits_, config_.layout, threads, unused, extras);
+    broadphase_.build({}, active, q_bits_, config_.layout, threads, unused, extras);  // it makes the proxies
   } else {
     broadphase_.build(objects.spheres, active, q_bits_, config_.layout, threads, unused);
   }
@@ -166,15 +161,11 @@ Status CpuDetector::broadphase(const Shapes& objects, std::span<const std::uint3
   // The static set is static_tree_'s (handles_static()): `objects` are the frame's alone.
   VISCD_ASSERT(static_from == ~0u, "the cpu backend's frames hold no static objects");
   (void)static_from;
-  // Box frames: stages 4-6 order the boxes' proxies; stages 7-8 pack and test the boxes.
-  std::span<const Sphere> spheres = objects.spheres;
+  // Box frames: stages 4-6 order the boxes' proxies, which the broadphase makes when it sorts;
+  // stages 7-8 pack and test the boxes.
+  const std::span<const Sphere> spheres = objects.spheres;
   BucketBroadphase::Extras extras;
-  if (objects.is_box()) {
-    spheres = box_proxies(objects.boxes, threads);
-    extras.boxes = objects.boxes;
-  } else {
-    proxies_.clear();
-  }
+  if (objects.is_box()) extras.boxes = objects.boxes;
   // The objects left out of the tree, kept for queries with their filters (the tree's own
   // filters are kept in sorted order by the broadphase); no copy without filters.
   unpaired_built_.store(false);
@@ -185,7 +176,7 @@ Status CpuDetector::broadphase(const Shapes& objects, std::span<const std::uint3
   resize_with_headroom(unpaired_filters_, kept);
   for (std::size_t k = 0; k < kept; ++k) {
     unpaired_ids_[k] = unpaired[k];
-    unpaired_spheres_[k] = spheres[unpaired[k]];
+    unpaired_spheres_[k] = objects.is_box() ? box_proxy(objects.boxes[unpaired[k]]) : spheres[unpaired[k]];
     if (objects.is_box()) unpaired_boxes_[k] = objects.boxes[unpaired[k]];
     unpaired_filters_[k] = filters[unpaired[k]];
   }

@@ -27,8 +27,8 @@ class CpuDetector final : public PipelineDetector {
   [[nodiscard]] std::uint64_t backend_memory_bytes() const override {
     return raster_.memory_bytes() + box_raster_.memory_bytes() + broadphase_.memory_bytes() +
            unpaired_tree_.memory_bytes() + bytes_of(unpaired_spheres_) + bytes_of(unpaired_ids_) +
-           bytes_of(unpaired_filters_) + bytes_of(iota_) + bytes_of(proxies_) + static_tree_.memory_bytes() +
-           bytes_of(cross_) + bytes_of(merged_) + static_layer_.memory_bytes() + static_raster_.memory_bytes() +
+           bytes_of(unpaired_filters_) + bytes_of(iota_) + static_tree_.memory_bytes() + bytes_of(cross_) +
+           bytes_of(merged_) + static_layer_.memory_bytes() + static_raster_.memory_bytes() +
            static_box_raster_.memory_bytes() + rest_.memory_bytes() + bytes_of(q_filters_) + bytes_of(unpaired_boxes_);
   }
   /// With FrameInput::moved while the rest set follows these objects: only the listed ones.
@@ -96,9 +96,6 @@ class CpuDetector final : public PipelineDetector {
 
   TiledRasterizer raster_;
   BoxRasterizer box_raster_;
-  std::vector<Sphere> proxies_;  // box frames: box_proxy() of each object, for stages 4-6
-  /// box_proxy() of every box, in proxies_.
-  std::span<const Sphere> box_proxies(std::span<const Box> boxes, int threads);
   StaticTree static_tree_;
   // The static set's map layer (ids: compact index + 1) and what it was drawn for.
   VisibilityMap static_layer_;
