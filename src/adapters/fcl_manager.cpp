@@ -19,7 +19,6 @@
 #include <cstring>
 #include <limits>
 #include <span>
-#include <unordered_map>
 #include <vector>
 
 #include "adapter_util.hpp"
@@ -87,7 +86,7 @@ struct FclBroadphaseManager::State {
   std::unique_ptr<Detector> detector;  // the self frame; collide(obj)'s box query
   std::unique_ptr<Detector> grown;     // grown and cross frames
   std::vector<Object*> objects;
-  std::unordered_map<const Object*, std::uint32_t> index;
+  adapter_detail::PointerIndex index;  // object -> its index in `objects`
   std::vector<Aabb> aabbs;
   std::vector<Box> boxes;
   bool frame_ready = false;  // `frame` describes `boxes`
@@ -292,7 +291,7 @@ struct FclBroadphaseManager::State {
       objects[k] = objects[last];
       aabbs[k] = aabbs[last];
       boxes[k] = boxes[last];
-      index[objects[k]] = k;
+      index.assign(objects[k], k);
     }
     objects.pop_back();
     aabbs.pop_back();
@@ -309,14 +308,14 @@ FclBroadphaseManager::~FclBroadphaseManager() = default;
 void FclBroadphaseManager::registerObjects(const std::vector<Object*>& other_objs) {
   State& st = *state_;
   st.objects.reserve(st.objects.size() + other_objs.size());
+  st.index.reserve(st.objects.size() + other_objs.size());
   for (Object* obj : other_objs) registerObject(obj);
 }
 
 void FclBroadphaseManager::registerObject(Object* obj) {
   State& st = *state_;
-  if (!obj || st.index.count(obj)) return;
   const auto k = static_cast<std::uint32_t>(st.objects.size());
-  st.index.emplace(obj, k);
+  if (!st.index.insert(obj, k)) return;  // null, or registered already
   st.objects.push_back(obj);
   st.aabbs.emplace_back();
   st.boxes.emplace_back();
@@ -327,8 +326,8 @@ void FclBroadphaseManager::registerObject(Object* obj) {
 
 void FclBroadphaseManager::unregisterObject(Object* obj) {
   State& st = *state_;
-  const auto it = st.index.find(obj);
-  if (it != st.index.end()) st.remove_at(it->second);
+  const std::uint32_t k = st.index.find(obj);
+  if (k != adapter_detail::PointerIndex::kMissing) st.remove_at(k);
 }
 
 void FclBroadphaseManager::setup() { update(); }
@@ -369,13 +368,32 @@ void FclBroadphaseManager::update() {
 
 void FclBroadphaseManager::update(Object* updated_obj) {
   State& st = *state_;
-  const auto it = st.index.find(updated_obj);
-  if (it == st.index.end()) return;
-  st.reread(it->second);
+  const std::uint32_t k = st.index.find(updated_obj);
+  if (k != adapter_detail::PointerIndex::kMissing) st.reread(k);
 }
 
 void FclBroadphaseManager::update(const std::vector<Object*>& updated_objs) {
-  for (Object* obj : updated_objs) update(obj);
+  // Each object costs its index slot, its AABB, and its entries in aabbs and boxes, all scattered:
+  // the slots and AABBs of the objects eight ahead are fetched, and the entries of those four
+  // ahead (whose slots are in cache by then).
+  State& st = *state_;
+  constexpr std::size_t kSlotAhead = 8, kEntryAhead = 4;
+  const std::size_t n = updated_objs.size();
+  for (std::size_t t = 0; t < n; ++t) {
+    if (t + kSlotAhead < n && updated_objs[t + kSlotAhead] != nullptr) {
+      const Object* ahead = updated_objs[t + kSlotAhead];
+      __builtin_prefetch(st.index.slot_of(ahead));
+      __builtin_prefetch(&ahead->getAABB());
+    }
+    if (t + kEntryAhead < n) {
+      if (const std::uint32_t k = st.index.find(updated_objs[t + kEntryAhead]);
+          k != adapter_detail::PointerIndex::kMissing) {
+        __builtin_prefetch(&st.aabbs[k]);
+        __builtin_prefetch(&st.boxes[k]);
+      }
+    }
+    update(updated_objs[t]);
+  }
 }
 
 void FclBroadphaseManager::clear() {

@@ -1,11 +1,12 @@
 // The adapters' outward rounding (src/adapters/adapter_util.hpp) against its definition: the
-// largest float <= v and the smallest float >= v, found here with std::nextafter; and the lists
-// lent per call.
+// largest float <= v and the smallest float >= v, found here with std::nextafter; the lists lent
+// per call; the index of an engine's objects against std::unordered_map.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <limits>
 #include <random>
+#include <unordered_map>
 #include <vector>
 
 #include "adapter_util.hpp"
@@ -70,6 +71,69 @@ TEST(AdapterRounding, EqualsNextafterEverywhere) {
   EXPECT_TRUE(std::isnan(round_down(std::nan(""))));
   EXPECT_TRUE(std::isnan(round_up(std::nan(""))));
   EXPECT_EQ(round_down(1.5f), 1.5f);  // a float in: itself
+}
+
+// Random inserts, removals, reassignments and lookups against std::unordered_map: many pools of
+// seven keys (they stay in a table of 16 slots, so probe runs wrap around its end and removals
+// shift runs back across it; every key is looked up after every step), and pools of 5 000, with
+// keys spaced as allocations are (16 bytes) and at random.
+TEST(PointerIndex, MatchesUnorderedMap) {
+  struct Case {
+    std::size_t keys, pools, steps;
+  };
+  for (const Case c : {Case{7, 200, 2000}, Case{5000, 1, 200000}}) {
+    for (const bool spaced : {true, false}) {
+      std::mt19937_64 rng(c.keys + spaced);
+      for (std::size_t round = 0; round < c.pools; ++round) {
+        std::vector<std::uintptr_t> pool(c.keys);
+        const std::uintptr_t base = 16 * (rng() >> 20);
+        for (std::size_t k = 0; k < c.keys; ++k) pool[k] = spaced ? base + 16 * k : (rng() | 1);
+        PointerIndex index;
+        std::unordered_map<std::uintptr_t, std::uint32_t> want;
+        auto check = [&](std::uintptr_t key) {
+          const auto it = want.find(key);
+          ASSERT_EQ(index.find(reinterpret_cast<const void*>(key)),
+                    it == want.end() ? PointerIndex::kMissing : it->second);
+        };
+        std::uniform_int_distribution<std::size_t> pick(0, c.keys - 1);
+        for (std::size_t step = 0; step < c.steps; ++step) {
+          const std::uintptr_t key = pool[pick(rng)];
+          const auto* p = reinterpret_cast<const void*>(key);
+          const auto value = static_cast<std::uint32_t>(rng() % 1000);
+          switch (rng() % 4) {
+            case 0:
+              ASSERT_EQ(index.insert(p, value), want.emplace(key, value).second);
+              break;
+            case 1:
+              ASSERT_EQ(index.erase(p), want.erase(key) == 1);
+              break;
+            case 2:
+              if (want.count(key)) {
+                index.assign(p, value);
+                want[key] = value;
+              }
+              break;
+            default:
+              break;
+          }
+          ASSERT_EQ(index.size(), want.size());
+          if (c.keys <= 16) {
+            for (const std::uintptr_t k : pool) ASSERT_NO_FATAL_FAILURE(check(k));
+          } else {
+            ASSERT_NO_FATAL_FAILURE(check(key));
+          }
+        }
+        for (const std::uintptr_t k : pool) ASSERT_NO_FATAL_FAILURE(check(k));
+        index.clear();
+        EXPECT_EQ(index.size(), 0u);
+        EXPECT_EQ(index.find(reinterpret_cast<const void*>(pool[0])), PointerIndex::kMissing);
+      }
+    }
+  }
+  PointerIndex empty;
+  EXPECT_EQ(empty.find(nullptr), PointerIndex::kMissing);
+  EXPECT_FALSE(empty.insert(nullptr, 1));
+  EXPECT_FALSE(empty.erase(&empty));
 }
 
 TEST(VectorPool, LoansAreReusedAndNested) {
