@@ -589,8 +589,9 @@ void bench_fcl(int boxes, int reps, const std::vector<std::string>& managers) {
   // Pairs: after setup, every manager's callback count is exact or above (viscd: float boxes
   // rounded outward); after update, DynamicAABBTree keeps a leaf's old box while it contains the
   // new one, so it may count more.
-  // `managers` picks them (default both): one alone in a process measures it on a heap that
-  // holds nothing of the other's (the other's freed nodes had made FCL's tree slower).
+  // `managers` picks them (default both): FCL's time differs from process to process, so a ratio
+  // taken in one process moves with FCL's mode there; each alone over many processes compares
+  // medians.
   using Make = std::function<std::unique_ptr<fcl::BroadPhaseCollisionManagerd>()>;
   std::vector<std::pair<std::string, Make>> kinds;
   const auto wanted = [&](const char* key) {
@@ -702,8 +703,8 @@ int main(int argc, char** argv) {
                "Bullet world: --pillars on a floor twice as wide, friction 0.6, rolling friction on the spheres "
                "(a world whose bodies Bullet puts to sleep)");
   app.add_option("--fcl-managers", fcl_managers,
-                 "FCL part: the managers timed (default both, in turns): viscd, fcl; one alone runs on a heap that "
-                 "holds nothing of the other's")
+                 "FCL part: the managers timed (default both, in turns): viscd, fcl (one alone per process, "
+                 "for medians over processes)")
       ->delimiter(',')
       ->check(CLI::IsMember({"viscd", "fcl"}));
   app.add_option("--fcl-boxes", fcl_boxes, "boxes in the FCL self collision")->check(CLI::Range(2, 100000000));
