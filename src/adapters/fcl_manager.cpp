@@ -421,8 +421,15 @@ void FclBroadphaseManager::collide(void* cdata, fcl::CollisionCallBack<double> c
   State& st = *state_;
   if (st.objects.size() < 2) return;
   st.ensure_frame();
-  for (const Pair& q : st.frame.pairs)
+  // The pairs ascend by i, so objects[i] is read in order; objects[j] is scattered over the list
+  // (800 KB for 100 000 objects) and had stalled the loop: fetched sixteen pairs ahead.
+  constexpr std::size_t kAhead = 16;
+  const std::vector<Pair>& pairs = st.frame.pairs;
+  for (std::size_t t = 0; t < pairs.size(); ++t) {
+    if (t + kAhead < pairs.size()) __builtin_prefetch(&st.objects[pairs[t + kAhead].j]);
+    const Pair q = pairs[t];
     if (callback(st.objects[q.i], st.objects[q.j], cdata)) return;
+  }
 }
 
 void FclBroadphaseManager::collide(fcl::BroadPhaseCollisionManager<double>* other_manager, void* cdata,
