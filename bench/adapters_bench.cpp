@@ -582,10 +582,6 @@ void bench_fcl(int boxes, int reps, const std::vector<std::string>& managers) {
   }
   std::vector<fcl::CollisionObjectd*> pointers;
   for (auto& o : objects) pointers.push_back(o.get());
-  std::printf(
-      "fcl: self collision of %d boxes, counting callback, medians of %d runs (ms); the managers take\n"
-      "turns in every run, and x FCL is the median of the runs' ratios\n",
-      boxes, reps);
   // Pairs: after setup, every manager's callback count is exact or above (viscd: float boxes
   // rounded outward); after update, DynamicAABBTree keeps a leaf's old box while it contains the
   // new one, so it may count more.
@@ -602,6 +598,10 @@ void bench_fcl(int boxes, int reps, const std::vector<std::string>& managers) {
   if (wanted("fcl"))
     kinds.emplace_back("fcl::DynamicAABBTreeCollisionManager",
                        [] { return std::make_unique<fcl::DynamicAABBTreeCollisionManagerd>(); });
+  const char* how = kinds.size() == 1 ? ", one manager"
+                                      : "; the managers take\nturns in every run, and x FCL is the median of the "
+                                        "runs' ratios";
+  std::printf("fcl: self collision of %d boxes, counting callback, medians of %d runs (ms)%s\n", boxes, reps, how);
   std::vector<fcl::Transform3d> initial;
   for (auto& o : objects) initial.push_back(o->getTransform());
   struct Times {
