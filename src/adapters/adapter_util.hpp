@@ -100,11 +100,17 @@ class PointerIndex {
   [[nodiscard]] const void* slot_of(const void* p) const { return slots_.empty() ? nullptr : &slots_[home(p)]; }
   /// Adds p -> value; false, and nothing changes, when p is there already or null.
   bool insert(const void* p, std::uint32_t value) {
-    if (p == nullptr || find(p) != kMissing) return false;
+    if (p == nullptr) return false;
     if (2 * (size_ + 1) > slots_.size()) rehash(std::max<std::size_t>(16, 2 * slots_.size()));
-    place(p, value);
-    ++size_;
-    return true;
+    const std::size_t mask = slots_.size() - 1;
+    for (std::size_t i = home(p);; i = (i + 1) & mask) {  // one probe: p's slot, or the first hole
+      if (slots_[i].key == p) return false;
+      if (slots_[i].key == nullptr) {
+        slots_[i] = Slot{p, value};
+        ++size_;
+        return true;
+      }
+    }
   }
   /// Sets the value of p, which is there.
   void assign(const void* p, std::uint32_t value) {
@@ -153,18 +159,17 @@ class PointerIndex {
   [[nodiscard]] std::size_t home(const void* p) const {
     return static_cast<std::size_t>((reinterpret_cast<std::uintptr_t>(p) * 0x9E3779B97F4A7C15ull) >> shift_);
   }
-  void place(const void* p, std::uint32_t value) {
-    const std::size_t mask = slots_.size() - 1;
-    std::size_t i = home(p);
-    while (slots_[i].key != nullptr) i = (i + 1) & mask;
-    slots_[i] = Slot{p, value};
-  }
   void rehash(std::size_t capacity) {  // a power of two
     std::vector<Slot> old(capacity);
     old.swap(slots_);
     shift_ = 64 - std::countr_zero(capacity);
-    for (const Slot& s : old)
-      if (s.key != nullptr) place(s.key, s.value);
+    const std::size_t mask = capacity - 1;
+    for (const Slot& s : old) {
+      if (s.key == nullptr) continue;
+      std::size_t i = home(s.key);
+      while (slots_[i].key != nullptr) i = (i + 1) & mask;
+      slots_[i] = s;
+    }
   }
 
   std::vector<Slot> slots_;

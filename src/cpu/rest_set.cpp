@@ -918,7 +918,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   if (!set.empty()) {
     const std::uint64_t* const left = left_bits_.data();
     const std::uint64_t* const changed = changed_bits_.data();
-    if (stat_found_.empty()) {
+    if (left_.empty()) {  // nothing was placed again (stat_found_ is empty): retests alone
       for (std::size_t t = 0; t < stat_.size(); ++t) {
         const std::uint32_t i = key_i(stat_[t]);
         if (bit(changed, i)) stat_hit_[t] = static_overlap(s, set, i, key_j(stat_[t]));
