@@ -108,16 +108,24 @@ inline std::vector<Pair> oracle_pairs(std::span<const Sphere> s, const std::vect
     (m <= 1e15 && p.r >= 0 ? swept : odd).push_back(a);  // false for NaN
   }
   std::sort(swept.begin(), swept.end(), [&](std::uint32_t a, std::uint32_t b) { return lo[a] < lo[b]; });
+  // The swept intervals in their sorted order, side by side, so that the inner loop reads memory
+  // in order (it passes over every sphere within reach along x: hundreds in the dense tests).
+  const std::size_t m = swept.size();
+  std::vector<double> slo(m), shi(m), sylo(m), syhi(m);
+  for (std::size_t k = 0; k < m; ++k) {
+    slo[k] = lo[swept[k]];
+    shi[k] = hi[swept[k]];
+    sylo[k] = ylo[swept[k]];
+    syhi[k] = yhi[swept[k]];
+  }
   std::vector<std::pair<std::uint32_t, std::uint32_t>> found;  // positions, first < second
   auto test = [&](std::uint32_t a, std::uint32_t b) {
     if (spheres_overlap(s[act[a]], s[act[b]])) found.emplace_back(std::min(a, b), std::max(a, b));
   };
-  for (std::size_t k = 0; k < swept.size(); ++k) {
-    const std::uint32_t a = swept[k];
-    for (std::size_t l = k + 1; l < swept.size() && lo[swept[l]] <= hi[a]; ++l) {
-      const std::uint32_t b = swept[l];
-      if (ylo[b] <= yhi[a] && ylo[a] <= yhi[b]) test(a, b);
-    }
+  for (std::size_t k = 0; k < m; ++k) {
+    const double h = shi[k], yl = sylo[k], yh = syhi[k];
+    for (std::size_t l = k + 1; l < m && slo[l] <= h; ++l)
+      if (sylo[l] <= yh && yl <= syhi[l]) test(swept[k], swept[l]);
   }
   for (std::size_t k = 0; k < odd.size(); ++k) {
     for (std::uint32_t b : swept) test(odd[k], b);

@@ -48,14 +48,22 @@ std::set<Key> cache_pairs(btOverlappingPairCache& cache) {
   return pairs;
 }
 
-// What the cache must hold: brute force over the live proxies.
+// What the cache must hold: every pair of live proxies whose AABBs overlap, found by a sweep
+// along x (the proxies sorted by their lower x bound; each one tested against those whose lower
+// bound does not pass its upper one), then Bullet's own overlap test and filter rule. A proxy
+// with a NaN bound pairs with nothing.
 std::set<Key> expected_pairs(const viscd::BulletBroadphase& bp, btOverlappingPairCache& cache,
                              const std::vector<btBroadphaseProxy*>& proxies) {
+  std::vector<btBroadphaseProxy*> swept;
+  for (btBroadphaseProxy* p : proxies)
+    if (finite(p)) swept.push_back(p);
+  std::sort(swept.begin(), swept.end(),
+            [](const btBroadphaseProxy* a, const btBroadphaseProxy* b) { return a->m_aabbMin.x() < b->m_aabbMin.x(); });
   std::set<Key> pairs;
-  for (std::size_t a = 0; a < proxies.size(); ++a)
-    for (std::size_t b = a + 1; b < proxies.size(); ++b) {
-      btBroadphaseProxy *p = proxies[a], *q = proxies[b];
-      if (!finite(p) || !finite(q) || !aabbs_overlap(p, q)) continue;
+  for (std::size_t a = 0; a < swept.size(); ++a)
+    for (std::size_t b = a + 1; b < swept.size() && swept[b]->m_aabbMin.x() <= swept[a]->m_aabbMax.x(); ++b) {
+      btBroadphaseProxy *p = swept[a], *q = swept[b];
+      if (!aabbs_overlap(p, q)) continue;
       if (!cache.needsBroadphaseCollision(p, q)) continue;
       if (bp.in_static_set(p) && bp.in_static_set(q)) continue;  // refused by Bullet's rule anyway
       pairs.insert(key(p, q));
