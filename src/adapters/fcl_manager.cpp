@@ -375,24 +375,31 @@ void FclBroadphaseManager::update(Object* updated_obj) {
 void FclBroadphaseManager::update(const std::vector<Object*>& updated_objs) {
   // Each object costs its index slot, its AABB, and its entries in aabbs and boxes, all scattered:
   // the slots and AABBs of the objects eight ahead are fetched, and the entries of those four
-  // ahead (whose slots are in cache by then).
+  // ahead (whose slots are in cache by then). Each object is looked up once, four ahead, and its
+  // index waits in a ring until its turn.
   State& st = *state_;
   constexpr std::size_t kSlotAhead = 8, kEntryAhead = 4;
+  constexpr std::uint32_t kMissing = adapter_detail::PointerIndex::kMissing;
   const std::size_t n = updated_objs.size();
+  auto look_up = [&](std::size_t t) {
+    const std::uint32_t k = st.index.find(updated_objs[t]);
+    if (k != kMissing) {
+      __builtin_prefetch(&st.aabbs[k]);
+      __builtin_prefetch(&st.boxes[k]);
+    }
+    return k;
+  };
+  std::uint32_t ring[kEntryAhead];
+  for (std::size_t t = 0; t < std::min(n, kEntryAhead); ++t) ring[t] = look_up(t);
   for (std::size_t t = 0; t < n; ++t) {
     if (t + kSlotAhead < n && updated_objs[t + kSlotAhead] != nullptr) {
       const Object* ahead = updated_objs[t + kSlotAhead];
       __builtin_prefetch(st.index.slot_of(ahead));
       __builtin_prefetch(&ahead->getAABB());
     }
-    if (t + kEntryAhead < n) {
-      if (const std::uint32_t k = st.index.find(updated_objs[t + kEntryAhead]);
-          k != adapter_detail::PointerIndex::kMissing) {
-        __builtin_prefetch(&st.aabbs[k]);
-        __builtin_prefetch(&st.boxes[k]);
-      }
-    }
-    update(updated_objs[t]);
+    const std::uint32_t k = ring[t % kEntryAhead];
+    if (t + kEntryAhead < n) ring[t % kEntryAhead] = look_up(t + kEntryAhead);
+    if (k != kMissing) st.reread(k);
   }
 }
 
