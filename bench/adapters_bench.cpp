@@ -30,11 +30,13 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <functional>
 #include <memory>
 #include <random>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "viscd/bullet.hpp"
@@ -77,6 +79,24 @@ class CallClock {
       pair.push_back(static_cast<double>(sum) / 1000);
     }
     overhead_ = median(pair);
+    pair.clear();
+    for (int r = 0; r < 101; ++r) {
+      std::uint64_t sum = 0;
+      for (int k = 0; k < 1000; ++k) {
+        fence();
+        const std::uint64_t a = ticks();
+        sum += ticks() - a;
+      }
+      pair.push_back(static_cast<double>(sum) / 1000);
+    }
+    fenced_overhead_ = median(pair);
+  }
+  /// Waits until the loads before it have arrived (so that a span started after it does not pay
+  /// for them).
+  static void fence() {
+#if defined(__x86_64__) || defined(__i386__)
+    _mm_lfence();
+#endif
   }
   static std::uint64_t ticks() {
 #if defined(__x86_64__) || defined(__i386__)
@@ -89,9 +109,13 @@ class CallClock {
   [[nodiscard]] double ms(std::uint64_t sum, std::uint64_t calls) const {
     return std::max(0.0, static_cast<double>(sum) - overhead_ * static_cast<double>(calls)) * ms_per_tick_;
   }
+  /// The same for spans each started after fence().
+  [[nodiscard]] double fenced_ms(std::uint64_t sum, std::uint64_t calls) const {
+    return std::max(0.0, static_cast<double>(sum) - fenced_overhead_ * static_cast<double>(calls)) * ms_per_tick_;
+  }
 
  private:
-  double ms_per_tick_ = 0, overhead_ = 0;
+  double ms_per_tick_ = 0, overhead_ = 0, fenced_overhead_ = 0;
 };
 
 const CallClock& call_clock() {
@@ -341,19 +365,196 @@ class BulletWorld {
   std::size_t first_body_ = 0;  // rigid_[first_body_..] are the falling bodies
 };
 
-void bench_bullet(int bodies, int steps, bool pillars, bool settling, const std::vector<std::string>& pick) {
-  std::printf("bullet: %d falling %s%s, %d steps at 60 Hz, the worlds stepped in turn (one step each, same load),\n",
-              bodies, pillars ? "boxes and spheres among static pillars" : "boxes",
-              settling ? " on a floor twice as wide (a world that settles)" : "", steps);
-  std::printf("medians after the first 5 steps (ms)\n");
-  std::printf("%-22s %12s %18s %10s %12s %12s\n", "broadphase", "pairs_ms", "aabbs+pairs_ms", "step_ms", "cache_pairs",
-              "mean_height");
-  const float extent = 1000;
-  // Each broadphase: the key --broadphases picks it by, its name, how to make one.
-  struct Kind {
-    std::string key, name;
-    std::function<std::unique_ptr<btBroadphaseInterface>()> make;
+// The broadphase calls of a Bullet world, recorded once and played again through each broadphase
+// (--replay): every broadphase sees the same calls, without Bullet's narrowphase and solver in
+// between, so their own times compare on equal input in seconds instead of minutes of stepping.
+struct CallLog {
+  enum Op : std::uint32_t { kCreate = 0, kDestroy = 1, kSet = 2, kStep = 3 };
+  struct Call {
+    std::uint32_t op_id;  // op in the top 2 bits, proxy id below
+    std::uint32_t aabb;   // kCreate, kSet: index in aabbs; kCreate also filter index in filters
   };
+  std::vector<Call> calls;
+  std::vector<std::array<btScalar, 6>> aabbs;
+  std::vector<std::array<int, 3>> creates;  // per kCreate: shape type, group, mask
+  std::size_t steps = 0, proxies = 0;
+
+ private:
+  static constexpr std::uint64_t kMagic = 0x766973636442756cull ^ sizeof(btScalar);  // "viscdBul", by scalar size
+  template <class T>
+  static bool write(std::FILE* f, const std::vector<T>& v) {
+    return v.empty() || std::fwrite(v.data(), sizeof(T), v.size(), f) == v.size();
+  }
+  template <class T>
+  static bool read(std::FILE* f, std::vector<T>& v) {
+    return v.empty() || std::fread(v.data(), sizeof(T), v.size(), f) == v.size();
+  }
+
+ public:
+
+  /// Writes the log to `path` / reads it back; false on an I/O error or a file of another layout.
+  [[nodiscard]] bool save(const std::string& path) const {
+    std::FILE* f = std::fopen(path.c_str(), "wb");
+    if (!f) return false;
+    const std::uint64_t head[5] = {kMagic, calls.size(), aabbs.size(), creates.size(), steps};
+    const bool ok = std::fwrite(head, sizeof head, 1, f) == 1 && write(f, calls) && write(f, aabbs) &&
+                    write(f, creates) && std::fwrite(&proxies, sizeof proxies, 1, f) == 1;
+    return std::fclose(f) == 0 && ok;
+  }
+  [[nodiscard]] bool load(const std::string& path) {
+    std::FILE* f = std::fopen(path.c_str(), "rb");
+    if (!f) return false;
+    std::uint64_t head[5] = {};
+    bool ok = std::fread(head, sizeof head, 1, f) == 1 && head[0] == kMagic;
+    if (ok) {
+      calls.resize(head[1]);
+      aabbs.resize(head[2]);
+      creates.resize(head[3]);
+      steps = head[4];
+      ok = read(f, calls) && read(f, aabbs) && read(f, creates) && std::fread(&proxies, sizeof proxies, 1, f) == 1;
+    }
+    std::fclose(f);
+    return ok;
+  }
+
+  static Call make(Op op, std::uint32_t id, std::uint32_t aabb) { return {(std::uint32_t{op} << 30) | id, aabb}; }
+  std::uint32_t add_aabb(const btVector3& lo, const btVector3& hi) {
+    aabbs.push_back({lo.x(), lo.y(), lo.z(), hi.x(), hi.y(), hi.z()});
+    return static_cast<std::uint32_t>(aabbs.size() - 1);
+  }
+};
+
+// Forwards to btDbvtBroadphase and writes each call into a CallLog (a setAabb that repeats the
+// proxy's last box reuses its entry).
+class RecordingBroadphase final : public btBroadphaseInterface {
+ public:
+  explicit RecordingBroadphase(CallLog& log) : log_(log) {}
+  btBroadphaseProxy* createProxy(const btVector3& lo, const btVector3& hi, int type, void* user, int group, int mask,
+                                 btDispatcher* d) override {
+    btBroadphaseProxy* p = inner_.createProxy(lo, hi, type, user, group, mask, d);
+    const auto id = static_cast<std::uint32_t>(log_.proxies++);
+    ids_[p] = id;
+    last_.resize(log_.proxies);
+    last_[id] = log_.add_aabb(lo, hi);
+    log_.calls.push_back(CallLog::make(CallLog::kCreate, id, last_[id]));
+    log_.creates.push_back({type, group, mask});
+    return p;
+  }
+  void destroyProxy(btBroadphaseProxy* p, btDispatcher* d) override {
+    log_.calls.push_back(CallLog::make(CallLog::kDestroy, ids_.at(p), 0));
+    ids_.erase(p);
+    inner_.destroyProxy(p, d);
+  }
+  void setAabb(btBroadphaseProxy* p, const btVector3& lo, const btVector3& hi, btDispatcher* d) override {
+    const std::uint32_t id = ids_.at(p);
+    const auto& a = log_.aabbs[last_[id]];
+    if (!(a[0] == lo.x() && a[1] == lo.y() && a[2] == lo.z() && a[3] == hi.x() && a[4] == hi.y() && a[5] == hi.z()))
+      last_[id] = log_.add_aabb(lo, hi);
+    log_.calls.push_back(CallLog::make(CallLog::kSet, id, last_[id]));
+    inner_.setAabb(p, lo, hi, d);
+  }
+  void getAabb(btBroadphaseProxy* p, btVector3& lo, btVector3& hi) const override { inner_.getAabb(p, lo, hi); }
+  void rayTest(const btVector3& from, const btVector3& to, btBroadphaseRayCallback& cb, const btVector3& lo,
+               const btVector3& hi) override {
+    inner_.rayTest(from, to, cb, lo, hi);
+  }
+  void aabbTest(const btVector3& lo, const btVector3& hi, btBroadphaseAabbCallback& cb) override {
+    inner_.aabbTest(lo, hi, cb);
+  }
+  void calculateOverlappingPairs(btDispatcher* d) override {
+    log_.calls.push_back(CallLog::make(CallLog::kStep, 0, 0));
+    ++log_.steps;
+    inner_.calculateOverlappingPairs(d);
+  }
+  btOverlappingPairCache* getOverlappingPairCache() override { return inner_.getOverlappingPairCache(); }
+  const btOverlappingPairCache* getOverlappingPairCache() const override { return inner_.getOverlappingPairCache(); }
+  void getBroadphaseAabb(btVector3& lo, btVector3& hi) const override { inner_.getBroadphaseAabb(lo, hi); }
+  void resetPool(btDispatcher* d) override { inner_.resetPool(d); }
+  void printStats() override { inner_.printStats(); }
+
+ private:
+  CallLog& log_;
+  btDbvtBroadphase inner_;
+  std::unordered_map<const btBroadphaseProxy*, std::uint32_t> ids_;
+  std::vector<std::uint32_t> last_;  // per proxy id, its last box in log_.aabbs
+};
+
+// One broadphase playing a CallLog back one step at a time, timing its own time per step (the
+// setAabb calls and calculateOverlappingPairs).
+class Player {
+ public:
+  Player(std::unique_ptr<btBroadphaseInterface> bp, const CallLog& log)
+      : dispatcher_(&configuration_), bp_(std::move(bp)), log_(log), proxies_(log.proxies, nullptr) {}
+  Player(const Player&) = delete;
+  Player& operator=(const Player&) = delete;
+  ~Player() {
+    for (btBroadphaseProxy* p : proxies_)
+      if (p) bp_->destroyProxy(p, &dispatcher_);
+  }
+  /// Plays the calls up to and including the next step's calculateOverlappingPairs; false at the end.
+  bool step() {
+    std::uint64_t set_ticks = 0, set_calls = 0;
+    while (at_ < log_.calls.size()) {
+      const CallLog::Call c = log_.calls[at_++];
+      const std::uint32_t op = c.op_id >> 30, id = c.op_id & 0x3FFFFFFFu;
+      if (op == CallLog::kStep) {
+        const auto start = Clock::now();
+        bp_->calculateOverlappingPairs(&dispatcher_);
+        pairs_ms.push_back(ms_since(start));
+        own_ms.push_back(pairs_ms.back() + call_clock().fenced_ms(set_ticks, set_calls));
+        if (const auto* v = dynamic_cast<const viscd::BulletBroadphase*>(bp_.get())) {
+          stage_ms.push_back(v->last_stats().stage_ms);
+          moved.push_back(v->last_stats().followed_change ? v->last_stats().moved : v->last_stats().objects);
+          replaced.push_back(v->last_stats().followed_change ? v->last_stats().replaced : v->last_stats().objects);
+        }
+        return true;
+      }
+      if (op == CallLog::kDestroy) {
+        bp_->destroyProxy(proxies_[id], &dispatcher_);
+        proxies_[id] = nullptr;
+        continue;
+      }
+      const auto& a = log_.aabbs[c.aabb];
+      const btVector3 lo(a[0], a[1], a[2]), hi(a[3], a[4], a[5]);
+      if (op == CallLog::kCreate) {
+        const auto& k = log_.creates[created_++];
+        proxies_[id] = bp_->createProxy(lo, hi, k[0], nullptr, k[1], k[2], &dispatcher_);
+        continue;
+      }
+      // The log's boxes are read ahead, and the clock starts only once this one has arrived (the
+      // world computes each AABB right before its call: a miss on the log is not the broadphase's).
+      if (at_ + 16 < log_.calls.size()) __builtin_prefetch(&log_.aabbs[log_.calls[at_ + 16].aabb]);
+      CallClock::fence();
+      const std::uint64_t t = CallClock::ticks();
+      bp_->setAabb(proxies_[id], lo, hi, &dispatcher_);
+      set_ticks += CallClock::ticks() - t;
+      ++set_calls;
+    }
+    return false;
+  }
+  [[nodiscard]] int cache_pairs() const { return bp_->getOverlappingPairCache()->getNumOverlappingPairs(); }
+  std::vector<double> pairs_ms, own_ms;
+  // viscd's, per step: its frame's stage times, the boxes that changed and those placed again.
+  std::vector<std::array<double, viscd::kStageCount>> stage_ms;
+  std::vector<double> moved, replaced;
+
+ private:
+  btDefaultCollisionConfiguration configuration_;
+  btCollisionDispatcher dispatcher_;
+  std::unique_ptr<btBroadphaseInterface> bp_;
+  const CallLog& log_;
+  std::vector<btBroadphaseProxy*> proxies_;
+  std::size_t at_ = 0, created_ = 0;
+};
+
+// Each broadphase of the Bullet part: the key --broadphases picks it by, its name, how to make one.
+struct Kind {
+  std::string key, name;
+  std::function<std::unique_ptr<btBroadphaseInterface>()> make;
+};
+
+std::vector<Kind> bullet_kinds(int bodies, const std::vector<std::string>& pick) {
+  const float extent = 1000;
   std::vector<Kind> kinds = {
       {"viscd", "viscd::BulletBroadphase", [] { return std::make_unique<viscd::BulletBroadphase>(); }},
       {"rebuilding", "viscd, rebuilding",
@@ -376,7 +577,7 @@ void bench_bullet(int bodies, int steps, bool pillars, bool settling, const std:
        }},
       {"dbvt", "btDbvtBroadphase", [] { return std::make_unique<btDbvtBroadphase>(); }},
       {"sweep", "bt32BitAxisSweep3",
-       [&] {
+       [=] {
          return std::make_unique<bt32BitAxisSweep3>(btVector3(-extent, -extent, -extent),
                                                     btVector3(extent, extent, extent),
                                                     static_cast<unsigned>(bodies + 1024));
@@ -384,6 +585,17 @@ void bench_bullet(int bodies, int steps, bool pillars, bool settling, const std:
   };
   if (!pick.empty())
     std::erase_if(kinds, [&](const Kind& k) { return std::find(pick.begin(), pick.end(), k.key) == pick.end(); });
+  return kinds;
+}
+
+void bench_bullet(int bodies, int steps, bool pillars, bool settling, const std::vector<std::string>& pick) {
+  std::printf("bullet: %d falling %s%s, %d steps at 60 Hz, the worlds stepped in turn (one step each, same load),\n",
+              bodies, pillars ? "boxes and spheres among static pillars" : "boxes",
+              settling ? " on a floor twice as wide (a world that settles)" : "", steps);
+  std::printf("medians after the first 5 steps (ms)\n");
+  std::printf("%-22s %12s %18s %10s %12s %12s\n", "broadphase", "pairs_ms", "aabbs+pairs_ms", "step_ms", "cache_pairs",
+              "mean_height");
+  std::vector<Kind> kinds = bullet_kinds(bodies, pick);
   std::vector<std::unique_ptr<BulletWorld>> worlds;
   for (const Kind& k : kinds) worlds.push_back(std::make_unique<BulletWorld>(k.make(), bodies, pillars, settling));
   for (int s = 0; s < steps; ++s) {
@@ -440,6 +652,114 @@ void bench_bullet(int bodies, int steps, bool pillars, bool settling, const std:
     std::printf("%-22s %9.1f %9.1f %9.1f %9.1f | %9.1f %9.1f %9.1f %9.1f\n", name.c_str(), 100 * r.quarter_followed[0],
                 100 * r.quarter_followed[1], 100 * r.quarter_followed[2], 100 * r.quarter_followed[3],
                 r.quarter_replaced[0], r.quarter_replaced[1], r.quarter_replaced[2], r.quarter_replaced[3]);
+  }
+}
+
+// --replay: the world stepped once on btDbvtBroadphase with its broadphase calls recorded, then
+// the calls played through each picked broadphase, `rounds` times, the players stepped in turn.
+// Per round and player: the mean own time over the run (the first 5 steps left out), its median
+// per quarter, and the mean of calculateOverlappingPairs over the second half; then the medians
+// over the rounds and each round's ratio to btDbvt's.
+void bench_bullet_replay(int bodies, int steps, bool pillars, bool settling, int rounds,
+                         const std::vector<std::string>& pick, const std::string& log_path) {
+  CallLog log;
+  if (!log_path.empty() && log.load(log_path)) {
+    std::printf("bullet replay: %zu steps read from %s: %zu calls, %zu boxes\n", log.steps, log_path.c_str(),
+                log.calls.size(), log.aabbs.size());
+  } else {
+    const auto start = Clock::now();
+    {
+      BulletWorld world(std::make_unique<RecordingBroadphase>(log), bodies, pillars, settling);
+      for (int s = 0; s < steps; ++s) {
+        world.step();
+        if ((s + 1) % 100 == 0 || s + 1 == steps) std::fprintf(stderr, "recording: step %d/%d\n", s + 1, steps);
+      }
+    }
+    std::printf("bullet replay: %d bodies%s%s, %d steps recorded on btDbvtBroadphase in %.1f s: %zu calls, %zu boxes\n",
+                bodies, pillars ? ", pillars" : "", settling ? ", settling" : "", steps, ms_since(start) / 1000,
+                log.calls.size(), log.aabbs.size());
+    // The world's destruction is not played: the calls end with the last step.
+    while (!log.calls.empty() && (log.calls.back().op_id >> 30) != CallLog::kStep) log.calls.pop_back();
+    if (!log_path.empty() && !log.save(log_path)) std::fprintf(stderr, "could not write %s\n", log_path.c_str());
+  }
+  const std::vector<Kind> kinds = bullet_kinds(bodies, pick);
+  const std::size_t first = 5;
+  struct Summary {
+    std::vector<double> mean_own, mean_set, late_pairs, q[4];
+  };
+  std::vector<Summary> sums(kinds.size());
+  std::printf("%-5s %-22s %9s %9s %9s %9s | %9s %9s | %9s %10s\n", "round", "broadphase", "own Q1", "Q2", "Q3",
+              "Q4", "own mean", "setAabb", "late pairs", "cache");
+  for (int r = 0; r < rounds; ++r) {
+    std::vector<std::unique_ptr<Player>> players;
+    for (const Kind& k : kinds) players.push_back(std::make_unique<Player>(k.make(), log));
+    for (bool more = true; more;)
+      for (auto& p : players) more = p->step() && more;
+    for (std::size_t k = 0; k < kinds.size(); ++k) {
+      const Player& p = *players[k];
+      const std::size_t n = p.own_ms.size();
+      double sum = 0, set = 0;
+      for (std::size_t s = first; s < n; ++s) {
+        sum += p.own_ms[s];
+        set += p.own_ms[s] - p.pairs_ms[s];
+      }
+      double late = 0;
+      for (std::size_t s = n / 2; s < n; ++s) late += p.pairs_ms[s];
+      Summary& m = sums[k];
+      m.mean_own.push_back(sum / static_cast<double>(n - first));
+      m.mean_set.push_back(set / static_cast<double>(n - first));
+      m.late_pairs.push_back(late / static_cast<double>(n - n / 2));
+      std::printf("%-5d %-22s", r, kinds[k].name.c_str());
+      for (int q = 0; q < 4; ++q) {
+        const std::size_t b = first + (n - first) * static_cast<std::size_t>(q) / 4,
+                          e = first + (n - first) * static_cast<std::size_t>(q + 1) / 4;
+        m.q[q].push_back(median(std::vector<double>(p.own_ms.begin() + static_cast<std::ptrdiff_t>(b),
+                                                    p.own_ms.begin() + static_cast<std::ptrdiff_t>(e))));
+        std::printf(" %9.3f", m.q[q].back());
+      }
+      std::printf(" | %9.3f %9.3f | %9.3f %10d\n", m.mean_own.back(), m.mean_set.back(), m.late_pairs.back(),
+                  p.cache_pairs());
+      if (p.stage_ms.size() == n) {
+        // viscd's second half: its stages, the rest of calculateOverlappingPairs, boxes changed and placed.
+        std::array<double, viscd::kStageCount> st{};
+        double mv = 0, rp = 0, all = 0;
+        for (std::size_t s = n / 2; s < n; ++s) {
+          for (std::size_t g = 0; g < viscd::kStageCount; ++g) st[g] += p.stage_ms[s][g];
+          mv += p.moved[s];
+          rp += p.replaced[s];
+        }
+        std::printf("      second half, mean ms:");
+        for (std::size_t g = 0; g < viscd::kStageCount; ++g) {
+          all += st[g];
+          if (st[g] > 0)
+            std::printf(" %s %.3f", std::string(viscd::stage_name(static_cast<viscd::Stage>(g))).c_str(),
+                        st[g] / static_cast<double>(n - n / 2));
+        }
+        std::printf(" rest %.3f; changed %.0f, placed again %.0f a step\n",
+                    m.late_pairs.back() - all / static_cast<double>(n - n / 2), mv / static_cast<double>(n - n / 2),
+                    rp / static_cast<double>(n - n / 2));
+      }
+    }
+    std::fflush(stdout);
+  }
+  std::printf("\nmedians over %d rounds (ms)\n", rounds);
+  std::printf("%-22s %9s %9s %9s %9s | %9s %9s | %9s\n", "broadphase", "own Q1", "Q2", "Q3", "Q4", "own mean",
+              "setAabb", "late pairs");
+  for (std::size_t k = 0; k < kinds.size(); ++k) {
+    const Summary& m = sums[k];
+    std::printf("%-22s %9.3f %9.3f %9.3f %9.3f | %9.3f %9.3f | %9.3f\n", kinds[k].name.c_str(), median(m.q[0]),
+                median(m.q[1]), median(m.q[2]), median(m.q[3]), median(m.mean_own), median(m.mean_set),
+                median(m.late_pairs));
+  }
+  const auto dbvt = std::find_if(kinds.begin(), kinds.end(), [](const Kind& k) { return k.key == "dbvt"; });
+  if (dbvt == kinds.end()) return;
+  const auto d = static_cast<std::size_t>(dbvt - kinds.begin());
+  std::printf("\nbtDbvtBroadphase's mean own time over each one's, per round (above 1: faster than btDbvt)\n");
+  for (std::size_t k = 0; k < kinds.size(); ++k) {
+    if (k == d) continue;
+    std::printf("%-22s", kinds[k].name.c_str());
+    for (int r = 0; r < rounds; ++r) std::printf(" %6.2f", sums[d].mean_own[r] / sums[k].mean_own[r]);
+    std::printf("\n");
   }
 }
 
@@ -684,7 +1004,8 @@ void bench_fcl(int boxes, int reps, const std::vector<std::string>& managers) {
 int main(int argc, char** argv) {
   CLI::App app{"viscd's Bullet and FCL adapters against the engines' own broadphases"};
   std::string only;
-  int bodies = 10000, steps = 120, fcl_boxes = 100000, reps = 3, rays = 500, query_steps = 21;
+  int bodies = 10000, steps = 120, fcl_boxes = 100000, reps = 3, rays = 500, query_steps = 21, replay = 0;
+  std::string replay_log;
   std::vector<int> query_bodies = {1000, 10000};
   app.add_option("--only", only, "run one part: bullet, fcl or queries")
       ->check(CLI::IsMember({"bullet", "fcl", "queries"}));
@@ -702,6 +1023,13 @@ int main(int argc, char** argv) {
   app.add_flag("--settling", settling,
                "Bullet world: --pillars on a floor twice as wide, friction 0.6, rolling friction on the spheres "
                "(a world whose bodies Bullet puts to sleep)");
+  app.add_option("--replay", replay,
+                 "Bullet world: step it once on btDbvt recording its broadphase calls, then play them through each "
+                 "broadphase this many rounds (their own times on the same calls, without the solver)")
+      ->check(CLI::Range(1, 1000));
+  app.add_option("--replay-log", replay_log,
+                 "with --replay: read the recorded calls from this file, or record them and write it (the world's "
+                 "options are then those it was recorded with)");
   app.add_option("--fcl-managers", fcl_managers,
                  "FCL part: the managers timed (default both, in turns): viscd, fcl (one alone per process, "
                  "for medians over processes)")
@@ -715,7 +1043,10 @@ int main(int argc, char** argv) {
   app.add_option("--rays", rays, "rays (and aabbTest boxes) per step in the query part")->check(CLI::Range(1, 1000000));
   app.add_option("--query-steps", query_steps, "steps in the query part")->check(CLI::Range(2, 100000));
   CLI11_PARSE(app, argc, argv);
-  if (only.empty() || only == "bullet") bench_bullet(bodies, steps, pillars || settling, settling, broadphases);
+  if ((only.empty() || only == "bullet") && replay > 0)
+    bench_bullet_replay(bodies, steps, pillars || settling, settling, replay, broadphases, replay_log);
+  else if (only.empty() || only == "bullet")
+    bench_bullet(bodies, steps, pillars || settling, settling, broadphases);
   if (only.empty() || only == "fcl") bench_fcl(fcl_boxes, reps, fcl_managers);
   if (only.empty() || only == "queries") bench_queries(query_bodies, rays, query_steps);
   return 0;

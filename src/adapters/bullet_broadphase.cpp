@@ -92,6 +92,12 @@ void BulletBroadphase::setAabb(btBroadphaseProxy* proxy, const btVector3& aabbMi
   // it passes next are fetched while it computes their AABBs (each proxy's second line, read
   // below, had missed the cache for every body of a large world, at rest or not).
   ProxyPool::prefetch_after(p, 4);
+  // A body Bullet did not move passes the very floats it passed last time: nothing to convert or
+  // compare (the proxy's box and validity were made from them).
+  if (same_floats(p->m_aabbMin, aabbMin) && same_floats(p->m_aabbMax, aabbMax)) {
+    if (p->valid && !p->fixed) st.set_filter(p->slot, filter_of(*p));  // see below
+    return;
+  }
   p->m_aabbMin = aabbMin;
   p->m_aabbMax = aabbMax;
   Box box;

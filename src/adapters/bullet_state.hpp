@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <limits>
 #include <memory>
 #include <new>
@@ -105,6 +106,12 @@ inline bool to_box(const btVector3& lo, const btVector3& hi, Box& out) {
     if (out.min[k] > out.max[k]) return false;
   }
   return true;
+}
+
+// Whether two vectors hold the same three scalars bit for bit (a NaN equals itself; the fourth,
+// unused, is not read).
+inline bool same_floats(const btVector3& a, const btVector3& b) {
+  return std::memcmp(a.m_floats, b.m_floats, 3 * sizeof(btScalar)) == 0;
 }
 
 inline bool same_box(const Box& a, const Box& b) {
