@@ -391,7 +391,6 @@ struct CallLog {
   }
 
  public:
-
   /// Writes the log to `path` / reads it back; false on an I/O error or a file of another layout.
   [[nodiscard]] bool save(const std::string& path) const {
     std::FILE* f = std::fopen(path.c_str(), "wb");
@@ -575,6 +574,12 @@ std::vector<Kind> bullet_kinds(int bodies, const std::vector<std::string>& pick)
          c.rest_margin = 0;
          return std::make_unique<viscd::BulletBroadphase>(c);
        }},
+      {"move0", "viscd, move margin 0",
+       [] {
+         viscd::Config c = viscd::BulletBroadphase::default_config();
+         c.move_margin = 0;
+         return std::make_unique<viscd::BulletBroadphase>(c);
+       }},
       {"dbvt", "btDbvtBroadphase", [] { return std::make_unique<btDbvtBroadphase>(); }},
       {"sweep", "bt32BitAxisSweep3",
        [=] {
@@ -688,8 +693,8 @@ void bench_bullet_replay(int bodies, int steps, bool pillars, bool settling, int
     std::vector<double> mean_own, mean_set, late_pairs, q[4];
   };
   std::vector<Summary> sums(kinds.size());
-  std::printf("%-5s %-22s %9s %9s %9s %9s | %9s %9s | %9s %10s\n", "round", "broadphase", "own Q1", "Q2", "Q3",
-              "Q4", "own mean", "setAabb", "late pairs", "cache");
+  std::printf("%-5s %-22s %9s %9s %9s %9s | %9s %9s | %9s %10s\n", "round", "broadphase", "own Q1", "Q2", "Q3", "Q4",
+              "own mean", "setAabb", "late pairs", "cache");
   for (int r = 0; r < rounds; ++r) {
     std::vector<std::unique_ptr<Player>> players;
     for (const Kind& k : kinds) players.push_back(std::make_unique<Player>(k.make(), log));
@@ -1014,10 +1019,10 @@ int main(int argc, char** argv) {
   bool pillars = false;
   std::vector<std::string> broadphases, fcl_managers;
   app.add_option("--broadphases", broadphases,
-                 "Bullet world: the broadphases stepped (default all): viscd, rebuilding, one-thread, margin0, dbvt, "
-                 "sweep")
+                 "Bullet world: the broadphases stepped (default all): viscd, rebuilding, one-thread, margin0, move0, "
+                 "dbvt, sweep")
       ->delimiter(',')
-      ->check(CLI::IsMember({"viscd", "rebuilding", "one-thread", "margin0", "dbvt", "sweep"}));
+      ->check(CLI::IsMember({"viscd", "rebuilding", "one-thread", "margin0", "move0", "dbvt", "sweep"}));
   app.add_flag("--pillars", pillars, "Bullet world: every other body a sphere, and static pillars in the bin");
   bool settling = false;
   app.add_flag("--settling", settling,

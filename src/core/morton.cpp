@@ -71,11 +71,16 @@ int choose_bits(const Config& config, bool has_camera, double mu, std::size_t ob
   return m == 16 && objects > kMostObjectsFor16Bits ? 32 : m;
 }
 
-MortonEncoder::MortonEncoder(const MortonLayout& layout, const Aabb& bounds) {
+void MortonEncoder::reset(const MortonLayout& layout, const Aabb& bounds) {
   const MortonGrid g = morton_grid(layout, bounds);
   lo_ = g.lo;
   scale_ = g.scale;
   max_cell_ = g.max_cell;
+  if (has_tables_ && table_bits_ == layout.axis_bits && table_position_ == layout.position) return;
+  has_tables_ = true;
+  table_bits_ = layout.axis_bits;
+  table_position_ = layout.position;
+  table_ = {};
   int most = 0;
   for (int axis = 0; axis < 3; ++axis) {
     const int nb = layout.axis_bits[axis];

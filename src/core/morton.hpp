@@ -77,7 +77,12 @@ struct MortonGrid {
 /// Encodes centres into codes of a layout, over given bounds.
 class MortonEncoder {
  public:
-  MortonEncoder(const MortonLayout& layout, const Aabb& bounds);
+  MortonEncoder() = default;  ///< encodes nothing until reset()
+  MortonEncoder(const MortonLayout& layout, const Aabb& bounds) { reset(layout, bounds); }
+  /// Encodes on `layout` over `bounds` from now on. The bit tables depend on the layout alone and
+  /// are made again only when it differs from the last one (making them costs more than coding a
+  /// few hundred centres: the small trees of a followed frame are built every frame).
+  void reset(const MortonLayout& layout, const Aabb& bounds);
   /// Code of a centre; centres outside the bounds clamp to the border cells.
   [[nodiscard]] std::uint64_t encode(float x, float y, float z) const {
     return scatter(0, quantize(0, x)) | scatter(1, quantize(1, y)) | scatter(2, quantize(2, z));
@@ -96,6 +101,9 @@ class MortonEncoder {
   std::array<double, 3> lo_{}, scale_{}, max_cell_{};  // morton_grid()
   std::array<std::array<std::array<std::uint64_t, 256>, 4>, 3> table_{};
   bool two_bytes_ = false;  // no axis has more than 16 bits: quantize() stays below 2^16
+  bool has_tables_ = false;
+  std::array<int, 3> table_bits_{};                              // the layout table_ was made for:
+  std::array<std::array<std::int8_t, 32>, 3> table_position_{};  // its axis_bits and position
 };
 
 }  // namespace viscd::detail

@@ -95,7 +95,8 @@ void MortonOrder::sort_keys(std::span<const Sphere> spheres, std::span<const std
   if (key.size() < n) resize_with_headroom(key, n);
   // Grown, never shrunk here: its first last_count_ ids are the last order (last_order()).
   if (sorted_ids_.size() < n) resize_with_headroom(sorted_ids_, n);
-  const MortonEncoder encoder(layout_, bounds);
+  encoder_.reset(layout_, bounds);
+  const MortonEncoder& encoder = encoder_;
   auto code_of = [&](const Sphere& s) { return static_cast<K>(encoder.encode(s.x, s.y, s.z)); };
   // (code, id) in one entry: packed into `key` when the code has at most 32 bits, so that one
   // comparison orders by code and ties by id; else code and id compared in turn.

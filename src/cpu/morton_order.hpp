@@ -79,6 +79,7 @@ class MortonOrder {
   void last_order(std::size_t objects, std::span<const std::uint32_t> active);
 
   MortonLayout layout_;
+  MortonEncoder encoder_;  // on layout_; its tables kept while the layout stays
   int bits_ = 32;
   PerWidth<KeyVector> keys_;  // each object's code
   PerWidth<RadixScratch> scratch_;

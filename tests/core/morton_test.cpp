@@ -114,6 +114,39 @@ TEST(MortonEncoder, MatchesNaiveEncoder) {
   }
 }
 
+// One encoder reset again and again (as a tree's sort keeps it between builds): over other bounds
+// with the same layout (tables kept), then with another layout (tables made again), then back;
+// every code against the independent encoder.
+TEST(MortonEncoder, ResetKeepsOrRemakesItsTables) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-120, 120);
+  const Aabb wide = flat_world(), small{{-4, -1, -2}, {6, 1, 3}}, tall{{-2, -80, -2}, {2, 80, 2}};
+  struct Step {
+    Layout kind;
+    int bits;
+    Aabb layout_bounds, bounds;
+  };
+  // The plain layout does not depend on the bounds (its tables are kept over other bounds); the
+  // extended one does, and the independent encoder orders its bits by the bounds it is given, so
+  // those steps encode over the bounds their layout was made for.
+  const Step steps[] = {
+      {Layout::extended, 32, wide, wide},   {Layout::extended, 32, wide, wide}, {Layout::plain, 32, wide, wide},
+      {Layout::plain, 32, wide, small},     {Layout::plain, 32, tall, tall},    {Layout::extended, 32, tall, tall},
+      {Layout::extended, 16, small, small}, {Layout::plain, 64, small, wide},   {Layout::extended, 64, wide, wide},
+      {Layout::extended, 32, wide, wide},
+  };
+  MortonEncoder enc;
+  for (const Step& st : steps) {
+    const MortonLayout l = make_layout(st.kind, st.bits, st.layout_bounds, 1.0f);
+    enc.reset(l, st.bounds);
+    for (int k = 0; k < 500; ++k) {
+      const float x = u(rng), y = u(rng) / 3, z = u(rng);
+      ASSERT_EQ(enc.encode(x, y, z), naive_encode(l, st.bounds, x, y, z, st.kind == Layout::plain))
+          << "m=" << st.bits << " at (" << x << "," << y << "," << z << ")";
+    }
+  }
+}
+
 TEST(MortonEncoder, CornersAndZeroExtent) {
   const Aabb b = flat_world();
   const MortonLayout l = extended_layout(32, b, 1.0f);
