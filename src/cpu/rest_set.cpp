@@ -754,8 +754,8 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
 }
 
 bool RestSet::static_pairs_of(const BucketBroadphase& tree, std::span<const std::uint32_t> ids, StaticTree& st,
-                              int threads, std::vector<std::uint64_t>& out) {
-  if (!st.pairs(tree, {}, false, simd_, threads, std::numeric_limits<std::size_t>::max(), out)) return false;
+                              int threads, std::vector<std::uint64_t>& out, const std::uint16_t* search) {
+  if (!st.pairs(tree, {}, false, simd_, threads, std::numeric_limits<std::size_t>::max(), out, search)) return false;
   // Tree ids to object indices: `ids` ascend, so the order stays.
   parallel_for(out.size(), threads, [&](std::size_t k) { out[k] = pair_key(ids[key_i(out[k])], key_j(out[k])); });
   return true;
@@ -902,10 +902,9 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   // its objects that moved inside their own bounds keep theirs).
   stat_found_.clear();
   if (!set.empty() && !left_.empty()) {
-    if (!static_pairs_of(recent.tree, recent.ids, st, threads, stat_found_))
+    // Only the lanes of the objects placed again search (`search`, when recent holds others too).
+    if (!static_pairs_of(recent.tree, recent.ids, st, threads, stat_found_, search))
       return check_pair_cap(SIZE_MAX, in.pair_memory_cap, true);
-    if (recent.ids.size() != left_.size())
-      std::erase_if(stat_found_, [&](std::uint64_t k) { return bit(left_bits_.data(), key_i(k)) == 0; });
     // Recent's own objects come first, in their order: its ids need not ascend.
     if (!std::is_sorted(stat_found_.begin(), stat_found_.end())) std::sort(stat_found_.begin(), stat_found_.end());
   }

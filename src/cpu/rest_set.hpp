@@ -165,10 +165,12 @@ class RestSet {
   void clear_bits();
   /// Follows one frame of changes.
   [[nodiscard]] Status update(const Input& in, const StaticSet& set, StaticTree& st, int threads, FrameStats& stats);
-  /// The static pairs of the objects in `tree` (ids through `ids`), unfiltered, sorted: with fat
-  /// bounds in its lanes, the static candidates of those objects.
+  /// The static pairs of the objects in `tree` (ids through `ids`; with `search`, of those in its
+  /// lanes that search), unfiltered, sorted: with fat bounds in its lanes, the static candidates
+  /// of those objects.
   [[nodiscard]] bool static_pairs_of(const BucketBroadphase& tree, std::span<const std::uint32_t> ids, StaticTree& st,
-                                     int threads, std::vector<std::uint64_t>& out);
+                                     int threads, std::vector<std::uint64_t>& out,
+                                     const std::uint16_t* search = nullptr);
   /// The frame's pairs from the candidates and static pairs; with merge_, also the next list of
   /// candidates (those of objects placed again dropped, found_ merged in, re-tested where changed).
   [[nodiscard]] Status emit(const Input& in, const StaticSet& set, int threads, std::vector<Pair>& pairs);

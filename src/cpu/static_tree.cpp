@@ -130,7 +130,8 @@ std::size_t StaticTree::parts(Part out[2]) const {
 }
 
 bool StaticTree::pairs(const BucketBroadphase& moving, std::span<const Filter> moving_filters, bool filtered,
-                       SimdLevel simd, int threads, std::size_t max_pairs, std::vector<std::uint64_t>& out) {
+                       SimdLevel simd, int threads, std::size_t max_pairs, std::vector<std::uint64_t>& out,
+                       const std::uint16_t* search) {
   out.clear();
   const std::size_t n = moving.sorted_objects().size();
   if (n == 0 || live_ == 0) return true;
@@ -161,9 +162,9 @@ bool StaticTree::pairs(const BucketBroadphase& moving, std::span<const Filter> m
           if (check) __builtin_prefetch(&s->filter_at[q]);
         };
         if (boxes_)
-          cross_pairs_at<BoxTests>(simd, moving, s->tree, b, walk, nullptr, emit, fetch);
+          cross_pairs_at<BoxTests>(simd, moving, s->tree, b, walk, search, emit, fetch);
         else
-          cross_pairs_at<SphereTests>(simd, moving, s->tree, b, walk, nullptr, emit, fetch);
+          cross_pairs_at<SphereTests>(simd, moving, s->tree, b, walk, search, emit, fetch);
       }
       if (list.size() > max_pairs) over.store(true, std::memory_order_relaxed);
     }

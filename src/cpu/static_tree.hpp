@@ -34,9 +34,11 @@ class StaticTree {
   /// that overlaps it and, when `filtered`, whose filters accept each other (`moving_filters`: the
   /// moving objects' filters in the moving tree's sorted order, or empty: Filter{} each), as keys
   /// i << 32 | static_index(slot), i the moving tree's id; `out` is then sorted. Fails when they
-  /// exceed `max_pairs`. `simd`: the kernels (a usable level).
+  /// exceed `max_pairs`. `simd`: the kernels (a usable level). `search` (when not null): per bucket
+  /// of `moving`, the lanes whose objects search; the others report nothing.
   [[nodiscard]] bool pairs(const BucketBroadphase& moving, std::span<const Filter> moving_filters, bool filtered,
-                           SimdLevel simd, int threads, std::size_t max_pairs, std::vector<std::uint64_t>& out);
+                           SimdLevel simd, int threads, std::size_t max_pairs, std::vector<std::uint64_t>& out,
+                           const std::uint16_t* search = nullptr);
   /// The static filter of a reported static index's slot (for pairs found unfiltered).
   [[nodiscard]] static const Filter& filter_of(const StaticSet& set, std::uint32_t reported) {
     return set.filter(static_slot(reported));
