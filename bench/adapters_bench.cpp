@@ -10,7 +10,9 @@
 //           and static pillars stand in the bin; with --settling, that world on a floor twice as
 //           wide, where the bodies come to rest apart and Bullet puts them to sleep. Also per
 //           quarter: the boxes whose AABB changed a step, and for viscd the steps that followed
-//           change and the boxes placed again.
+//           change and the boxes placed again. With --replay R the world is stepped once on
+//           btDbvtBroadphase with its broadphase calls recorded, and the calls are played through
+//           each broadphase R times (the same input for all, no solver in between).
 //   fcl:    self collision of --fcl-boxes random boxes with a counting callback (no narrowphase)
 //           on viscd::FclBroadphaseManager and fcl::DynamicAABBTreeCollisionManager: setup +
 //           collide, then update + collide after every box moved, then 10 frames in which 1 % of
