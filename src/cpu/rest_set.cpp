@@ -576,12 +576,14 @@ namespace {
   bool ok = true;
   if (s.is_box()) {
     const Box& b = s.boxes[k];
-    for (int a = 0; a < 3; ++a)
-      ok &= (std::fabs(b.min[a]) <= kMaxCoordinate) & (std::fabs(b.max[a]) <= kMaxCoordinate) & (b.min[a] <= b.max[a]);
+    for (int a = 0; a < 3; ++a) {
+      const float lo = std::fabs(b.min[a]), hi = std::fabs(b.max[a]);
+      ok &= (lo <= kMaxCoordinate) & (hi <= kMaxCoordinate) & (b.min[a] <= b.max[a]);
+    }
   } else {
     const Sphere& o = s.spheres[k];
-    ok = (std::fabs(o.x) <= kMaxCoordinate) & (std::fabs(o.y) <= kMaxCoordinate) & (std::fabs(o.z) <= kMaxCoordinate) &
-         (std::fabs(o.r) <= kMaxCoordinate) & (o.r >= 0);
+    const float ax = std::fabs(o.x), ay = std::fabs(o.y), az = std::fabs(o.z), ar = std::fabs(o.r);
+    ok = (ax <= kMaxCoordinate) & (ay <= kMaxCoordinate) & (az <= kMaxCoordinate) & (ar <= kMaxCoordinate) & (o.r >= 0);
   }
   return ok;
 }
