@@ -3,6 +3,7 @@
 // validation, the pair-memory cap, the active set's extent (stage 4's inputs) and the message of
 // a frame that ran out of memory.
 
+#include <cmath>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -39,6 +40,21 @@ std::uint64_t bytes_of(const std::vector<T>& v) {
 /// they are counted (id_map_error()).
 [[nodiscard]] Status validate_frame_input(const FrameInput& input, const Config& config, bool check_objects = true);
 
+/// The rule validate_spheres() and validate_boxes() apply to one shape, without branches: every
+/// coordinate (and radius) finite with magnitude at most kMaxCoordinate; a radius >= 0; a box's min
+/// <= max on each axis. NaN fails every comparison.
+[[nodiscard]] inline bool sphere_valid(const Sphere& o) {
+  const float ax = std::fabs(o.x), ay = std::fabs(o.y), az = std::fabs(o.z), ar = std::fabs(o.r);
+  return (ax <= kMaxCoordinate) & (ay <= kMaxCoordinate) & (az <= kMaxCoordinate) & (ar <= kMaxCoordinate) & (o.r >= 0);
+}
+[[nodiscard]] inline bool box_valid(const Box& b) {
+  bool ok = true;
+  for (int k = 0; k < 3; ++k) {
+    const float lo = std::fabs(b.min[k]), hi = std::fabs(b.max[k]);
+    ok &= (lo <= kMaxCoordinate) & (hi <= kMaxCoordinate) & (b.min[k] <= b.max[k]);
+  }
+  return ok;
+}
 /// validate_spheres()'s and validate_boxes()'s pass over every shape, without branches: true when
 /// all are valid (only then is the first bad one not searched for).
 [[nodiscard]] bool spheres_all_valid(std::span<const Sphere> spheres);

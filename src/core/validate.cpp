@@ -38,22 +38,14 @@ bool spheres_all_valid(std::span<const Sphere> spheres) {
   return ok == 0xF && (radius & 0x8) != 0;  // lane 3: r >= 0
 #else
   bool all_valid = true;
-  for (const Sphere& s : spheres) {
-    const float ax = std::fabs(s.x), ay = std::fabs(s.y), az = std::fabs(s.z), ar = std::fabs(s.r);
-    all_valid &=
-        (ax <= kMaxCoordinate) & (ay <= kMaxCoordinate) & (az <= kMaxCoordinate) & (ar <= kMaxCoordinate) & (s.r >= 0);
-  }
+  for (const Sphere& s : spheres) all_valid &= sphere_valid(s);
   return all_valid;
 #endif
 }
 
 bool boxes_all_valid(std::span<const Box> boxes) {
   bool all_valid = true;
-  for (const Box& b : boxes)
-    for (int k = 0; k < 3; ++k) {
-      const float lo = std::fabs(b.min[k]), hi = std::fabs(b.max[k]);
-      all_valid &= (lo <= kMaxCoordinate) & (hi <= kMaxCoordinate) & (b.min[k] <= b.max[k]);
-    }
+  for (const Box& b : boxes) all_valid &= box_valid(b);
   return all_valid;
 }
 

@@ -569,25 +569,6 @@ namespace {
 
 /// Whether the objects of one bitset word [first, last) that `mask` says changed are valid: each
 /// one alone when few changed, else the whole word (in cache: it was just compared).
-// Whether object k is valid (validate_spheres()' and validate_boxes()' rule): inline and without
-// branches, for the listed pass, which checks its changed objects one at a time (through
-// changed_valid() it had cost two calls and a library popcount each).
-[[gnu::always_inline]] inline bool one_valid(const Shapes& s, std::size_t k) {
-  bool ok = true;
-  if (s.is_box()) {
-    const Box& b = s.boxes[k];
-    for (int a = 0; a < 3; ++a) {
-      const float lo = std::fabs(b.min[a]), hi = std::fabs(b.max[a]);
-      ok &= (lo <= kMaxCoordinate) & (hi <= kMaxCoordinate) & (b.min[a] <= b.max[a]);
-    }
-  } else {
-    const Sphere& o = s.spheres[k];
-    const float ax = std::fabs(o.x), ay = std::fabs(o.y), az = std::fabs(o.z), ar = std::fabs(o.r);
-    ok = (ax <= kMaxCoordinate) & (ay <= kMaxCoordinate) & (az <= kMaxCoordinate) & (ar <= kMaxCoordinate) & (o.r >= 0);
-  }
-  return ok;
-}
-
 bool changed_valid(const Shapes& s, std::size_t first, std::size_t last, std::uint64_t mask) {
   if (std::popcount(mask) > 8)
     return s.is_box() ? boxes_all_valid(s.boxes.subspan(first, last - first))
@@ -708,7 +689,8 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
         }
       }
       if (boxes ? same_bits(s.boxes[k], cur_box_[k]) : same_bits(s.spheres[k], cur_sph_[k])) continue;
-      if (in.unvalidated && !one_valid(s, k)) {
+      // Inline, one object (through changed_valid() it had cost two calls and a library popcount).
+      if (in.unvalidated && !(boxes ? box_valid(s.boxes[k]) : sphere_valid(s.spheres[k]))) {
         over.store(true, std::memory_order_relaxed);  // the caller names it; the set starts again
         break;
       }
