@@ -23,6 +23,9 @@ namespace {
 /// Main is rebuilt over the resting objects when its erased lanes and the objects of delta pass
 /// an eighth of all, and at least this many.
 constexpr std::size_t kMainRebuildFloor = 4096;
+// With a rest margin, the objects of recent that did not leave again wait there (not searching)
+// until more than this many do; then they join delta together (RestSet::update()).
+constexpr std::size_t kWaitMost = 512;
 /// A main due again within this many frames of the last build, with delta (the objects that came
 /// to rest since) a quarter of what makes it due, means that objects keep starting and stopping (a
 /// new set of movers every frame; the same movers frame after frame leave main once and stay in
@@ -793,24 +796,52 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   const std::uint64_t* const changed_bits = changed_bits_.data();
   scratch_.clear();
   recent_next_.clear();
-  for (std::size_t t = 0; t < recent.ids.size(); ++t) {
-    if (t + 16 < recent.ids.size()) __builtin_prefetch(&part_of_[recent.ids[t + 16]]);
-    const std::uint32_t o = recent.ids[t];
-    if (part_of_[o] != kRecent) continue;
-    if (!(bit(left_bits, o) || (own && bit(changed_bits, o))))
-      scratch_.push_back(o);
-    else if (own)
-      recent_next_.push_back(o);
-  }
-  const std::size_t kept_moving = recent_next_.size();
-  if (!own) {
-    recent_next_.assign(left_.begin(), left_.end());  // ascending, as before
+  if (margin_ > 0) {
+    // With a rest margin, the old recent objects that did not leave again wait in recent (their
+    // lanes hold their fat bounds, as delta's would; they do not search) while they are few, and
+    // go to delta all at once when they pass kWaitMost: delta is then rebuilt every few frames
+    // instead of every frame, and the objects that keep moving inside their own margins are not
+    // built into recent frame after frame. Own-margin bits (margin_of()) say "moved in the last
+    // frame" as before: set for those that left or, waiting, changed; clear for the rest.
+    for (std::size_t t = 0; t < recent.ids.size(); ++t) {
+      if (t + 16 < recent.ids.size()) __builtin_prefetch(&part_of_[recent.ids[t + 16]]);
+      const std::uint32_t o = recent.ids[t];
+      if (part_of_[o] == kRecent && !bit(left_bits, o)) scratch_.push_back(o);
+    }
+    const bool wait = scratch_.size() <= kWaitMost;
+    if (wait) recent_next_.assign(scratch_.begin(), scratch_.end());
+    if (own) {
+      woken_ = 0;
+      for (const std::uint32_t o : left_) woken_ += part_of_[o] != kRecent;
+      for (const std::uint32_t o : scratch_) {
+        const bool moving = wait && bit(changed_bits, o);
+        recent_bits_[o >> 6] =
+            (recent_bits_[o >> 6] & ~(std::uint64_t{1} << (o & 63))) | (std::uint64_t{moving} << (o & 63));
+      }
+      for (const std::uint32_t o : left_) recent_bits_[o >> 6] |= std::uint64_t{1} << (o & 63);
+    }
+    recent_next_.insert(recent_next_.end(), left_.begin(), left_.end());
+    if (wait) scratch_.clear();
   } else {
-    for (const std::uint32_t o : left_)
-      if (part_of_[o] != kRecent) recent_next_.push_back(o);
-    woken_ = recent_next_.size() - kept_moving;
-    for (const std::uint32_t o : scratch_) recent_bits_[o >> 6] &= ~(std::uint64_t{1} << (o & 63));
-    for (const std::uint32_t o : recent_next_) recent_bits_[o >> 6] |= std::uint64_t{1} << (o & 63);
+    for (std::size_t t = 0; t < recent.ids.size(); ++t) {
+      if (t + 16 < recent.ids.size()) __builtin_prefetch(&part_of_[recent.ids[t + 16]]);
+      const std::uint32_t o = recent.ids[t];
+      if (part_of_[o] != kRecent) continue;
+      if (!(bit(left_bits, o) || (own && bit(changed_bits, o))))
+        scratch_.push_back(o);
+      else if (own)
+        recent_next_.push_back(o);
+    }
+    const std::size_t kept_moving = recent_next_.size();
+    if (!own) {
+      recent_next_.assign(left_.begin(), left_.end());  // ascending, as before
+    } else {
+      for (const std::uint32_t o : left_)
+        if (part_of_[o] != kRecent) recent_next_.push_back(o);
+      woken_ = recent_next_.size() - kept_moving;
+      for (const std::uint32_t o : scratch_) recent_bits_[o >> 6] &= ~(std::uint64_t{1} << (o & 63));
+      for (const std::uint32_t o : recent_next_) recent_bits_[o >> 6] |= std::uint64_t{1} << (o & 63);
+    }
   }
   if (!scratch_.empty()) {
     for (const std::uint32_t o : delta.ids)

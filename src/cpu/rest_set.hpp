@@ -13,7 +13,9 @@
 // from recent with a margin of its own, move_margin times its last move): recent is built over them
 // and over its objects that moved inside their own margins, and only the ones placed again search
 // it, main and delta for their new candidates; the objects of the old `recent` that did not move
-// again join delta with their exact bounds. Candidates of objects that changed but stayed inside
+// again join delta with their exact bounds (with a rest margin, every one of the old recent that
+// did not leave again waits in recent, not searching, until more than kWaitMost (rest_set.cpp)
+// wait, and then they join delta together). Candidates of objects that changed but stayed inside
 // their fat bounds are tested again (with own margins alone, the candidates found by searches of
 // recent live in a side list, and only its marked entries are looked at: update_side(); the others
 // are rewritten only when the side list is merged into them); the rest keep their result. The
