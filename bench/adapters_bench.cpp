@@ -689,7 +689,8 @@ void bench_bullet_replay(int bodies, int steps, bool pillars, bool settling, int
     while (!log.calls.empty() && (log.calls.back().op_id >> 30) != CallLog::kStep) log.calls.pop_back();
     if (!log_path.empty() && !log.save(log_path)) std::fprintf(stderr, "could not write %s\n", log_path.c_str());
   }
-  const std::vector<Kind> kinds = bullet_kinds(bodies, pick);
+  // Sized for the log's proxies (a log read from a file may come from a larger world).
+  const std::vector<Kind> kinds = bullet_kinds(std::max(bodies, static_cast<int>(log.proxies)), pick);
   const std::size_t first = 5;
   struct Summary {
     std::vector<double> mean_own, mean_set, late_pairs, q[4];
