@@ -39,6 +39,7 @@
 #include <random>
 #include <string>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "viscd/bullet.hpp"
@@ -57,6 +58,18 @@ double median(std::vector<double> v) {
   if (v.empty()) return 0;
   std::sort(v.begin(), v.end());
   return v[v.size() / 2];
+}
+
+// The median of v over steps [b, e), or 0 when v does not reach e.
+double span_median(const std::vector<double>& v, std::size_t b, std::size_t e) {
+  if (v.size() < e) return 0.0;
+  return median(
+      std::vector<double>(v.begin() + static_cast<std::ptrdiff_t>(b), v.begin() + static_cast<std::ptrdiff_t>(e)));
+}
+
+// Steps [b, e) of quarter q of the n steps after the first `first`.
+std::pair<std::size_t, std::size_t> quarter(std::size_t first, std::size_t n, int q) {
+  return {first + n * static_cast<std::size_t>(q) / 4, first + n * static_cast<std::size_t>(q + 1) / 4};
 }
 
 // A cheap clock for timing the many short setAabb calls of a step: the time stamp counter where
@@ -290,12 +303,6 @@ class BulletWorld {
     r.share_ms = tail(broadphase_.share_ms);
     r.step_ms = tail(step_ms_);
     const std::size_t first = std::min<std::size_t>(5, step_ms_.size()), n = step_ms_.size() - first;
-    // The median of v over steps [b, e), or 0 when v does not reach e.
-    const auto span_median = [](const std::vector<double>& v, std::size_t b, std::size_t e) {
-      if (v.size() < e) return 0.0;
-      return median(
-          std::vector<double>(v.begin() + static_cast<std::ptrdiff_t>(b), v.begin() + static_cast<std::ptrdiff_t>(e)));
-    };
     // The mean of v after the first steps.
     const auto run_mean = [&](const std::vector<double>& v) {
       double sum = 0;
@@ -303,8 +310,7 @@ class BulletWorld {
       return v.size() > first ? sum / static_cast<double>(v.size() - first) : 0.0;
     };
     for (int q = 0; q < 4; ++q) {
-      const std::size_t b = first + n * static_cast<std::size_t>(q) / 4,
-                        e = first + n * static_cast<std::size_t>(q + 1) / 4;
+      const auto [b, e] = quarter(first, n, q);
       r.quarter_step_ms[q] = span_median(step_ms_, b, e);
       r.quarter_share_ms[q] = span_median(broadphase_.share_ms, b, e);
       r.quarter_own_ms[q] = span_median(broadphase_.own_ms, b, e);
@@ -719,10 +725,8 @@ void bench_bullet_replay(int bodies, int steps, bool pillars, bool settling, int
       m.late_pairs.push_back(late / static_cast<double>(n - n / 2));
       std::printf("%-5d %-22s", r, kinds[k].name.c_str());
       for (int q = 0; q < 4; ++q) {
-        const std::size_t b = first + (n - first) * static_cast<std::size_t>(q) / 4,
-                          e = first + (n - first) * static_cast<std::size_t>(q + 1) / 4;
-        m.q[q].push_back(median(std::vector<double>(p.own_ms.begin() + static_cast<std::ptrdiff_t>(b),
-                                                    p.own_ms.begin() + static_cast<std::ptrdiff_t>(e))));
+        const auto [b, e] = quarter(first, n - first, q);
+        m.q[q].push_back(span_median(p.own_ms, b, e));
         std::printf(" %9.3f", m.q[q].back());
       }
       std::printf(" | %9.3f %9.3f | %9.3f %10d\n", m.mean_own.back(), m.mean_set.back(), m.late_pairs.back(),

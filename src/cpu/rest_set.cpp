@@ -579,7 +579,7 @@ bool changed_valid(const Shapes& s, std::size_t first, std::size_t last, std::ui
   bool ok = true;
   for (std::uint64_t m = mask; m; m &= m - 1) {
     const std::size_t k = first + static_cast<std::size_t>(std::countr_zero(m));
-    ok &= s.is_box() ? boxes_all_valid(s.boxes.subspan(k, 1)) : spheres_all_valid(s.spheres.subspan(k, 1));
+    ok &= s.is_box() ? box_valid(s.boxes[k]) : sphere_valid(s.spheres[k]);
   }
   return ok;
 }
@@ -692,7 +692,7 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
         }
       }
       if (boxes ? same_bits(s.boxes[k], cur_box_[k]) : same_bits(s.spheres[k], cur_sph_[k])) continue;
-      // Inline, one object (through changed_valid() it had cost two calls and a library popcount).
+      // The rule inline (changed_valid() is for a word's worth of objects).
       if (in.unvalidated && !(boxes ? box_valid(s.boxes[k]) : sphere_valid(s.spheres[k]))) {
         over.store(true, std::memory_order_relaxed);  // the caller names it; the set starts again
         break;
@@ -796,53 +796,40 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   const std::uint64_t* const changed_bits = changed_bits_.data();
   scratch_.clear();
   recent_next_.clear();
-  if (margin_ > 0) {
-    // With a rest margin, the old recent objects that did not leave again wait in recent (their
-    // lanes hold their fat bounds, as delta's would; they do not search) while they are few, and
-    // go to delta all at once when they pass kWaitMost: delta is then rebuilt every few frames
-    // instead of every frame, and the objects that keep moving inside their own margins are not
-    // built into recent frame after frame. Own-margin bits (margin_of()) say "moved in the last
-    // frame" as before: set for those that left or, waiting, changed; clear for the rest.
-    for (std::size_t t = 0; t < recent.ids.size(); ++t) {
-      if (t + 16 < recent.ids.size()) __builtin_prefetch(&part_of_[recent.ids[t + 16]]);
-      const std::uint32_t o = recent.ids[t];
-      if (part_of_[o] == kRecent && !bit(left_bits, o)) scratch_.push_back(o);
-    }
-    const bool wait = scratch_.size() <= kWaitMost;
-    if (wait) recent_next_.assign(scratch_.begin(), scratch_.end());
-    if (own) {
-      woken_ = 0;
-      for (const std::uint32_t o : left_) woken_ += part_of_[o] != kRecent;
-      for (const std::uint32_t o : scratch_) {
-        const bool moving = wait && bit(changed_bits, o);
-        recent_bits_[o >> 6] =
-            (recent_bits_[o >> 6] & ~(std::uint64_t{1} << (o & 63))) | (std::uint64_t{moving} << (o & 63));
-      }
-      for (const std::uint32_t o : left_) recent_bits_[o >> 6] |= std::uint64_t{1} << (o & 63);
-    }
-    recent_next_.insert(recent_next_.end(), left_.begin(), left_.end());
-    if (wait) scratch_.clear();
-  } else {
-    for (std::size_t t = 0; t < recent.ids.size(); ++t) {
-      if (t + 16 < recent.ids.size()) __builtin_prefetch(&part_of_[recent.ids[t + 16]]);
-      const std::uint32_t o = recent.ids[t];
-      if (part_of_[o] != kRecent) continue;
-      if (!(bit(left_bits, o) || (own && bit(changed_bits, o))))
-        scratch_.push_back(o);
-      else if (own)
-        recent_next_.push_back(o);
-    }
-    const std::size_t kept_moving = recent_next_.size();
-    if (!own) {
-      recent_next_.assign(left_.begin(), left_.end());  // ascending, as before
-    } else {
-      for (const std::uint32_t o : left_)
-        if (part_of_[o] != kRecent) recent_next_.push_back(o);
-      woken_ = recent_next_.size() - kept_moving;
-      for (const std::uint32_t o : scratch_) recent_bits_[o >> 6] &= ~(std::uint64_t{1} << (o & 63));
-      for (const std::uint32_t o : recent_next_) recent_bits_[o >> 6] |= std::uint64_t{1} << (o & 63);
-    }
+  // With a rest margin, the old recent objects that did not leave again wait in recent (their
+  // lanes hold their fat bounds, as delta's would; they do not search) while they are few, and go
+  // to delta all at once when they pass kWaitMost: delta is then rebuilt every few frames instead
+  // of every frame, and the objects that keep moving inside their own margins are not built into
+  // recent frame after frame. Without one, those that did not move again come to rest in delta.
+  const bool waits = margin_ > 0;
+  for (std::size_t t = 0; t < recent.ids.size(); ++t) {
+    if (t + 16 < recent.ids.size()) __builtin_prefetch(&part_of_[recent.ids[t + 16]]);
+    const std::uint32_t o = recent.ids[t];
+    if (part_of_[o] != kRecent) continue;
+    const bool moves = bit(left_bits, o) || (own && bit(changed_bits, o));
+    if (waits ? !bit(left_bits, o) : !moves)  // (waiting, those that left come from left_ below)
+      scratch_.push_back(o);
+    else if (!waits && own)
+      recent_next_.push_back(o);  // own margins alone: it stays, in its order, while it moves
   }
+  const bool wait = waits && scratch_.size() <= kWaitMost;
+  if (wait) recent_next_.swap(scratch_);  // recent_next_ was empty
+  // Own-margin bits (margin_of()) say "moved in the last frame": set for the objects that left and
+  // for those that stay in recent and changed (every one that left changed); clear for those that
+  // go to delta and the waiting ones that did not change.
+  if (own) {
+    woken_ = 0;
+    for (const std::uint32_t o : left_) woken_ += part_of_[o] != kRecent;
+    for (const std::uint32_t o : scratch_) recent_bits_[o >> 6] &= ~(std::uint64_t{1} << (o & 63));
+    for (const std::uint32_t o : recent_next_)
+      recent_bits_[o >> 6] =
+          (recent_bits_[o >> 6] & ~(std::uint64_t{1} << (o & 63))) | (std::uint64_t{bit(changed_bits, o)} << (o & 63));
+    for (const std::uint32_t o : left_) recent_bits_[o >> 6] |= std::uint64_t{1} << (o & 63);
+  }
+  // Then the objects placed again (ascending when nothing stays); with own margins alone, those
+  // that were in recent are there already.
+  for (const std::uint32_t o : left_)
+    if (waits || !own || part_of_[o] != kRecent) recent_next_.push_back(o);
   if (!scratch_.empty()) {
     for (const std::uint32_t o : delta.ids)
       if (part_of_[o] == kDelta) scratch_.push_back(o);
