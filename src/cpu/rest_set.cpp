@@ -192,11 +192,11 @@ std::uint64_t RestSet::Part::memory_bytes() const {
 std::uint64_t RestSet::memory_bytes() const {
   std::uint64_t b = bytes_of(cur_sph_) + bytes_of(cur_box_) + bytes_of(fat_box_) + bytes_of(fat_sph_) +
                     bytes_of(fat_r_) + bytes_of(part_of_) + bytes_of(changed_bits_) + bytes_of(left_bits_) +
-                    bytes_of(local_) + bytes_of(left_) + bytes_of(scratch_) + bytes_of(cand_) + bytes_of(cand_next_) +
-                    bytes_of(found_) + bytes_of(stat_) + bytes_of(stat_next_) + bytes_of(stat_found_) +
-                    bytes_of(stat_hit_) + bytes_of(stat_hit_next_) + bytes_of(hit_) + bytes_of(hit_next_) +
-                    bytes_of(local_pairs_) + bytes_of(active_mask_) + bytes_of(pair_buf_) + bytes_of(segs_) +
-                    bytes_of(cuts_) + bytes_of(sample_index_) + bytes_of(sample_);
+                    bytes_of(local_) + bytes_of(left_) + bytes_of(left_sorted_) + bytes_of(scratch_) + bytes_of(cand_) +
+                    bytes_of(cand_next_) + bytes_of(found_) + bytes_of(stat_) + bytes_of(stat_next_) +
+                    bytes_of(stat_found_) + bytes_of(stat_hit_) + bytes_of(stat_hit_next_) + bytes_of(hit_) +
+                    bytes_of(hit_next_) + bytes_of(local_pairs_) + bytes_of(active_mask_) + bytes_of(pair_buf_) +
+                    bytes_of(segs_) + bytes_of(cuts_) + bytes_of(sample_index_) + bytes_of(sample_);
   for (const Part& p : parts_) b += p.memory_bytes();
   for (const auto& l : chunk_keys_) b += bytes_of(l);
   b += bytes_of(key_offsets_) + bytes_of(key_scratch_);
@@ -934,38 +934,8 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   // The static candidates: those of objects placed again replaced by the ones found above, and
   // tested, the others tested again where their object changed (inside its fat bounds).
   if (!set.empty()) {
-    const std::uint64_t* const left = left_bits_.data();
-    const std::uint64_t* const changed = changed_bits_.data();
-    if (left_.empty()) {  // nothing was placed again (stat_found_ is empty): retests alone
-      for (std::size_t t = 0; t < stat_.size(); ++t) {
-        const std::uint32_t i = key_i(stat_[t]);
-        if (bit(changed, i)) stat_hit_[t] = static_overlap(s, set, i, key_j(stat_[t]));
-      }
-    } else {
-      resize_with_headroom(stat_next_, stat_.size() + stat_found_.size());
-      resize_with_headroom(stat_hit_next_, stat_.size() + stat_found_.size());
-      std::size_t b = 0, at = 0;
-      const auto take_found = [&](std::uint64_t below) {
-        for (; b < stat_found_.size() && stat_found_[b] < below; ++b, ++at) {
-          stat_next_[at] = stat_found_[b];
-          stat_hit_next_[at] = static_overlap(s, set, key_i(stat_found_[b]), key_j(stat_found_[b]));
-        }
-      };
-      for (std::size_t t = 0; t < stat_.size(); ++t) {
-        const std::uint64_t k = stat_[t];
-        const std::uint32_t i = key_i(k);
-        if (bit(left, i)) continue;
-        take_found(k);
-        stat_next_[at] = k;
-        stat_hit_next_[at] = bit(changed, i) ? static_overlap(s, set, i, key_j(k)) : stat_hit_[t];
-        ++at;
-      }
-      take_found(~std::uint64_t{0});
-      stat_next_.resize(at);
-      stat_hit_next_.resize(at);
-      stat_.swap(stat_next_);
-      stat_hit_.swap(stat_hit_next_);
-    }
+    retest_static(s, set);
+    if (!left_.empty()) splice_static(s, set);
   }
   stats.ms(Stage::query) += sw.lap();
 
@@ -991,6 +961,71 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
     stats.ms(Stage::build) += sw.lap();
   }
   return {};
+}
+
+void RestSet::retest_static(const Shapes& s, const StaticSet& set) {
+  const std::uint64_t* const changed = changed_bits_.data();
+  const std::uint64_t* const keys = stat_.data();
+  std::uint8_t* const hits = stat_hit_.data();
+  const std::size_t count = stat_.size();
+  if (changed_count_ * 4 > n_) {
+    // Many objects changed (a settling pile, where a third to a half of them jiggle each frame):
+    // whether an entry's object changed is a coin toss, so every entry is tested and the result
+    // taken without a branch. A static box or sphere is read either way.
+    for (std::size_t t = 0; t < count; ++t) {
+      const std::uint32_t i = key_i(keys[t]);
+      const std::uint8_t now = static_overlap(s, set, i, key_j(keys[t]));
+      const auto mask = static_cast<std::uint8_t>(0u - bit(changed, i));
+      hits[t] = static_cast<std::uint8_t>((now & mask) | (hits[t] & ~mask));
+    }
+    return;
+  }
+  for (std::size_t t = 0; t < count; ++t) {
+    const std::uint32_t i = key_i(keys[t]);
+    if (bit(changed, i)) hits[t] = static_overlap(s, set, i, key_j(keys[t]));
+  }
+}
+
+void RestSet::splice_static(const Shapes& s, const StaticSet& set) {
+  // The objects placed again own a run of the sorted list each (keys {object, static index}),
+  // and stat_found_ holds the new entries of exactly those objects (only their lanes searched):
+  // each run is replaced by the object's new entries, and the runs between are copied whole.
+  const std::span<const std::uint32_t> left = sorted_left();
+  const std::size_t count = stat_.size(), found = stat_found_.size();
+  resize_with_headroom(stat_next_, count + found);
+  resize_with_headroom(stat_hit_next_, count + found);
+  const std::uint64_t* const keys = stat_.data();
+  std::size_t from = 0, at = 0, f = 0;
+  const auto copy_to = [&](std::size_t end) {
+    std::copy(keys + from, keys + end, stat_next_.data() + at);
+    std::copy(stat_hit_.data() + from, stat_hit_.data() + end, stat_hit_next_.data() + at);
+    at += end - from;
+    from = end;
+  };
+  for (const std::uint32_t o : left) {
+    const std::uint64_t first = pair_key(o, 0);
+    const std::size_t lo = static_cast<std::size_t>(std::lower_bound(keys + from, keys + count, first) - keys);
+    copy_to(lo);
+    for (; f < found && key_i(stat_found_[f]) == o; ++f, ++at) {
+      stat_next_[at] = stat_found_[f];
+      stat_hit_next_[at] = static_overlap(s, set, o, key_j(stat_found_[f]));
+    }
+    // Its old run, dropped.
+    while (from < count && key_i(keys[from]) == o) ++from;
+  }
+  VISCD_ASSERT(f == found, "a static candidate found for an object that was not placed again");
+  copy_to(count);
+  stat_next_.resize(at);
+  stat_hit_next_.resize(at);
+  stat_.swap(stat_next_);
+  stat_hit_.swap(stat_hit_next_);
+}
+
+std::span<const std::uint32_t> RestSet::sorted_left() {
+  if (std::is_sorted(left_.begin(), left_.end())) return left_;
+  left_sorted_.assign(left_.begin(), left_.end());
+  std::sort(left_sorted_.begin(), left_sorted_.end());
+  return left_sorted_;
 }
 
 void RestSet::count_candidates() {

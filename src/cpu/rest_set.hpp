@@ -183,6 +183,13 @@ class RestSet {
   /// object left), unmarked (neither object in recent) or tested again (one changed), then merged
   /// with found_. Each a tight loop whose scattered reads are fetched ahead.
   void update_side(const Shapes& s, int threads);
+  /// The static candidates tested again in place where their object changed (this frame's bits).
+  void retest_static(const Shapes& s, const StaticSet& set);
+  /// With objects placed again: their static candidates replaced by stat_found_ (tested), the
+  /// runs of the others copied whole.
+  void splice_static(const Shapes& s, const StaticSet& set);
+  /// left_, ascending (itself when it is; else a sorted copy).
+  [[nodiscard]] std::span<const std::uint32_t> sorted_left();
   /// The candidates: how many, over the segments.
   [[nodiscard]] std::size_t candidate_count() const;
   /// Packs the candidates into one run and cuts them (and the static pairs) into segments for
@@ -222,7 +229,7 @@ class RestSet {
   std::vector<std::uint64_t> changed_bits_, left_bits_;  // this frame's changed objects and left_, as bitsets
   std::vector<std::uint32_t> local_;                     // the object's id in its tree
   Part parts_[3];
-  std::vector<std::uint32_t> left_, scratch_;
+  std::vector<std::uint32_t> left_, scratch_, left_sorted_;
   std::size_t changed_count_ = 0;                       // this frame's changed objects
   std::vector<std::vector<std::uint32_t>> chunk_left_;  // find_changes(): left_, per chunk
 

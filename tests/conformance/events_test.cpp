@@ -69,6 +69,34 @@ TEST_P(ConformanceFrames, ContactEventsOverAMovingScene) {
   EXPECT_TRUE(ev.out().began.empty());
 }
 
+TEST_P(ConformanceFrames, ContactEventsWhenFewObjectsMove) {
+  // Most pairs persist: the events are a few pairs at any place in long lists (at their start and
+  // end too), and the lists agree over long stretches between them.
+  Events ev(*detector_, Config{});
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<float> u(-1, 1);
+  std::vector<Sphere> s = random_cloud(600, 21, 10.0f, 0.3f, 1.0f);
+  ASSERT_NO_FATAL_FAILURE(ev.frame(s, nullptr, "first frame"));
+  ASSERT_GT(ev.out().pairs.size(), 200u) << "the scene should hold long pair lists";
+  const std::size_t n = s.size();
+  const std::size_t picks[] = {0, 1, n / 3, n / 2, n - 2, n - 1};
+  for (int f = 0; f < 24; ++f) {
+    // One to three objects move a little or jump; the first and last objects now and then.
+    const int count = 1 + f % 3;
+    for (int k = 0; k < count; ++k) {
+      const std::size_t o = f % 4 == 0 ? picks[static_cast<std::size_t>(f / 4 + k) % std::size(picks)]
+                                       : static_cast<std::size_t>(rng() % n);
+      if (f % 2)
+        s[o] = {10 * u(rng), 10 * u(rng), 10 * u(rng), s[o].r};
+      else
+        s[o].x += 0.5f * u(rng), s[o].y += 0.5f * u(rng);
+    }
+    ASSERT_NO_FATAL_FAILURE(ev.frame(s, nullptr, "few moved, frame " + std::to_string(f)));
+  }
+  ASSERT_NO_FATAL_FAILURE(ev.frame(s, nullptr, "unchanged: no events"));
+  EXPECT_TRUE(ev.out().began.empty() && ev.out().ended.empty());
+}
+
 TEST_P(ConformanceFrames, ContactEventsWithCulling) {
   // Objects culled in or out end or begin their pairs; the camera comes and goes.
   CameraScene scene = camera_scene(300, 13, 20.0f);
