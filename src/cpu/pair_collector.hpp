@@ -23,8 +23,9 @@ namespace viscd::detail {
 
 /// Writes the pairs of per-chunk lists (keys i << 32 | j, i < j < objects) into `out` sorted by
 /// (i, j), with up to `threads` threads: O(pairs + objects / 1024 per list). `offsets` and
-/// `scratch` are kept between frames: (lists + 1) (objects / 1024 + 1) + 1 offsets, and per thread
-/// the pairs of the fullest block of 1024 first indices, at most 65536.
+/// `scratch` are kept between frames: (lists + 1 + threads) (objects / 1024 + 1) + 1 offsets, and
+/// per thread the pairs of the fullest block of 1024 first indices, at most 65536 (from 2^20 pairs
+/// on, at least a cache line of 8 entries per block: the first pass's write combining).
 void sort_chunk_pairs(std::span<const std::vector<std::uint64_t>> lists, std::uint32_t objects,
                       std::vector<std::uint32_t>& offsets, std::vector<Pair>& scratch, std::vector<Pair>& out,
                       int threads);

@@ -343,5 +343,46 @@ TEST(SortChunkPairs, EqualsAFullSort) {
   }
 }
 
+TEST(SortChunkPairs, ManyPairsToManyBlocksEqualAFullSort) {
+  // Over 2^20 pairs into 196 blocks: the first pass scatters through lines of its own
+  // (streaming stores; the partial lines at each block's ends as plain stores). Lists of every
+  // size (empty, one pair, a few, most of them), blocks with a handful of pairs next to full
+  // ones, and a block of one object with many partners.
+  std::mt19937_64 rng(5);
+  constexpr std::uint32_t objects = 200000;
+  std::vector<std::vector<std::uint64_t>> lists(7);
+  std::vector<std::uint64_t> want;
+  const auto add = [&](std::size_t list, std::uint32_t i, std::uint32_t j) {
+    if (i == j) return;
+    if (i > j) std::swap(i, j);
+    lists[list].push_back(std::uint64_t{i} << 32 | j);
+    want.push_back(std::uint64_t{i} << 32 | j);
+  };
+  lists[1].push_back(std::uint64_t{3} << 32 | 4);  // a list of one pair
+  want.push_back(std::uint64_t{3} << 32 | 4);
+  for (int k = 0; k < 13; ++k)
+    add(2, static_cast<std::uint32_t>(rng() % objects), static_cast<std::uint32_t>(rng() % objects));
+  for (int k = 0; k < 1300000; ++k) {
+    const std::uint32_t i = static_cast<std::uint32_t>(rng() % objects);
+    // Blocks 40-59 (first indices 40 960-61 439) get only a few pairs each.
+    if ((i >> 10) >= 40 && (i >> 10) < 60 && rng() % 512 != 0) continue;
+    const std::uint32_t j = k % 97 == 0 ? 150000 : static_cast<std::uint32_t>(rng() % objects);  // one busy partner
+    add(3 + static_cast<std::size_t>(rng() % 4), i, j);
+  }
+  ASSERT_GT(want.size(), std::size_t{1} << 20) << "enough pairs for the scatter through lines";
+  std::sort(want.begin(), want.end());
+  std::vector<Pair> want_pairs(want.size());
+  for (std::size_t k = 0; k < want.size(); ++k) want_pairs[k] = {detail::key_i(want[k]), detail::key_j(want[k])};
+  std::vector<std::uint32_t> offsets;
+  std::vector<Pair> scratch, got;
+  std::vector<std::uint64_t> key_scratch, got_keys;
+  for (int threads : {1, 2}) {
+    detail::sort_chunk_pairs(lists, objects, offsets, scratch, got, threads);
+    EXPECT_TRUE(same_pairs(got, want_pairs)) << threads << " threads";
+    detail::sort_chunk_keys(lists, objects, offsets, key_scratch, got_keys, threads);
+    EXPECT_EQ(got_keys, want) << threads << " threads";
+  }
+}
+
 }  // namespace
 }  // namespace viscd
