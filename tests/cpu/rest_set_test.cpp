@@ -10,7 +10,9 @@
 #include <algorithm>
 #include <limits>
 #include <random>
+#include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cpu/cpu_detector.hpp"
@@ -72,6 +74,20 @@ std::vector<Pair> oracle(const std::vector<Sphere>& sph, const std::vector<Box>&
   }
   std::sort(out.begin(), out.end());
   return out;
+}
+
+// One frame on the detector that follows change (given the moved list when `listed`) and on the
+// one that rebuilds every frame (never given it).
+std::pair<Status, Status> detect_both(Detector& follows, Detector& rebuilds, FrameInput in, bool listed,
+                                      std::span<const std::uint32_t> moved, FrameResult& fa, FrameResult& fb) {
+  if (listed) {
+    in.moved = moved;
+    in.moved_listed = true;
+  }
+  Status sa = follows.detect(in, fa);
+  in.moved = {};
+  in.moved_listed = false;
+  return {std::move(sa), rebuilds.detect(in, fb)};
 }
 
 // Runs a scenario; returns how many frames the detector followed.
@@ -205,15 +221,8 @@ int run_scenario(const Scenario& sc) {
     if (sc.camera) in.camera = &cam;
     in.filters = filters;
     in.always_active = always;
-    if (sc.listed) {
-      in.moved = moved;
-      in.moved_listed = true;
-    }
-    const Status sa = a->detect(in, fa);
+    const auto [sa, sb] = detect_both(*a, *b, in, sc.listed, moved, fa, fb);
     EXPECT_TRUE(sa.ok()) << sa.error();
-    in.moved = {};
-    in.moved_listed = false;
-    const Status sb = b->detect(in, fb);
     EXPECT_TRUE(sb.ok()) << sb.error();
     if (!sa.ok() || !sb.ok()) return followed;
     followed += fa.stats.followed_change;
@@ -837,15 +846,8 @@ void settling_pile_on_static_set(bool boxes, bool listed) {
       in.boxes = bx;
     else
       in.spheres = sph;
-    if (listed) {
-      in.moved = moved;
-      in.moved_listed = true;
-    }
-    const Status sa = a->detect(in, fa);
+    const auto [sa, sb] = detect_both(*a, *b, in, listed, moved, fa, fb);
     ASSERT_TRUE(sa.ok()) << sa.error();
-    in.moved = {};
-    in.moved_listed = false;
-    const Status sb = b->detect(in, fb);
     ASSERT_TRUE(sb.ok()) << sb.error();
     if (fa.stats.followed_change && frame >= 2) {
       ++followed;
