@@ -987,33 +987,33 @@ void RestSet::retest_static(const Shapes& s, const StaticSet& set) {
 }
 
 void RestSet::splice_static(const Shapes& s, const StaticSet& set) {
-  // The objects placed again own a run of the sorted list each (keys {object, static index}),
-  // and stat_found_ holds the new entries of exactly those objects (only their lanes searched):
-  // each run is replaced by the object's new entries, and the runs between are copied whole.
+  // Each object owns a run of the sorted list (keys {object, static index}). The run of every
+  // object placed again is replaced by its new entries in stat_found_ (which holds only such
+  // objects' entries: only their lanes searched; any other object found there has its run
+  // replaced the same way), and the runs between are copied whole.
   const std::span<const std::uint32_t> left = sorted_left();
   const std::size_t count = stat_.size(), found = stat_found_.size();
   resize_with_headroom(stat_next_, count + found);
   resize_with_headroom(stat_hit_next_, count + found);
   const std::uint64_t* const keys = stat_.data();
-  std::size_t from = 0, at = 0, f = 0;
+  std::size_t from = 0, at = 0, f = 0, l = 0;
   const auto copy_to = [&](std::size_t end) {
     std::copy(keys + from, keys + end, stat_next_.data() + at);
     std::copy(stat_hit_.data() + from, stat_hit_.data() + end, stat_hit_next_.data() + at);
     at += end - from;
     from = end;
   };
-  for (const std::uint32_t o : left) {
-    const std::uint64_t first = pair_key(o, 0);
-    const std::size_t lo = static_cast<std::size_t>(std::lower_bound(keys + from, keys + count, first) - keys);
-    copy_to(lo);
+  constexpr std::uint32_t kNone = ~std::uint32_t{0};
+  while (l < left.size() || f < found) {
+    const std::uint32_t o = std::min(l < left.size() ? left[l] : kNone, f < found ? key_i(stat_found_[f]) : kNone);
+    l += l < left.size() && left[l] == o;
+    copy_to(static_cast<std::size_t>(std::lower_bound(keys + from, keys + count, pair_key(o, 0)) - keys));
     for (; f < found && key_i(stat_found_[f]) == o; ++f, ++at) {
       stat_next_[at] = stat_found_[f];
       stat_hit_next_[at] = static_overlap(s, set, o, key_j(stat_found_[f]));
     }
-    // Its old run, dropped.
-    while (from < count && key_i(keys[from]) == o) ++from;
+    while (from < count && key_i(keys[from]) == o) ++from;  // its old run, dropped
   }
-  VISCD_ASSERT(f == found, "a static candidate found for an object that was not placed again");
   copy_to(count);
   stat_next_.resize(at);
   stat_hit_next_.resize(at);
