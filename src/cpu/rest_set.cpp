@@ -922,12 +922,25 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
     update_side(s, threads);
     merge_ = side_unmarked_ + dropped_ > std::max(kSideFloor, candidate_count() / kSideShare);
   } else if (left_.empty()) {
-    for_chunks(segs_.size(), segs_.size(), [&](std::size_t c, std::size_t, std::size_t) {
+    // Tested again in place; the candidates whose result changed kept for the counts of the
+    // objects in pairs (with a rest margin: note_pairs()).
+    const std::size_t nc = segs_.size();
+    if (chunk_gone_.size() < nc) chunk_gone_.resize(nc);
+    if (chunk_added_.size() < nc) chunk_added_.resize(nc);
+    for_chunks(nc, nc, [&](std::size_t c, std::size_t, std::size_t) {
+      std::vector<std::uint64_t>& gone = chunk_gone_[c];
+      std::vector<std::uint64_t>& added = chunk_added_[c];
+      gone.clear();
+      added.clear();
       for (std::size_t a = segs_[c].begin; a < segs_[c].end; ++a) {
         const std::uint32_t i = key_i(cand_[a]), j = key_j(cand_[a]);
-        if (bit(changed_bits_.data(), i) | bit(changed_bits_.data(), j)) hit_[a] = s.overlap(i, j);
+        if (!(bit(changed_bits_.data(), i) | bit(changed_bits_.data(), j))) continue;
+        const bool now = s.overlap(i, j);
+        if (now != ((hit_[a] & 1) != 0)) (now ? added : gone).push_back(cand_[a]);
+        hit_[a] = now;
       }
     });
+    if (counts_pairs()) count_changes();
   } else {
     merge_ = true;  // emit() merges as it goes: one pass over the candidates for both
   }
@@ -1031,7 +1044,7 @@ std::span<const std::uint32_t> RestSet::sorted_left() {
 void RestSet::count_candidates() {
   a_count_.clear();
   a_bits_.clear();
-  if (!own_alone()) return;
+  if (!counts_pairs()) return;
   a_count_.assign(n_, 0);
   a_bits_.assign((n_ + 63) / 64, 0);
   for (const Segment& g : segs_)
@@ -1046,28 +1059,7 @@ void RestSet::count_candidates() {
 
 template <class StaticOk>
 void RestSet::note_pairs(bool known, const StaticOk& static_ok) {
-  // Counts first, then the bits of every object whose count moved (one may lose a candidate and
-  // gain another in the same frame).
-  for (const auto& list : chunk_gone_)
-    for (const std::uint64_t k : list) {
-      --a_count_[key_i(k)];
-      --a_count_[key_j(k)];
-    }
-  for (const auto& list : chunk_added_)
-    for (const std::uint64_t k : list) {
-      ++a_count_[key_i(k)];
-      ++a_count_[key_j(k)];
-    }
-  auto settle = [&](std::uint32_t o) {
-    const std::uint64_t m = std::uint64_t{1} << (o & 63);
-    a_bits_[o >> 6] = a_count_[o] > 0 ? a_bits_[o >> 6] | m : a_bits_[o >> 6] & ~m;
-  };
-  for (const auto* lists : {&chunk_gone_, &chunk_added_})
-    for (const auto& list : *lists)
-      for (const std::uint64_t k : list) {
-        settle(key_i(k));
-        settle(key_j(k));
-      }
+  count_changes();
   if (!known) return;
   // The frame's pairs: the candidates' that hold, the side list's that hold, and every static
   // pair's moving object.
@@ -1082,6 +1074,34 @@ void RestSet::note_pairs(bool known, const StaticOk& static_ok) {
   for (std::size_t t = 0; t < stat_.size(); ++t)
     if ((stat_hit_[t] & 1) && static_ok(stat_[t])) set(key_i(stat_[t]));
   pair_bits_ok_ = true;
+}
+
+void RestSet::count_changes() {
+  // Counts first, then the bits of every object whose count moved (one may lose a candidate and
+  // gain another in the same frame). Every list is emptied once counted, so that no change is
+  // counted twice when the next frame has fewer chunks.
+  for (const auto& list : chunk_gone_)
+    for (const std::uint64_t k : list) {
+      --a_count_[key_i(k)];
+      --a_count_[key_j(k)];
+    }
+  for (const auto& list : chunk_added_)
+    for (const std::uint64_t k : list) {
+      ++a_count_[key_i(k)];
+      ++a_count_[key_j(k)];
+    }
+  auto settle = [&](std::uint32_t o) {
+    const std::uint64_t m = std::uint64_t{1} << (o & 63);
+    a_bits_[o >> 6] = a_count_[o] > 0 ? a_bits_[o >> 6] | m : a_bits_[o >> 6] & ~m;
+  };
+  for (auto* lists : {&chunk_gone_, &chunk_added_})
+    for (auto& list : *lists) {
+      for (const std::uint64_t k : list) {
+        settle(key_i(k));
+        settle(key_j(k));
+      }
+      list.clear();
+    }
 }
 
 void RestSet::update_side(const Shapes& s, int threads) {
@@ -1274,9 +1294,17 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
             continue;
           }
         } else if constexpr (kMerge) {
-          if (bit(left, i) | bit(left, j)) continue;  // placed again: found anew in B
+          if (bit(left, i) | bit(left, j)) {  // placed again: found anew in B
+            if constexpr (kRetest == 1)
+              if (hit) gone.push_back(k);
+            continue;
+          }
           if constexpr (kRetest == 1)
-            if (bit(changed, i) | bit(changed, j)) hit = shapes.overlap(i, j);
+            if (bit(changed, i) | bit(changed, j)) {
+              const bool now = shapes.overlap(i, j);
+              if (now != hit) (now ? added : gone).push_back(k);
+              hit = now;
+            }
         }
         take(k, i, j, hit, 0);
       }
@@ -1292,8 +1320,13 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
           take(kb, key_i(kb), key_j(kb), (fb & 1) != 0, fb & kRecheck);
           if constexpr (kMerge)
             if ((fb & 1) && !(fb & kRecheck)) added.push_back(kb);  // a candidate of cand_'s now
-        } else
-          take(kb, key_i(kb), key_j(kb), kRetest == 0 || shapes.overlap(key_i(kb), key_j(kb)), 0);
+        } else if constexpr (kRetest == 1) {
+          const bool hit = shapes.overlap(key_i(kb), key_j(kb));
+          if (hit) added.push_back(kb);  // a new candidate that holds (the counts: note_pairs())
+          take(kb, key_i(kb), key_j(kb), hit, 0);
+        } else {
+          take(kb, key_i(kb), key_j(kb), true, 0);
+        }
         ++b;
       }
       other += out - before;
@@ -1389,7 +1422,7 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     std::copy_n(pair_buf_.data() + pair_ub_[c], out_[c + 1] - out_[c], pairs.data() + out_[c]);
   });
   if (!merge_) {
-    if (side) note_pairs(!check, static_ok);
+    if (counts_pairs()) note_pairs(!check, static_ok);
     return {};
   }
   // The merged list becomes the candidates, in segments where the chunks wrote them; packed and
@@ -1406,8 +1439,8 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     side_.resize(kept);
     side_hit_.resize(kept);
     side_unmarked_ = dropped_ = 0;
-    note_pairs(!check, static_ok);
   }
+  if (counts_pairs()) note_pairs(!check, static_ok);
   std::size_t most = 0, sum = 0;
   for (std::size_t c = 0; c < nc; ++c) {
     segs_[c] = Segment{cand_ub_[c], cand_ub_[c] + kept_[c]};

@@ -263,19 +263,26 @@ class RestSet {
   bool a_out_valid_ = false;
   std::vector<std::uint8_t> direct_ok_;
   std::size_t direct_frames_ = 0, direct_misses_ = 0;
-  // With the side list: per object, how many of cand_'s live candidates that hold it is in, and
-  // the objects in one or more as a bitset (kept as candidates are dropped and merged: emit()'s
-  // chunks list those in chunk_gone_ and chunk_added_); the frame's pair_bits() from them.
+  // With the side list or a rest margin (counts_pairs()): per object, how many of cand_'s live
+  // candidates that hold it is in, and the objects in one or more as a bitset (kept as candidates
+  // are dropped, merged and tested again: emit()'s chunks and update()'s retests in place list
+  // those that stop or start holding in chunk_gone_ and chunk_added_); the frame's pair_bits()
+  // from them.
   std::vector<std::uint32_t> a_count_;
   std::vector<std::uint64_t> a_bits_, pair_bits_;
   std::vector<std::vector<std::uint64_t>> chunk_gone_, chunk_added_;
   bool pair_bits_ok_ = false;
   /// a_count_ and a_bits_ over cand_ (enter()).
   void count_candidates();
-  /// The chunks' dropped and merged candidates taken into a_count_ and a_bits_; then the frame's
-  /// pair_bits_ when `known` (static pairs: those `static_ok` accepts).
+  /// count_changes(); then the frame's pair_bits_ when `known` (static pairs: those `static_ok`
+  /// accepts).
   template <class StaticOk>
   void note_pairs(bool known, const StaticOk& static_ok);
+  /// The candidates in chunk_gone_ and chunk_added_ taken into a_count_ and a_bits_; the lists
+  /// emptied.
+  void count_changes();
+  /// Whether a_count_ and a_bits_ are kept (own margins alone, or a rest margin).
+  [[nodiscard]] bool counts_pairs() const { return own_alone() || margin_ > 0; }
   std::vector<Segment> segs_;
   std::vector<std::uint64_t> cuts_;
   std::vector<std::vector<std::uint64_t>> chunk_keys_;

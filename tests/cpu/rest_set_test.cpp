@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <limits>
+#include <numeric>
 #include <random>
 #include <span>
 #include <string>
@@ -969,6 +970,67 @@ TEST_P(RestSetSegments, StayExactWhileMoversGather) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Cpu, RestSetSegments, ::testing::Range(0, 8));
+
+}  // namespace
+}  // namespace viscd
+
+namespace viscd {
+namespace {
+
+TEST(RestSet, FewerChunksAfterAMergeCountEachChangeOnce) {
+  // With own margins alone (the default) the objects in pairs are counted as candidates are dropped
+  // and merged, chunk by chunk of emit()'s merge. Objects jump out of a dense grid until the
+  // candidates fall below what is merged in chunks (4096), and the list is packed into one chunk:
+  // the changes the sixteen chunks of the frame before listed must not be counted again (they
+  // were, when only the chunks in use were emptied: an object alone far away then stayed
+  // "colliding").
+  BackwardsExecutor four;
+  Config on;
+  on.executor = &four;
+  Config off = on;
+  off.follow_change = false;
+  auto a = make_cpu_detector(on);
+  auto b = make_cpu_detector(off);
+  std::vector<Sphere> s;
+  for (int x = 0; x < 16; ++x)
+    for (int y = 0; y < 12; ++y)
+      for (int z = 0; z < 16; ++z)
+        s.push_back({static_cast<float>(x), static_cast<float>(y), static_cast<float>(z), 0.55f});
+  const std::size_t n = s.size();
+  std::vector<std::uint32_t> order(n);
+  std::iota(order.begin(), order.end(), 0u);
+  std::shuffle(order.begin(), order.end(), std::mt19937_64(3));
+  const std::size_t per_frame = n / 12;  // under the 1 in 5 that makes the set give up
+  std::size_t jumped = 0;
+  FrameResult fa, fb;
+  std::vector<std::uint32_t> moved;
+  int followed = 0;
+  std::size_t most_segments = 0;
+  for (int frame = 0; frame < 20; ++frame) {
+    SCOPED_TRACE("frame " + std::to_string(frame));
+    moved.clear();
+    if (frame >= 2)
+      for (std::size_t k = 0; k < per_frame && jumped < n; ++k, ++jumped) {
+        const std::uint32_t o = order[jumped];
+        s[o] = {1000.0f + 3.0f * static_cast<float>(o), 0, 0, 0.55f};  // alone, far away
+        moved.push_back(o);
+      }
+    std::sort(moved.begin(), moved.end());
+    FrameInput in;
+    in.spheres = s;
+    const auto [sa, sb] = detect_both(*a, *b, in, true, moved, fa, fb);
+    ASSERT_TRUE(sa.ok()) << sa.error();
+    ASSERT_TRUE(sb.ok()) << sb.error();
+    followed += fa.stats.followed_change;
+    EXPECT_TRUE(test::same_pairs(fa.pairs, fb.pairs));
+    EXPECT_EQ(fa.state, fb.state);
+    most_segments = std::max(most_segments, detail::backend_as<detail::CpuDetector>(*a).rest_set().segments());
+  }
+  EXPECT_GE(followed, 16);
+  EXPECT_EQ(most_segments, 16u) << "the candidates were never merged in chunks: the test lost its point";
+  EXPECT_EQ(detail::backend_as<detail::CpuDetector>(*a).rest_set().segments(), 1u)
+      << "the list was never packed into one chunk: the test lost its point";
+}
 
 }  // namespace
 }  // namespace viscd
