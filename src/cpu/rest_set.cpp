@@ -1343,10 +1343,10 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
   const bool check = masked || !filters.empty();
   if (chunk_gone_.size() < nc) chunk_gone_.resize(nc);
   if (chunk_added_.size() < nc) chunk_added_.resize(nc);
-  for (std::size_t c = 0; c < nc; ++c) {
-    chunk_gone_[c].clear();
-    chunk_added_[c].clear();
-  }
+  // Every list, not only this frame's chunks': a frame that failed before counting them (the
+  // pair cap) may have left entries behind.
+  for (auto& list : chunk_gone_) list.clear();
+  for (auto& list : chunk_added_) list.clear();
   // With the side list, unfiltered, when no object woke from rest (then none of the candidates
   // is dropped: an object in recent has none but in the side list) and the candidates' pairs per
   // chunk are known from the last frame: each chunk's count is known before it runs, and the
