@@ -971,12 +971,6 @@ TEST_P(RestSetSegments, StayExactWhileMoversGather) {
 
 INSTANTIATE_TEST_SUITE_P(Cpu, RestSetSegments, ::testing::Range(0, 8));
 
-}  // namespace
-}  // namespace viscd
-
-namespace viscd {
-namespace {
-
 TEST(RestSet, FewerChunksAfterAMergeCountEachChangeOnce) {
   // With own margins alone (the default) the objects in pairs are counted as candidates are dropped
   // and merged, chunk by chunk of emit()'s merge. Objects jump out of a dense grid until the
