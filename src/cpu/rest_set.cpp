@@ -192,11 +192,11 @@ std::uint64_t RestSet::Part::memory_bytes() const {
 std::uint64_t RestSet::memory_bytes() const {
   std::uint64_t b = bytes_of(cur_sph_) + bytes_of(cur_box_) + bytes_of(fat_box_) + bytes_of(fat_sph_) +
                     bytes_of(fat_r_) + bytes_of(part_of_) + bytes_of(changed_bits_) + bytes_of(left_bits_) +
-                    bytes_of(local_) + bytes_of(left_) + bytes_of(left_sorted_) + bytes_of(scratch_) + bytes_of(cand_) +
-                    bytes_of(cand_next_) + bytes_of(found_) + bytes_of(stat_) + bytes_of(stat_next_) +
-                    bytes_of(stat_found_) + bytes_of(stat_hit_) + bytes_of(stat_hit_next_) + bytes_of(hit_) +
-                    bytes_of(hit_next_) + bytes_of(local_pairs_) + bytes_of(active_mask_) + bytes_of(pair_buf_) +
-                    bytes_of(segs_) + bytes_of(cuts_) + bytes_of(sample_index_) + bytes_of(sample_);
+                    bytes_of(local_) + bytes_of(left_) + bytes_of(scratch_) + bytes_of(cand_) + bytes_of(cand_next_) +
+                    bytes_of(found_) + bytes_of(stat_) + bytes_of(stat_next_) + bytes_of(stat_found_) +
+                    bytes_of(stat_hit_) + bytes_of(stat_hit_next_) + bytes_of(hit_) + bytes_of(hit_next_) +
+                    bytes_of(local_pairs_) + bytes_of(active_mask_) + bytes_of(pair_buf_) + bytes_of(segs_) +
+                    bytes_of(cuts_) + bytes_of(sample_index_) + bytes_of(sample_);
   for (const Part& p : parts_) b += p.memory_bytes();
   for (const auto& l : chunk_keys_) b += bytes_of(l);
   b += bytes_of(key_offsets_) + bytes_of(key_scratch_);
@@ -710,6 +710,8 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
     pending_total.fetch_add(pending, std::memory_order_relaxed);
   });
   few = !over.load();
+  // Ascending: each chunk's in order (the listed objects ascend, the words are read in order), the
+  // chunks one after another.
   left_.clear();
   const std::size_t used = std::min(chunks, count);
   left_margin_.clear();
@@ -925,13 +927,10 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
     // Tested again in place; the candidates whose result changed kept for the counts of the
     // objects in pairs (with a rest margin: note_pairs()).
     const std::size_t nc = segs_.size();
-    if (chunk_gone_.size() < nc) chunk_gone_.resize(nc);
-    if (chunk_added_.size() < nc) chunk_added_.resize(nc);
+    open_change_lists(nc);
     for_chunks(nc, nc, [&](std::size_t c, std::size_t, std::size_t) {
       std::vector<std::uint64_t>& gone = chunk_gone_[c];
       std::vector<std::uint64_t>& added = chunk_added_[c];
-      gone.clear();
-      added.clear();
       for (std::size_t a = segs_[c].begin; a < segs_[c].end; ++a) {
         const std::uint32_t i = key_i(cand_[a]), j = key_j(cand_[a]);
         if (!(bit(changed_bits_.data(), i) | bit(changed_bits_.data(), j))) continue;
@@ -1004,7 +1003,8 @@ void RestSet::splice_static(const Shapes& s, const StaticSet& set) {
   // object placed again is replaced by its new entries in stat_found_ (which holds only such
   // objects' entries: only their lanes searched; any other object found there has its run
   // replaced the same way), and the runs between are copied whole.
-  const std::span<const std::uint32_t> left = sorted_left();
+  const std::span<const std::uint32_t> left = left_;  // ascending (find_changes())
+  VISCD_ASSERT(std::is_sorted(left.begin(), left.end()), "the objects placed again ascend");
   const std::size_t count = stat_.size(), found = stat_found_.size();
   resize_with_headroom(stat_next_, count + found);
   resize_with_headroom(stat_hit_next_, count + found);
@@ -1032,13 +1032,6 @@ void RestSet::splice_static(const Shapes& s, const StaticSet& set) {
   stat_hit_next_.resize(at);
   stat_.swap(stat_next_);
   stat_hit_.swap(stat_hit_next_);
-}
-
-std::span<const std::uint32_t> RestSet::sorted_left() {
-  if (std::is_sorted(left_.begin(), left_.end())) return left_;
-  left_sorted_.assign(left_.begin(), left_.end());
-  std::sort(left_sorted_.begin(), left_sorted_.end());
-  return left_sorted_;
 }
 
 void RestSet::count_candidates() {
@@ -1074,6 +1067,15 @@ void RestSet::note_pairs(bool known, const StaticOk& static_ok) {
   for (std::size_t t = 0; t < stat_.size(); ++t)
     if ((stat_hit_[t] & 1) && static_ok(stat_[t])) set(key_i(stat_[t]));
   pair_bits_ok_ = true;
+}
+
+void RestSet::open_change_lists(std::size_t chunks) {
+  // Every list, not only those of the chunks to come: a frame that failed before counting its
+  // changes (the pair cap) may have left entries behind.
+  if (chunk_gone_.size() < chunks) chunk_gone_.resize(chunks);
+  if (chunk_added_.size() < chunks) chunk_added_.resize(chunks);
+  for (auto& list : chunk_gone_) list.clear();
+  for (auto& list : chunk_added_) list.clear();
 }
 
 void RestSet::count_changes() {
@@ -1341,12 +1343,7 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     }
   };
   const bool check = masked || !filters.empty();
-  if (chunk_gone_.size() < nc) chunk_gone_.resize(nc);
-  if (chunk_added_.size() < nc) chunk_added_.resize(nc);
-  // Every list, not only this frame's chunks': a frame that failed before counting them (the
-  // pair cap) may have left entries behind.
-  for (auto& list : chunk_gone_) list.clear();
-  for (auto& list : chunk_added_) list.clear();
+  open_change_lists(nc);
   // With the side list, unfiltered, when no object woke from rest (then none of the candidates
   // is dropped: an object in recent has none but in the side list) and the candidates' pairs per
   // chunk are known from the last frame: each chunk's count is known before it runs, and the

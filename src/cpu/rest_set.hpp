@@ -188,8 +188,6 @@ class RestSet {
   /// With objects placed again: their static candidates replaced by stat_found_ (tested), the
   /// runs of the others copied whole.
   void splice_static(const Shapes& s, const StaticSet& set);
-  /// left_, ascending (itself when it is; else a sorted copy).
-  [[nodiscard]] std::span<const std::uint32_t> sorted_left();
   /// The candidates: how many, over the segments.
   [[nodiscard]] std::size_t candidate_count() const;
   /// Packs the candidates into one run and cuts them (and the static pairs) into segments for
@@ -229,7 +227,7 @@ class RestSet {
   std::vector<std::uint64_t> changed_bits_, left_bits_;  // this frame's changed objects and left_, as bitsets
   std::vector<std::uint32_t> local_;                     // the object's id in its tree
   Part parts_[3];
-  std::vector<std::uint32_t> left_, scratch_, left_sorted_;
+  std::vector<std::uint32_t> left_, scratch_;
   std::size_t changed_count_ = 0;                       // this frame's changed objects
   std::vector<std::vector<std::uint32_t>> chunk_left_;  // find_changes(): left_, per chunk
 
@@ -281,6 +279,8 @@ class RestSet {
   /// The candidates in chunk_gone_ and chunk_added_ taken into a_count_ and a_bits_; the lists
   /// emptied.
   void count_changes();
+  /// chunk_gone_ and chunk_added_ for `chunks` chunks, every list empty.
+  void open_change_lists(std::size_t chunks);
   /// Whether a_count_ and a_bits_ are kept (own margins alone, or a rest margin).
   [[nodiscard]] bool counts_pairs() const { return own_alone() || margin_ > 0; }
   std::vector<Segment> segs_;
