@@ -34,6 +34,7 @@ struct Options {
   std::vector<double> fractions{0.0, 0.01, 0.1, 1.0};
   std::vector<std::string> shapes{"sphere", "box"};
   int frames = 20, warmup = 3, threads = 0;
+  std::uint32_t spawn = 0;  // --fractions: objects added at the end each frame
   bool redraw = false, pile = false, run_fractions = false, stages = false;
   std::vector<std::string> variants{"rebuild", "compared", "listed"};
   float margin = 0.02f, jiggle = 0.004f, rest_margin = 0.0f, move_margin = Config{}.move_margin;
@@ -46,9 +47,14 @@ struct World {
   std::vector<Sphere> spheres;
   std::vector<Box> boxes;
   bool is_box = false;
+  float side = 0;  // the slab's x and z extent (y: a tenth)
   void set(std::size_t k, const Sphere& s) {
     spheres[k] = s;
     if (is_box) boxes[k] = box_of(s);
+  }
+  void add(const Sphere& s) {
+    spheres.push_back(s);
+    if (is_box) boxes.push_back(box_of(s));
   }
   [[nodiscard]] FrameInput input() const {
     FrameInput in;
@@ -68,6 +74,7 @@ World make_world(std::size_t n, bool is_box, std::mt19937_64& rng) {
   std::uniform_real_distribution<float> u(0, 1);
   World w;
   w.is_box = is_box;
+  w.side = side;
   w.spheres.resize(n);
   if (is_box) w.boxes.resize(n);
   for (std::size_t k = 0; k < n; ++k) w.set(k, Sphere{u(rng) * side, u(rng) * side * 0.1f, u(rng) * side, 0.5f});
@@ -121,6 +128,10 @@ void run_fractions(const Options& o, CsvWriter& csv) {
               s.z += step(rng);
               w.set(k, s);
             }
+            // Spawned at the end (the moved list need not name them).
+            std::uniform_real_distribution<float> at(0, 1);
+            for (std::uint32_t t = 0; t < o.spawn; ++t)
+              w.add(Sphere{at(rng) * w.side, at(rng) * w.side * 0.1f, at(rng) * w.side, 0.5f});
           }
           FrameInput in = w.input();
           auto timed = [&](const char* name, Detector& d, FrameResult& f) {
@@ -244,6 +255,7 @@ int main(int argc, char** argv) {
   app.add_option("--fraction", o.fractions, "fractions that move each frame (--fractions)")->delimiter(',');
   app.add_option("--shapes", o.shapes, "sphere and/or box (--fractions)")->delimiter(',');
   app.add_flag("--redraw", o.redraw, "a new random set of movers every frame (--fractions)");
+  app.add_option("--spawn", o.spawn, "objects added at the end of the array every frame (--fractions)");
   app.add_option("--margin", o.margin, "Config::rest_margin (--pile)");
   app.add_option("--rest-margin", o.rest_margin, "Config::rest_margin of the following detectors (--fractions)");
   app.add_option("--move-margin", o.move_margin, "Config::move_margin of the following detectors")

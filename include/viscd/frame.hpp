@@ -78,8 +78,9 @@ struct FrameInput {
   /// listed ones for NaN and range: an object left out that did change makes that frame's results
   /// unspecified (docs/embedding.md, "Telling the detector what moved"; Config::verify_moved checks
   /// the list). Listing an object that did not change costs a compare. Objects beyond the last
-  /// frame's count are new and need no listing. Other backends check the list and then compare
-  /// nothing: they rebuild every frame.
+  /// frame's count are new and need no listing; in such a frame the cpu backend checks the list
+  /// and compares every old object. Other backends check the list and then compare nothing:
+  /// they rebuild every frame.
   std::span<const std::uint32_t> moved;
   bool moved_listed = false;
 };

@@ -399,7 +399,9 @@ std::span<const std::uint32_t> RestSet::enter_main(int threads, std::vector<Pair
 bool RestSet::sample_rests(const Shapes& s, float margin) {
   const std::size_t n = s.size();
   bool rests = false;
-  if (sample_n_ == n && sample_kind_ == s.kind && n > 0 && !sample_index_.empty()) {
+  // The last sample's objects are still there when the count stayed or grew (objects added at
+  // the end do not keep the set from starting).
+  if (sample_n_ > 0 && sample_n_ <= n && sample_kind_ == s.kind && !sample_index_.empty()) {
     std::size_t still = 0;
     for (std::size_t k = 0; k < sample_index_.size(); ++k) {
       const Aabb now = s.aabb(sample_index_[k]);
@@ -446,7 +448,11 @@ Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int t
     reset();
     return {};
   }
-  if (live_ && (n != n_ || s.kind != kind_ || in.margin != margin_ || in.move_margin != move_margin_ ||
+  // New objects at the end (n above the last frame's count) are placed as objects that left
+  // their bounds are, while they are few; fewer objects rebuild.
+  const std::size_t limit = std::max<std::size_t>(n / kGiveUp, 16);
+  const bool grows = live_ && n > n_ && n - n_ <= limit;
+  if (live_ && ((n != n_ && !grows) || s.kind != kind_ || in.margin != margin_ || in.move_margin != move_margin_ ||
                 in.layout != layout_ || set.version() != static_version_))
     reset();
   if (live_ && churned_) {  // the last frame found main due again too soon
@@ -459,7 +465,9 @@ Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int t
   if (live_) {
     Stopwatch sw;
     bool few = false;
-    status = find_changes(in, threads, std::max<std::size_t>(n / kGiveUp, 16), few);
+    grown_from_ = n_;
+    if (n > n_) grow(n);
+    status = find_changes(in, threads, limit, few);
     stats.ms(Stage::cull) += sw.lap();
     if (!status) {
       reset();
@@ -586,13 +594,42 @@ bool changed_valid(const Shapes& s, std::size_t first, std::size_t last, std::ui
 
 }  // namespace
 
+void RestSet::grow(std::size_t n) {
+  // Every per-object array to n; the new objects' entries are set by find_changes(), which takes
+  // them as objects that left their bounds (their copies, fat bounds and bits).
+  n_ = n;
+  const std::size_t words = (n + 63) / 64;
+  if (box_lanes())
+    resize_with_headroom(cur_box_, n);
+  else
+    resize_with_headroom(cur_sph_, n);
+  if (fat() && box_lanes()) {
+    resize_with_headroom(fat_box_, n);
+  } else if (fat()) {
+    resize_with_headroom(fat_sph_, n);
+    resize_with_headroom(fat_r_, n);
+  }
+  recent_bits_.resize(words, 0);
+  changed_bits_.resize(words, 0);
+  left_bits_.resize(words, 0);
+  part_of_.resize(n, kNowhere);
+  resize_with_headroom(local_, n);
+  if (counts_pairs()) {
+    a_count_.resize(n, 0);
+    a_bits_.resize(words, 0);
+  }
+}
+
 Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bool& few) {
   const Shapes& s = in.objects;
-  const bool listed = in.moved_listed;
+  // The objects of the last frame are compared (grown_from_ of them: those after it are new).
+  // A frame with a new count needs no list (docs/embedding.md): then every one is compared.
+  const std::size_t old_n = grown_from_;
+  const bool listed = in.moved_listed && old_n == n_;
   // The objects to compare: the listed ones, or all of them, in chunks of whole bitset words (so
   // that each chunk sets the bits of its own words). A changed object's shape is taken at once.
-  const std::size_t count = listed ? in.moved.size() : (n_ + 63) / 64;
-  const std::size_t chunks = std::max<std::size_t>(1, ranges_for(listed ? count : n_, threads));
+  const std::size_t count = listed ? in.moved.size() : (old_n + 63) / 64;
+  const std::size_t chunks = std::max<std::size_t>(1, ranges_for(listed ? count : old_n, threads));
   chunk_left_.resize(std::max(chunk_left_.size(), chunks));
   chunk_margin_.resize(std::max(chunk_margin_.size(), chunks));
   std::atomic<std::size_t> left_total{0};
@@ -637,7 +674,7 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
       // A word of 64 objects at a time: which changed (compares without branches), their shapes
       // taken, then the fat-bounds test on those alone. The chunk owns its words.
       for (std::size_t w = b; w < e; ++w) {
-        const std::size_t first = w * 64, last = std::min(n_, first + 64);
+        const std::size_t first = w * 64, last = std::min(old_n, first + 64);
         std::uint64_t mask = 0;
         if (boxes) {
           for (std::size_t k = first; k < last; ++k)
@@ -719,17 +756,35 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
     left_.insert(left_.end(), chunk_left_[c].begin(), chunk_left_[c].end());
     left_margin_.insert(left_margin_.end(), chunk_margin_[c].begin(), chunk_margin_[c].end());
   }
+  // The new objects (after the last frame's count) are placed as objects that left are, with the
+  // rest margin; they come last, so left_ still ascends. The caller validated them (a new count:
+  // the set did not follow these objects, follows()).
+  if (few)
+    for (std::size_t k = old_n; k < n_; ++k) {
+      if (in.unvalidated && !(boxes ? box_valid(s.boxes[k]) : sphere_valid(s.spheres[k]))) {
+        few = false;  // the caller names it; the set starts again
+        break;
+      }
+      changed_bits_[k >> 6] |= std::uint64_t{1} << (k & 63);
+      left_bits_[k >> 6] |= std::uint64_t{1} << (k & 63);
+      left_.push_back(static_cast<std::uint32_t>(k));
+      if (fat()) left_margin_.push_back(margin_);
+      if (boxes)
+        cur_box_[k] = s.boxes[k];
+      else
+        cur_sph_[k] = s.spheres[k];
+    }
   // The changed objects are the bits alone, counted here. Every object in a jiggling pile
   // changes, and a list of them all cost a store per object; with a tenth of 10^6 objects listed
   // in FrameInput::moved, the list made the listed pass slower than comparing every object.
-  changed_count_ = changed_total.load();
+  changed_count_ = changed_total.load() + (few ? n_ - old_n : 0);
   // Recent is built over the objects that left and those of its own that moved inside their
   // bounds: both count against the limit.
   if (left_.size() + pending_total.load() > limit) few = false;
   if (listed && in.verify_moved) {
     // Every object the list leaves out must be bit for bit the previous frame's.
     std::size_t at = 0;
-    for (std::uint32_t k = 0; k < n_; ++k) {
+    for (std::uint32_t k = 0; k < old_n; ++k) {
       while (at < in.moved.size() && in.moved[at] < k) ++at;
       if (at < in.moved.size() && in.moved[at] == k) continue;
       const bool same = boxes ? same_bits(s.boxes[k], cur_box_[k]) : same_bits(s.spheres[k], cur_sph_[k]);

@@ -26,15 +26,17 @@
 // rebuilt over the resting ones (the frame's movers stay in recent).
 //
 // A frame costs the pass over the bounds (none with FrameInput::moved), the movers' tree and its
-// searches, and one merging pass over the candidates and pairs. When more than 1 in 5 objects leave
-// their fat bounds or move inside margins of their own in a frame, when the object count, their
-// kind, the static set, the layout or the margin change, when culling leaves fewer than half of the
-// objects active (the candidates of culled objects would cost more than a culled rebuild saves), or
-// when main comes due again within 3 frames of its last build with many objects come to rest in
-// delta (new objects start and stop moving every frame), the set lets the frame rebuild and starts
-// again later: while it is not in use it watches a sample of 256 objects (a new one each frame),
-// and takes over when 5 in 6 of them rest (after such a give-up for churn, only after a wait that
-// doubles each time).
+// searches, and one merging pass over the candidates and pairs. Objects added at the end (a count
+// above the last frame's, by at most 1 in 5) are placed as objects that left are; such a frame
+// compares every old object (a new count needs no moved list). When more than 1 in 5 objects
+// leave their fat bounds or move inside margins of their own in a frame, when the object count
+// falls, when their kind, the static set, the layout or the margin change, when culling leaves
+// fewer than half of the objects active (the candidates of culled objects would cost more than a
+// culled rebuild saves), or when main comes due again within 3 frames of its last build with many
+// objects come to rest in delta (new objects start and stop moving every frame), the set lets the
+// frame rebuild and starts again later: while it is not in use it watches a sample of 256 objects
+// (a new one each frame; objects added since do not spoil it), and takes over when 5 in 6 of them
+// rest (after such a give-up for churn, only after a wait that doubles each time).
 // docs/architecture.md, "Resting objects".
 
 #include <cstdint>
@@ -160,8 +162,10 @@ class RestSet {
   std::span<const std::uint32_t> enter_main(int threads, std::vector<Pair>* pairs);
   /// Starts following: every object placed now, every candidate found.
   [[nodiscard]] Status enter(const Input& in, const StaticSet& set, StaticTree& st, int threads, FrameStats& stats);
-  /// Finds the objects that changed (changed_bits_) and left their fat bounds (left_); false when
-  /// more than `limit` left.
+  /// Takes n objects where the last frame had fewer (grown_from_): every per-object array sized.
+  void grow(std::size_t n);
+  /// Finds the objects that changed (changed_bits_) and left their fat bounds (left_), the new
+  /// objects after grown_from_ among them; false when more than `limit` left.
   [[nodiscard]] Status find_changes(const Input& in, int threads, std::size_t limit, bool& few);
   /// Clears this frame's bits of the changed objects and of left_.
   void clear_bits();
@@ -201,6 +205,7 @@ class RestSet {
   bool run_again_ = false;         // run(): see run_again()
   ShapeKind kind_ = ShapeKind::sphere;
   std::size_t n_ = 0;
+  std::size_t grown_from_ = 0;  // run(): the last frame's object count (below n_ when objects were added)
   float margin_ = 0;
   float move_margin_ = 0;  // Input::move_margin
   Layout layout_ = Layout::extended;

@@ -971,6 +971,102 @@ TEST_P(RestSetSegments, StayExactWhileMoversGather) {
 
 INSTANTIATE_TEST_SUITE_P(Cpu, RestSetSegments, ::testing::Range(0, 8));
 
+// Objects appended at the end (spawned bodies, particles) are placed as objects that leave their
+// bounds are: such frames are followed, with the new objects' pairs among themselves, with the
+// others and with the static set; fewer objects rebuild. Spheres and boxes, with and without the
+// moved list (which need not name the new objects) and a rest margin.
+void objects_added_at_the_end(bool boxes, bool listed, float margin) {
+  SCOPED_TRACE(std::string(boxes ? "boxes" : "spheres") + (listed ? ", listed" : ", compared") + ", margin " +
+               std::to_string(margin));
+  std::mt19937_64 rng(41);
+  std::uniform_real_distribution<float> u(-1, 1);
+  auto near_origin = [&] { return Sphere{u(rng) * 14, u(rng) * 3, u(rng) * 14, 0.6f}; };
+  std::vector<Sphere> sph(3000);
+  for (auto& s : sph) s = near_origin();
+  Config on;
+  on.rest_margin = margin;
+  on.contact_events = true;
+  Config off = on;
+  off.follow_change = false;
+  auto a = make_cpu_detector(on);
+  auto b = make_cpu_detector(off);
+  std::vector<Sphere> st_sph;
+  std::vector<Box> st_bx;
+  for (int k = 0; k < 12; ++k) {
+    const Sphere s = near_origin();
+    if (boxes) {
+      st_bx.push_back(box_of(s));
+      ASSERT_TRUE(a->add_static_box(st_bx.back()).ok());
+      ASSERT_TRUE(b->add_static_box(st_bx.back()).ok());
+    } else {
+      st_sph.push_back(s);
+      ASSERT_TRUE(a->add_static_sphere(s).ok());
+      ASSERT_TRUE(b->add_static_sphere(s).ok());
+    }
+  }
+  FrameResult fa, fb;
+  std::vector<std::uint32_t> moved;
+  int grown_followed = 0, shrunk_followed = 0;
+  for (int frame = 0; frame < 30; ++frame) {
+    SCOPED_TRACE("frame " + std::to_string(frame));
+    moved.clear();
+    const std::size_t before = sph.size();
+    bool grew = false, shrank = false;
+    if (frame > 0) {
+      for (int t = 0; t < 20; ++t) {  // a few move
+        const auto k = static_cast<std::uint32_t>((frame * 131 + t * 17) % before);
+        sph[k].x += u(rng) * 0.5f;
+        moved.push_back(k);
+      }
+      std::sort(moved.begin(), moved.end());
+      moved.erase(std::unique(moved.begin(), moved.end()), moved.end());
+      if (frame == 20) {  // some vanish from the end
+        sph.resize(before - 100);
+        moved.erase(std::remove_if(moved.begin(), moved.end(), [&](std::uint32_t k) { return k >= sph.size(); }),
+                    moved.end());
+        shrank = true;
+      } else if (frame % 3 != 0) {  // new ones at the end, some on top of others, some on their own
+        const int add = 1 + frame % 40;
+        for (int t = 0; t < add; ++t) sph.push_back(t % 2 ? near_origin() : sph[(frame * 7 + t) % before]);
+        if (frame % 5 == 1) moved.push_back(static_cast<std::uint32_t>(before));  // the list may name one
+        grew = true;
+      }
+    }
+    std::vector<Box> bx;
+    FrameInput in;
+    if (boxes) {
+      for (const Sphere& s : sph) bx.push_back(box_of(s));
+      in.boxes = bx;
+    } else {
+      in.spheres = sph;
+    }
+    const auto [sa, sb] = detect_both(*a, *b, in, listed, moved, fa, fb);
+    ASSERT_TRUE(sa.ok()) << sa.error();
+    ASSERT_TRUE(sb.ok()) << sb.error();
+    grown_followed += grew && fa.stats.followed_change;
+    shrunk_followed += shrank && fa.stats.followed_change;
+    const std::vector<ObjectState> all_active(sph.size(), ObjectState::free);
+    EXPECT_TRUE(test::same_pairs(fa.pairs, oracle(sph, bx, boxes, all_active, {}, st_sph, st_bx,
+                                                  std::vector<Filter>(st_sph.size() + st_bx.size()))));
+    EXPECT_TRUE(test::same_pairs(fa.pairs, fb.pairs));
+    EXPECT_EQ(fa.state, fb.state);
+    EXPECT_TRUE(test::same_pairs(fa.began, fb.began));
+    EXPECT_TRUE(test::same_pairs(fa.ended, fb.ended));
+    std::vector<std::uint32_t> ia, ib;
+    a->overlap(Sphere{0, 0, 0, 3}, ia);
+    b->overlap(Sphere{0, 0, 0, 3}, ib);
+    EXPECT_EQ(ia, ib);
+  }
+  EXPECT_GE(grown_followed, 16) << "frames that added objects must be followed";
+  EXPECT_EQ(shrunk_followed, 0) << "a frame with fewer objects rebuilds";
+}
+
+TEST(RestSet, ObjectsAddedAtTheEndAreFollowed) {
+  for (const bool boxes : {false, true})
+    for (const bool listed : {false, true})
+      for (const float margin : {0.0f, 0.05f}) objects_added_at_the_end(boxes, listed, margin);
+}
+
 TEST(RestSet, FewerChunksAfterAMergeCountEachChangeOnce) {
   // With own margins alone (the default) the objects in pairs are counted as candidates are dropped
   // and merged, chunk by chunk of emit()'s merge. Objects jump out of a dense grid until the

@@ -7,7 +7,7 @@
 // a scene, then runs phases of a few frames each: nothing moves, objects jiggle inside or past the
 // margin, glide, jump, gather into a cluster, scatter far apart, new movers every frame, everything
 // moves; now and then the object count changes, filters and flags change, static objects come,
-// move and go, a frame holds a NaN.
+// move and go, a few objects are spawned at the end, a frame holds a NaN.
 //
 // Checks, every frame: both detectors succeed or fail alike (a failure with the same message);
 // their pairs, states, pixels and contact events are equal; a few queries answer alike; with few
@@ -317,6 +317,13 @@ class Soak {
     if (frame_ > 0 && chance(0.06) && !objects_.empty()) {
       const std::size_t n = objects_.size();
       const std::size_t m = chance(0.5) ? n - n / 10 - (n > 0 ? 1 : 0) : n + n / 10 + 1;
+      objects_.resize(m);
+      for (std::size_t k = n; k < m; ++k) objects_[k] = placed(k);
+      if (r_.filters) filters_.resize(m, Filter{});
+      if (r_.always) always_.resize(m, 0);
+    }
+    if (frame_ > 0 && chance(0.15)) {  // a few spawned at the end
+      const std::size_t n = objects_.size(), m = n + 1 + index_below(20);
       objects_.resize(m);
       for (std::size_t k = n; k < m; ++k) objects_[k] = placed(k);
       if (r_.filters) filters_.resize(m, Filter{});
