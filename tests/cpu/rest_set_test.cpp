@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <limits>
+#include <memory>
 #include <numeric>
 #include <random>
 #include <span>
@@ -89,6 +90,14 @@ std::pair<Status, Status> detect_both(Detector& follows, Detector& rebuilds, Fra
   in.moved = {};
   in.moved_listed = false;
   return {std::move(sa), rebuilds.detect(in, fb)};
+}
+
+// A cpu detector that follows change with `on` and one that rebuilds every frame, else alike.
+std::pair<std::unique_ptr<Detector>, std::unique_ptr<Detector>> follower_and_rebuilder(Config on) {
+  on.follow_change = true;
+  Config off = on;
+  off.follow_change = false;
+  return {make_cpu_detector(on), make_cpu_detector(off)};
 }
 
 // Runs a scenario; returns how many frames the detector followed.
@@ -785,10 +794,7 @@ void settling_pile_on_static_set(bool boxes, bool listed) {
   Config on;
   on.rest_margin = 0.05f;
   on.contact_events = true;
-  Config off = on;
-  off.follow_change = false;
-  auto a = make_cpu_detector(on);
-  auto b = make_cpu_detector(off);
+  auto [a, b] = follower_and_rebuilder(on);
   // The floor (touching the lowest layer), pillars among the objects, and a wall.
   std::vector<Sphere> st_sph;
   std::vector<Box> st_bx;
@@ -986,10 +992,7 @@ void objects_added_at_the_end(bool boxes, bool listed, float margin) {
   Config on;
   on.rest_margin = margin;
   on.contact_events = true;
-  Config off = on;
-  off.follow_change = false;
-  auto a = make_cpu_detector(on);
-  auto b = make_cpu_detector(off);
+  auto [a, b] = follower_and_rebuilder(on);
   std::vector<Sphere> st_sph;
   std::vector<Box> st_bx;
   for (int k = 0; k < 12; ++k) {
