@@ -465,9 +465,9 @@ Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int t
   if (live_) {
     Stopwatch sw;
     bool few = false;
-    grown_from_ = n_;
+    const std::size_t last_n = n_;
     if (n > n_) grow(n);
-    status = find_changes(in, threads, limit, few);
+    status = find_changes(in, threads, limit, last_n, few);
     stats.ms(Stage::cull) += sw.lap();
     if (!status) {
       reset();
@@ -620,11 +620,10 @@ void RestSet::grow(std::size_t n) {
   }
 }
 
-Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bool& few) {
+Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, std::size_t old_n, bool& few) {
   const Shapes& s = in.objects;
-  // The objects of the last frame are compared (grown_from_ of them: those after it are new).
-  // A frame with a new count needs no list (docs/embedding.md): then every one is compared.
-  const std::size_t old_n = grown_from_;
+  // The last frame's objects are compared (old_n of them: those after it are new). A frame with
+  // a new count needs no list (docs/embedding.md): then every one is compared.
   const bool listed = in.moved_listed && old_n == n_;
   // The objects to compare: the listed ones, or all of them, in chunks of whole bitset words (so
   // that each chunk sets the bits of its own words). A changed object's shape is taken at once.
@@ -784,7 +783,7 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, bo
   if (listed && in.verify_moved) {
     // Every object the list leaves out must be bit for bit the previous frame's.
     std::size_t at = 0;
-    for (std::uint32_t k = 0; k < old_n; ++k) {
+    for (std::uint32_t k = 0; k < n_; ++k) {  // (listed: no objects were added)
       while (at < in.moved.size() && in.moved[at] < k) ++at;
       if (at < in.moved.size() && in.moved[at] == k) continue;
       const bool same = boxes ? same_bits(s.boxes[k], cur_box_[k]) : same_bits(s.spheres[k], cur_sph_[k]);

@@ -162,11 +162,12 @@ class RestSet {
   std::span<const std::uint32_t> enter_main(int threads, std::vector<Pair>* pairs);
   /// Starts following: every object placed now, every candidate found.
   [[nodiscard]] Status enter(const Input& in, const StaticSet& set, StaticTree& st, int threads, FrameStats& stats);
-  /// Takes n objects where the last frame had fewer (grown_from_): every per-object array sized.
+  /// Takes n objects where the last frame had fewer: every per-object array sized.
   void grow(std::size_t n);
   /// Finds the objects that changed (changed_bits_) and left their fat bounds (left_), the new
-  /// objects after grown_from_ among them; false when more than `limit` left.
-  [[nodiscard]] Status find_changes(const Input& in, int threads, std::size_t limit, bool& few);
+  /// objects from `old_n` (the last frame's count) on among them; `few` false when more than
+  /// `limit` left.
+  [[nodiscard]] Status find_changes(const Input& in, int threads, std::size_t limit, std::size_t old_n, bool& few);
   /// Clears this frame's bits of the changed objects and of left_.
   void clear_bits();
   /// Follows one frame of changes.
@@ -205,7 +206,6 @@ class RestSet {
   bool run_again_ = false;         // run(): see run_again()
   ShapeKind kind_ = ShapeKind::sphere;
   std::size_t n_ = 0;
-  std::size_t grown_from_ = 0;  // run(): the last frame's object count (below n_ when objects were added)
   float margin_ = 0;
   float move_margin_ = 0;  // Input::move_margin
   Layout layout_ = Layout::extended;
