@@ -30,6 +30,7 @@ enum class Simd : std::uint8_t {
 /// Settings shared by every backend. Defaults follow the paper's experiments.
 struct Config {
   /// Culling threshold lambda, in screen pixels: objects covering fewer are culled. Default 200.
+  /// An object is active exactly when FrameResult::pixels[k] >= lambda (the float reported).
   float lambda = 200.0f;
   /// Adaptive Morton width (the paper's Eq. (1), its thresholds a and b): with mu the mean screen
   /// pixels per object, m = 16 if mu < pixels_for_32_bits, 32 if mu < pixels_for_64_bits, else 64.

@@ -108,12 +108,15 @@ inline std::uint64_t cull_range(std::span<const std::uint32_t> counts, double pi
                                 std::span<const std::uint8_t> always_active, std::size_t b, std::size_t e,
                                 float* pixels, std::vector<std::uint32_t>& active) {
   std::uint64_t counted = 0;
-  const double lambda = config.lambda;
+  const float lambda = config.lambda;
   const bool flags = !always_active.empty();
   for (std::size_t k = b; k < e; ++k) {
     counted += counts[k];
-    const double px = static_cast<double>(counts[k]) * pixel_scale;
-    pixels[k] = static_cast<float>(px);
+    // The rule compares the count as FrameResult::pixels reports it (a float): a caller who
+    // checks pixels[k] >= lambda sees the state the detector gave, also where the double
+    // product lies just below a float that rounds up to lambda (1989 x (1 / 1989) < 1).
+    const float px = static_cast<float>(static_cast<double>(counts[k]) * pixel_scale);
+    pixels[k] = px;
     if (!config.culling || px >= lambda || (flags && always_active[k] != 0))
       active.push_back(static_cast<std::uint32_t>(k));
   }

@@ -148,7 +148,8 @@ TEST(CullInParallel, EqualsTheSerialRule) {
             double sum = 0;
             for (std::size_t k = 0; k < n; ++k) {
               sum += counts[k];
-              if (!culling || counts[k] * scale >= c.lambda || (with_flags && flags[k]))
+              // The count as FrameResult::pixels reports it (a float) against lambda.
+              if (!culling || static_cast<float>(counts[k] * scale) >= c.lambda || (with_flags && flags[k]))
                 want.push_back(static_cast<std::uint32_t>(k));
             }
             ASSERT_EQ(ab, want) << what;
@@ -273,6 +274,39 @@ TEST(IdMap, OwnMapGivenBack) {
   c.map_width = 100, c.map_height = 50;  // a smaller map: counts scaled by 200 * 120 / (100 * 50)
   check_own_map_given_back(std::vector<Sphere>(scene.spheres().begin(), scene.spheres().end()), cam, c,
                            "zoom-in, 100x50 map of a 200x120 screen");
+}
+
+// lambda applies to the count as reported: on a 39 x 51 map of a 1 x 1 screen an object that
+// covers the whole map has 1989 x (1 / 1989) screen pixels, a double just below 1 that rounds to
+// the float 1. With lambda = 1 it is active, as pixels[0] >= lambda tells the caller (a frame
+// that compared the double culled it while reporting 1 pixel).
+TEST(IdMap, LambdaReadsTheReportedCount) {
+  ASSERT_LT(1989.0 * (1.0 / 1989.0), 1.0) << "the premise: the double product lies below 1";
+  const std::vector<Sphere> s = {{0, 0, 0, 1}, {0.5f, 0, 0, 1}, {5, 0, 0, 1}};
+  std::vector<std::uint32_t> map(39 * 51, 1);
+  map[0] = 3;  // object 2: 1 map pixel, 1 / 1989 screen pixels
+  Camera cam;
+  cam.width = 1, cam.height = 1;
+  Config c;
+  c.lambda = 1;
+  for (Factory make : kBackends) {
+    auto d = make(c);
+    const FrameResult r = detect_map(*d, s, map, 39, 51, &cam);
+    ASSERT_EQ(r.pixels.size(), 3u) << d->name();
+    EXPECT_LT(r.pixels[0], 1.0f) << d->name();
+    EXPECT_GT(r.pixels[0], 0.99f) << d->name();
+    EXPECT_EQ(r.pixels[1], 0.0f) << d->name();
+    EXPECT_EQ(r.state, (std::vector<ObjectState>{ObjectState::culled, ObjectState::culled, ObjectState::culled}))
+        << d->name() << ": 1988 map pixels are below 1 screen pixel";
+    map[0] = 1;  // now object 0 covers the whole map
+    const FrameResult whole = detect_map(*d, s, map, 39, 51, &cam);
+    map[0] = 3;
+    EXPECT_EQ(whole.pixels[0], 1.0f) << d->name();
+    EXPECT_EQ(whole.stats.active, 1u) << d->name();
+    EXPECT_EQ(whole.state, (std::vector<ObjectState>{ObjectState::free, ObjectState::culled, ObjectState::culled}))
+        << d->name();
+    EXPECT_TRUE(whole.pairs.empty()) << d->name() << ": object 1 is culled";
+  }
 }
 
 TEST(IdMap, Errors) {

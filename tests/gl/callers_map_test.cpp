@@ -93,6 +93,46 @@ TEST(GlCallersMap, TextureOfTheDetectorsContext) {
   }
 }
 
+// lambda applies to the count as reported (a float): on a 39 x 51 map of a 1 x 1 screen an object
+// covering the whole map has 1989 x (1 / 1989) screen pixels, a double just below 1 that rounds to
+// the float 1, so with lambda = 1 it is active; one map pixel fewer culls it. As a texture and as
+// an array.
+TEST(GlCallersMap, LambdaReadsTheReportedCount) {
+  Config cfg;
+  cfg.lambda = 1;
+  VISCD_GL_OR_SKIP(gl, cfg);
+  const std::vector<Sphere> s = {{0, 0, 0, 1}, {0.5f, 0, 0, 1}, {5, 0, 0, 1}};
+  Camera cam;
+  cam.width = 1, cam.height = 1;
+  FrameResult warm;
+  ASSERT_TRUE(gl->detect(s, nullptr, warm).ok());  // the detector's context is current now
+  for (const bool whole : {true, false}) {
+    std::vector<std::uint32_t> ids(39 * 51, 1);
+    if (!whole) ids[0] = 3;
+    const GLuint tex = make_id_texture(ids, 39, 51);
+    for (const bool texture : {true, false}) {
+      SCOPED_TRACE(std::string(whole ? "the whole map" : "all but one pixel") + (texture ? ", texture" : ", array"));
+      FrameResult r;
+      const Status st = gl->detect(
+          texture ? texture_input(s, &cam, tex, 39, 51) : id_map_input(s, &cam, ids, 39, 51), r);
+      ASSERT_TRUE(st.ok()) << st.error();
+      ASSERT_EQ(r.pixels.size(), 3u);
+      if (whole) {
+        EXPECT_EQ(r.pixels[0], 1.0f);
+        EXPECT_EQ(r.stats.active, 1u);
+        EXPECT_EQ(r.state[0], ObjectState::free);
+      } else {
+        EXPECT_LT(r.pixels[0], 1.0f);
+        EXPECT_EQ(r.stats.active, 0u);
+        EXPECT_EQ(r.state[0], ObjectState::culled);
+      }
+      EXPECT_EQ(r.state[1], ObjectState::culled);
+      EXPECT_TRUE(r.pairs.empty());
+    }
+    glDeleteTextures(1, &tex);
+  }
+}
+
 TEST(GlCallersMap, TextureErrors) {
   VISCD_GL_OR_SKIP(gl);
   const std::vector<Sphere> s = random_spheres_by_edge(50, 5.0f, 0.2f, 0.5f, 6);

@@ -1,7 +1,7 @@
 #version 450 core
-// Stage 3, step 1 (paper Fig. 3): screen-scaled pixels (double, as core/visibility.cpp), the
-// active flag (pixels >= lambda or a non-zero always_active byte, or every object without culling
-// or camera), the object's first
+// Stage 3, step 1 (paper Fig. 3): screen-scaled pixels (a double product rounded to float, as
+// core/visibility.hpp does), the active flag (pixels >= lambda or a non-zero always_active byte,
+// or every object without culling or camera), the object's first
 // state (free when active, culled otherwise; the pair pass later marks colliding ones), the
 // integer pixel total, the count of active objects and, with filters, the OR of their groups and
 // of their masks (pairable.comp's inputs). Objects from u_moving on are the static set's: always
@@ -41,10 +41,12 @@ void main() {
     uint flag = 1u;
     if (moving && u_has_counts != 0u) {
       const uint c = counts[k];
-      const double px = double(c) * u_scale;
-      pixels[k] = float(px);
+      // Rounded to float before the test, as the cpu backend does: the rule reads the count
+      // as FrameResult::pixels reports it.
+      const float px = float(double(c) * u_scale);
+      pixels[k] = px;
       const bool kept = u_has_always != 0u && ((always[k >> 2u] >> (8u * (k & 3u))) & 0xFFu) != 0u;
-      if (u_culling != 0u && !(px >= u_lambda) && !kept) flag = 0u;
+      if (u_culling != 0u && !(double(px) >= u_lambda) && !kept) flag = 0u;
       atomicAdd(s_total, c);
     }
     flags[k] = flag;
