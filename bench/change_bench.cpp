@@ -9,6 +9,8 @@
 //                rebuilds every frame (follow_change off), one that follows change comparing
 //                bounds, and one told the movers (FrameInput::moved). Median detect() wall ms of
 //                each, and each over the rebuild of a frame in which every object moves.
+//                --static K adds a static set of K objects, of which --static-moving M glide
+//                every frame (kinematic platforms: the static set changes in M slots a frame).
 //   --pile       a settled pile of N grains on a lattice, every grain jiggling a little about its
 //                place each frame (as a granular solver leaves them): rebuild against
 //                follow_change with --margin, interleaved; the pairs are compared each frame.
@@ -34,7 +36,8 @@ struct Options {
   std::vector<double> fractions{0.0, 0.01, 0.1, 1.0};
   std::vector<std::string> shapes{"sphere", "box"};
   int frames = 20, warmup = 3, threads = 0;
-  std::uint32_t spawn = 0;  // --fractions: objects added at the end each frame
+  std::uint32_t spawn = 0;                       // --fractions: objects added at the end each frame
+  std::uint32_t statics = 0, static_moving = 0;  // --fractions: the static set, and how many of it move each frame
   bool redraw = false, pile = false, run_fractions = false, stages = false;
   std::vector<std::string> variants{"rebuild", "compared", "listed"};
   float margin = 0.02f, jiggle = 0.004f, rest_margin = 0.0f, move_margin = Config{}.move_margin;
@@ -104,6 +107,22 @@ void run_fractions(const Options& o, CsvWriter& csv) {
         follow.move_margin = o.move_margin;
         auto d_rebuild = make_cpu_detector(rebuild), d_compared = make_cpu_detector(follow),
              d_listed = make_cpu_detector(follow);
+        // The static set: objects of radius 2 in the slab, the first --static-moving of them
+        // gliding every frame (kinematic platforms), the same on every detector.
+        std::vector<Sphere> st(o.statics);
+        std::uniform_real_distribution<float> place(0, 1);
+        for (Sphere& c : st) c = Sphere{place(rng) * w.side, place(rng) * w.side * 0.1f, place(rng) * w.side, 2.0f};
+        auto set_static = [&](Detector& d) {
+          if (st.empty()) return true;
+          if (!w.is_box) return d.set_static_spheres(st).ok();
+          std::vector<Box> b(st.size());
+          for (std::size_t k = 0; k < st.size(); ++k) b[k] = box_of(st[k]);
+          return d.set_static_boxes(b).ok();
+        };
+        if (!set_static(*d_rebuild) || !set_static(*d_compared) || !set_static(*d_listed)) {
+          std::fprintf(stderr, "the static set was refused\n");
+          std::exit(1);
+        }
         FrameResult fr, fc, fl;
         std::vector<double> t_rebuild, t_compared, t_listed;
         const auto movers = static_cast<std::size_t>(std::llround(fraction * n));
@@ -127,6 +146,12 @@ void run_fractions(const Options& o, CsvWriter& csv) {
               s.x += step(rng);
               s.z += step(rng);
               w.set(k, s);
+            }
+            for (std::uint32_t k = 0; k < o.static_moving && k < st.size(); ++k) {
+              st[k].x += 0.2f;
+              if (st[k].x > w.side) st[k].x = 0;
+              for (Detector* d : {d_rebuild.get(), d_compared.get(), d_listed.get()})
+                ok &= w.is_box ? d->move_static_box(k, box_of(st[k])).ok() : d->move_static_sphere(k, st[k]).ok();
             }
             // Spawned at the end (the moved list need not name them).
             std::uniform_real_distribution<float> at(0, 1);
@@ -256,6 +281,9 @@ int main(int argc, char** argv) {
   app.add_option("--shapes", o.shapes, "sphere and/or box (--fractions)")->delimiter(',');
   app.add_flag("--redraw", o.redraw, "a new random set of movers every frame (--fractions)");
   app.add_option("--spawn", o.spawn, "objects added at the end of the array every frame (--fractions)");
+  app.add_option("--static", o.statics, "static objects of radius 2 in the slab (--fractions)");
+  app.add_option("--static-moving", o.static_moving,
+                 "of them, how many glide every frame, as kinematic platforms do (--fractions)");
   app.add_option("--margin", o.margin, "Config::rest_margin (--pile)");
   app.add_option("--rest-margin", o.rest_margin, "Config::rest_margin of the following detectors (--fractions)");
   app.add_option("--move-margin", o.move_margin, "Config::move_margin of the following detectors")

@@ -30,7 +30,8 @@
 // above the last frame's, by at most 1 in 5) are placed as objects that left are; such a frame
 // compares every old object (a new count needs no moved list). When more than 1 in 5 objects
 // leave their fat bounds or move inside margins of their own in a frame, when the object count
-// falls, when their kind, the static set, the layout or the margin change, when culling leaves
+// falls, when their kind, the layout or the margin change, when the static set is replaced or
+// changes in more slots than that (fewer are followed: follow_static()), when culling leaves
 // fewer than half of the objects active (the candidates of culled objects would cost more than a
 // culled rebuild saves), or when main comes due again within 3 frames of its last build with many
 // objects come to rest in delta (new objects start and stop moving every frame), the set lets the
@@ -193,6 +194,10 @@ class RestSet {
   /// With objects placed again: their static candidates replaced by stat_found_ (tested), the
   /// runs of the others copied whole.
   void splice_static(const Shapes& s, const StaticSet& set);
+  /// The static set changed in `slots` (sorted, each once) since the last frame: their entries
+  /// dropped, and the moving objects now near each one that lives found in the trees and tested
+  /// (objects placed again this frame have theirs already).
+  void follow_static(const Shapes& s, const StaticSet& set, std::span<const std::uint32_t> slots);
   /// The candidates: how many, over the segments.
   [[nodiscard]] std::size_t candidate_count() const;
   /// Packs the candidates into one run and cuts them (and the static pairs) into segments for
@@ -251,6 +256,9 @@ class RestSet {
   // static objects its bounds in its tree (fat, or exact) meet, found when it was placed, with
   // each one's exact result; tested again when the object changes inside its fat bounds.
   std::vector<std::uint8_t> stat_hit_, stat_hit_next_;
+  // follow_static(): the changed slots as a bitset, the new entries, one query's objects.
+  std::vector<std::uint64_t> static_changed_, near_;
+  std::vector<std::uint32_t> near_hits_;
   // With own margins alone, the side list: sorted keys with their bytes (bit 0 the exact result,
   // kRecheck while an object is in recent), the candidates found by searches of recent and those
   // no longer marked since; merged into cand_ by emit() when merge_. The candidates in cand_ are

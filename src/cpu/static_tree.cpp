@@ -4,6 +4,7 @@
 #include <atomic>
 #include <bit>
 #include <type_traits>
+#include <utility>
 
 #include "cpu/bucket_search.hpp"
 #include "cpu/cross_pairs.hpp"
@@ -85,6 +86,7 @@ void StaticTree::rebuild_all(StaticSet& set, Layout layout, int threads) {
 
 void StaticTree::update(StaticSet& set, Layout layout, int threads) {
   set.take_changes(changes_);
+  taken_from_ = std::exchange(taken_to_, set.version());
   StaticSet::Changes& changes = changes_;
   live_ = set.size();
   boxes_ = set.kind() == ShapeKind::box;
@@ -92,6 +94,9 @@ void StaticTree::update(StaticSet& set, Layout layout, int threads) {
     rebuild_all(set, layout, threads);
     return;
   }
+  // Each slot once, in order (for the trees below and for last_changes()).
+  std::sort(changes.slots.begin(), changes.slots.end());
+  changes.slots.erase(std::unique(changes.slots.begin(), changes.slots.end()), changes.slots.end());
   if (changes.slots.empty()) return;
   main_index_.resize(set.slot_count(), ~0u);
   in_delta_.resize(set.slot_count(), 0);
@@ -104,9 +109,7 @@ void StaticTree::update(StaticSet& set, Layout layout, int threads) {
     }
     in_delta_[slot] = set.live(slot) ? 1 : 0;
   }
-  // Delta: the slots flagged, old and new (a sort of the few that changed, then a merge).
-  std::sort(changes.slots.begin(), changes.slots.end());
-  changes.slots.erase(std::unique(changes.slots.begin(), changes.slots.end()), changes.slots.end());
+  // Delta: the slots flagged, old and new (a merge with the changed ones, sorted above).
   merged_.clear();
   std::set_union(delta_slots_.begin(), delta_slots_.end(), changes.slots.begin(), changes.slots.end(),
                  std::back_inserter(merged_));

@@ -50,6 +50,16 @@ class StaticTree {
     BucketBroadphase::Objects objects;
   };
   [[nodiscard]] std::size_t parts(Part out[2]) const;
+  /// What the last update() took from the set: the slots added, moved or removed (sorted, each
+  /// once) between the set's versions `from` and `to`, or `reset` (replaced, cleared, or too much
+  /// to list). A structure kept over the set as it was at version `from` follows it to `to`
+  /// through them (cpu/rest_set.hpp).
+  struct Taken {
+    std::uint64_t from = 0, to = 0;
+    bool reset = true;
+    std::span<const std::uint32_t> slots;
+  };
+  [[nodiscard]] Taken last_changes() const { return {taken_from_, taken_to_, changes_.reset, changes_.slots}; }
   [[nodiscard]] std::size_t size() const { return live_; }
   [[nodiscard]] std::uint64_t memory_bytes() const;
 
@@ -75,8 +85,9 @@ class StaticTree {
   std::vector<std::uint32_t> main_index_;  // per slot: its index in main, or ~0u (not there)
   std::vector<std::uint8_t> in_delta_;     // per slot
   std::vector<std::uint32_t> delta_slots_;
-  StaticSet::Changes changes_;         // update(): the set's changes, taken in place
-  std::vector<std::uint32_t> merged_;  // update(): delta's slots, old and new
+  StaticSet::Changes changes_;                   // update(): the set's changes, taken in place
+  std::uint64_t taken_from_ = 0, taken_to_ = 0;  // the set's versions before and after them
+  std::vector<std::uint32_t> merged_;            // update(): delta's slots, old and new
   std::size_t erased_ = 0, live_ = 0;
   bool boxes_ = false;
   std::vector<std::vector<std::uint64_t>> lists_;  // pairs(): per chunk

@@ -11,6 +11,7 @@
 #include <limits>
 #include <memory>
 #include <numeric>
+#include <optional>
 #include <random>
 #include <span>
 #include <string>
@@ -874,6 +875,144 @@ void settling_pile_on_static_set(bool boxes, bool listed) {
 TEST(RestSet, SettlingPileOnAStaticSet) {
   for (const bool boxes : {false, true})
     for (const bool listed : {false, true}) settling_pile_on_static_set(boxes, listed);
+}
+
+// A static set that changes in a few slots between frames (a kinematic platform moved every
+// frame, a door removed and put back, props added) is followed too: every such frame after the
+// first few follows change, with pairs equal to brute force over the live static slots and
+// pairs, states and events equal to a detector that rebuilds. Static objects move onto the resting
+// objects, off them, far away, are removed (their slot reused by the next add) and added; a
+// replaced set rebuilds the frame and the set is followed again later.
+void static_changes_followed(bool boxes, float margin, bool listed) {
+  SCOPED_TRACE(std::string(boxes ? "boxes" : "spheres") + ", margin " + std::to_string(margin) +
+               (listed ? ", listed" : ", compared"));
+  std::mt19937_64 rng(boxes ? 31 : 32);
+  std::uniform_real_distribution<float> u(-1, 1), u01(0, 1);
+  std::vector<Sphere> sph = slab_of(2000, rng);
+  const std::size_t n = sph.size();
+  Config on;
+  on.rest_margin = margin;
+  on.contact_events = true;
+  auto [a, b] = follower_and_rebuilder(on);
+  // The static set by slot (nullopt: a free slot), as the oracle sees it.
+  std::vector<std::optional<Sphere>> st(80);
+  auto as_box = [](const Sphere& c) { return box_of(c); };
+  auto random_static = [&] { return Sphere{30 * u(rng), 30 * u(rng), 6 * u(rng), 0.5f + 2.5f * u01(rng)}; };
+  auto check = [&](Status sa, Status sb) {
+    ASSERT_TRUE(sa.ok()) << sa.error();
+    ASSERT_TRUE(sb.ok()) << sb.error();
+  };
+  for (std::size_t k = 0; k < st.size(); ++k) {
+    st[k] = random_static();
+    const Result<std::uint32_t> ra = boxes ? a->add_static_box(as_box(*st[k])) : a->add_static_sphere(*st[k]);
+    const Result<std::uint32_t> rb = boxes ? b->add_static_box(as_box(*st[k])) : b->add_static_sphere(*st[k]);
+    ASSERT_TRUE(ra.ok() && rb.ok());
+    ASSERT_EQ(ra.value(), k);
+  }
+  auto move_static = [&](std::uint32_t k, const Sphere& c) {
+    st[k] = c;
+    if (boxes)
+      check(a->move_static_box(k, as_box(c)), b->move_static_box(k, as_box(c)));
+    else
+      check(a->move_static_sphere(k, c), b->move_static_sphere(k, c));
+  };
+  std::vector<std::uint32_t> moved;
+  FrameResult fa, fb;
+  int followed = 0, static_frames = 0;
+  for (int frame = 0; frame < 40; ++frame) {
+    SCOPED_TRACE("frame " + std::to_string(frame));
+    moved.clear();
+    bool static_changed = false;
+    if (frame > 0) {
+      for (std::size_t k = 0; k < n; ++k)
+        if (u01(rng) < 0.01f) {
+          sph[k].x += 0.2f * u(rng);
+          sph[k].z += 0.2f * u(rng);
+          moved.push_back(static_cast<std::uint32_t>(k));
+        }
+      // The platform: slot 0 glides every frame across the slab, through the objects.
+      move_static(0, Sphere{-30.0f + 1.5f * static_cast<float>(frame), 0, 0, 2.0f});
+      static_changed = true;
+      if (frame % 3 == 1) {  // one onto a resting object, one small step, one far away
+        const Sphere& on_top = sph[static_cast<std::size_t>(u01(rng) * 0.999f * static_cast<float>(n))];
+        move_static(1 + static_cast<std::uint32_t>(frame % 20), Sphere{on_top.x, on_top.y, on_top.z, 1.0f});
+        const std::uint32_t k = 30 + static_cast<std::uint32_t>(frame % 20);
+        if (st[k]) move_static(k, Sphere{st[k]->x + 0.05f, st[k]->y, st[k]->z, st[k]->r});
+        move_static(60, Sphere{1000, 1000, 1000, 1});
+      }
+      if (frame % 5 == 2) {  // a door taken out; it comes back into the smallest free slot
+        const std::uint32_t k = 20 + static_cast<std::uint32_t>(frame % 10);
+        if (st[k]) {
+          check(a->remove_static(k), b->remove_static(k));
+          st[k].reset();
+        }
+      }
+      if (frame % 5 == 4) {
+        const Sphere c = random_static();
+        const Result<std::uint32_t> ra = boxes ? a->add_static_box(as_box(c)) : a->add_static_sphere(c);
+        const Result<std::uint32_t> rb = boxes ? b->add_static_box(as_box(c)) : b->add_static_sphere(c);
+        ASSERT_TRUE(ra.ok() && rb.ok());
+        ASSERT_EQ(ra.value(), rb.value());
+        ASSERT_LT(ra.value(), st.size());
+        ASSERT_FALSE(st[ra.value()].has_value()) << "the smallest free slot";
+        st[ra.value()] = c;
+      }
+      if (frame == 25) {  // the whole set replaced: that frame rebuilds
+        std::vector<Sphere> all;
+        std::vector<Box> all_boxes;
+        for (auto& c : st) {
+          c = random_static();
+          all.push_back(*c);
+          all_boxes.push_back(as_box(*c));
+        }
+        if (boxes)
+          check(a->set_static_boxes(all_boxes), b->set_static_boxes(all_boxes));
+        else
+          check(a->set_static_spheres(all), b->set_static_spheres(all));
+      }
+    }
+    std::vector<Box> bx;
+    if (boxes) {
+      bx.resize(n);
+      for (std::size_t k = 0; k < n; ++k) bx[k] = box_of(sph[k]);
+    }
+    FrameInput in;
+    if (boxes)
+      in.boxes = bx;
+    else
+      in.spheres = sph;
+    const auto [sa, sb] = detect_both(*a, *b, in, listed, moved, fa, fb);
+    ASSERT_TRUE(sa.ok()) << sa.error();
+    ASSERT_TRUE(sb.ok()) << sb.error();
+    if (frame == 25) {
+      EXPECT_FALSE(fa.stats.followed_change) << "a replaced static set rebuilds";
+    }
+    if (static_changed && fa.stats.followed_change) ++static_frames;
+    followed += fa.stats.followed_change;
+    // The oracle: brute force over the moving objects and the live static slots.
+    std::vector<Pair> want;
+    for (std::uint32_t i = 0; i < n; ++i) {
+      for (std::uint32_t j = i + 1; j < n; ++j)
+        if (boxes ? boxes_overlap(bx[i], bx[j]) : spheres_overlap(sph[i], sph[j])) want.push_back({i, j});
+      for (std::uint32_t k = 0; k < st.size(); ++k)
+        if (st[k] && (boxes ? boxes_overlap(bx[i], as_box(*st[k])) : spheres_overlap(sph[i], *st[k])))
+          want.push_back({i, static_index(k)});
+    }
+    std::sort(want.begin(), want.end());
+    ASSERT_TRUE(test::same_pairs(fa.pairs, want));
+    EXPECT_TRUE(test::same_pairs(fa.pairs, fb.pairs));
+    EXPECT_EQ(fa.state, fb.state);
+    EXPECT_TRUE(test::same_pairs(fa.began, fb.began));
+    EXPECT_TRUE(test::same_pairs(fa.ended, fb.ended));
+  }
+  // Frames 0-2 enter (the sample watches first), and frame 25 and a few after it rebuild.
+  EXPECT_GE(static_frames, 28) << followed << " frames followed";
+}
+
+TEST(RestSet, StaticChangesAreFollowed) {
+  for (const bool boxes : {false, true})
+    for (const float margin : {0.0f, 0.05f})
+      for (const bool listed : {false, true}) static_changes_followed(boxes, margin, listed);
 }
 
 // Runs tasks last first and says it has four threads: emit() then merges in 16 chunks, whose
