@@ -79,6 +79,19 @@ std::vector<Pair> oracle(const std::vector<Sphere>& sph, const std::vector<Box>&
   return out;
 }
 
+// A frame of the spheres, or of their boxes (made in `bx`, which the input then views).
+FrameInput frame_of(const std::vector<Sphere>& sph, bool boxes, std::vector<Box>& bx) {
+  FrameInput in;
+  if (boxes) {
+    bx.resize(sph.size());
+    for (std::size_t k = 0; k < sph.size(); ++k) bx[k] = box_of(sph[k]);
+    in.boxes = bx;
+  } else {
+    in.spheres = sph;
+  }
+  return in;
+}
+
 // One frame on the detector that follows change (given the moved list when `listed`) and on the
 // one that rebuilds every frame (never given it).
 std::pair<Status, Status> detect_both(Detector& follows, Detector& rebuilds, FrameInput in, bool listed,
@@ -845,15 +858,7 @@ void settling_pile_on_static_set(bool boxes, bool listed) {
       }
     }
     std::vector<Box> bx;
-    if (boxes) {
-      bx.resize(n);
-      for (std::size_t k = 0; k < n; ++k) bx[k] = box_of(sph[k]);
-    }
-    FrameInput in;
-    if (boxes)
-      in.boxes = bx;
-    else
-      in.spheres = sph;
+    const FrameInput in = frame_of(sph, boxes, bx);
     const auto [sa, sb] = detect_both(*a, *b, in, listed, moved, fa, fb);
     ASSERT_TRUE(sa.ok()) << sa.error();
     ASSERT_TRUE(sb.ok()) << sb.error();
@@ -972,15 +977,7 @@ void static_changes_followed(bool boxes, float margin, bool listed) {
       }
     }
     std::vector<Box> bx;
-    if (boxes) {
-      bx.resize(n);
-      for (std::size_t k = 0; k < n; ++k) bx[k] = box_of(sph[k]);
-    }
-    FrameInput in;
-    if (boxes)
-      in.boxes = bx;
-    else
-      in.spheres = sph;
+    const FrameInput in = frame_of(sph, boxes, bx);
     const auto [sa, sb] = detect_both(*a, *b, in, listed, moved, fa, fb);
     ASSERT_TRUE(sa.ok()) << sa.error();
     ASSERT_TRUE(sb.ok()) << sb.error();

@@ -113,8 +113,8 @@ TEST(GlCallersMap, LambdaReadsTheReportedCount) {
     for (const bool texture : {true, false}) {
       SCOPED_TRACE(std::string(whole ? "the whole map" : "all but one pixel") + (texture ? ", texture" : ", array"));
       FrameResult r;
-      const Status st = gl->detect(
-          texture ? texture_input(s, &cam, tex, 39, 51) : id_map_input(s, &cam, ids, 39, 51), r);
+      const Status st =
+          gl->detect(texture ? texture_input(s, &cam, tex, 39, 51) : id_map_input(s, &cam, ids, 39, 51), r);
       ASSERT_TRUE(st.ok()) << st.error();
       ASSERT_EQ(r.pixels.size(), 3u);
       if (whole) {
