@@ -11,6 +11,8 @@
 //                each, and each over the rebuild of a frame in which every object moves.
 //                --static K adds a static set of K objects, of which --static-moving M glide
 //                every frame (kinematic platforms: the static set changes in M slots a frame).
+//                --spawn K adds K objects at the end every frame, --remove K removes K as
+//                engines do (the last object moved into the gap; the list names the gaps).
 //   --pile       a settled pile of N grains on a lattice, every grain jiggling a little about its
 //                place each frame (as a granular solver leaves them): rebuild against
 //                follow_change with --margin, interleaved; the pairs are compared each frame.
@@ -37,6 +39,7 @@ struct Options {
   std::vector<std::string> shapes{"sphere", "box"};
   int frames = 20, warmup = 3, threads = 0;
   std::uint32_t spawn = 0;                       // --fractions: objects added at the end each frame
+  std::uint32_t remove = 0;                      // --fractions: objects removed (last into the gap) each frame
   std::uint32_t statics = 0, static_moving = 0;  // --fractions: the static set, and how many of it move each frame
   bool redraw = false, pile = false, run_fractions = false, stages = false;
   std::vector<std::string> variants{"rebuild", "compared", "listed"};
@@ -58,6 +61,12 @@ struct World {
   void add(const Sphere& s) {
     spheres.push_back(s);
     if (is_box) boxes.push_back(box_of(s));
+  }
+  /// Removes object k as an engine does: the last one takes its place.
+  void remove(std::size_t k) {
+    set(k, spheres.back());
+    spheres.pop_back();
+    if (is_box) boxes.pop_back();
   }
   [[nodiscard]] FrameInput input() const {
     FrameInput in;
@@ -133,8 +142,10 @@ void run_fractions(const Options& o, CsvWriter& csv) {
         std::sort(moved.begin(), moved.end());
         std::uniform_real_distribution<float> step(-0.05f, 0.05f);
         std::uniform_int_distribution<std::uint32_t> pick(0, n - 1);
+        std::vector<std::uint32_t> listed;  // the frame's moved list: the movers still here and the gaps filled
         bool ok = true;
         for (int frame = 0; frame < o.warmup + o.frames; ++frame) {
+          listed.clear();
           if (frame > 0) {
             if (o.redraw && fraction < 1) {
               for (auto& m : moved) m = pick(rng);
@@ -142,6 +153,8 @@ void run_fractions(const Options& o, CsvWriter& csv) {
               moved.erase(std::unique(moved.begin(), moved.end()), moved.end());
             }
             for (const std::uint32_t k : moved) {
+              if (k >= w.spheres.size()) continue;  // removed (--remove)
+              listed.push_back(k);
               Sphere s = w.spheres[k];
               s.x += step(rng);
               s.z += step(rng);
@@ -157,6 +170,18 @@ void run_fractions(const Options& o, CsvWriter& csv) {
             std::uniform_real_distribution<float> at(0, 1);
             for (std::uint32_t t = 0; t < o.spawn; ++t)
               w.add(Sphere{at(rng) * w.side, at(rng) * w.side * 0.1f, at(rng) * w.side, 0.5f});
+            // Removed: the last object into the gap, which the list names.
+            for (std::uint32_t t = 0; t < o.remove && w.spheres.size() > 1; ++t) {
+              const auto k =
+                  static_cast<std::uint32_t>(std::uniform_int_distribution<std::size_t>(0, w.spheres.size() - 1)(rng));
+              w.remove(k);
+              listed.push_back(k);
+            }
+            std::sort(listed.begin(), listed.end());
+            listed.erase(std::unique(listed.begin(), listed.end()), listed.end());
+            while (!listed.empty() && listed.back() >= w.spheres.size()) listed.pop_back();
+          } else {
+            listed = moved;
           }
           FrameInput in = w.input();
           auto timed = [&](const char* name, Detector& d, FrameResult& f) {
@@ -167,7 +192,7 @@ void run_fractions(const Options& o, CsvWriter& csv) {
           };
           const double a = timed("rebuild", *d_rebuild, fr);
           const double b = timed("compared", *d_compared, fc);
-          in.moved = moved;
+          in.moved = listed;
           in.moved_listed = true;
           const double c = timed("listed", *d_listed, fl);
           if (o.variants.size() == 3 && (fr.pairs != fc.pairs || fr.pairs != fl.pairs)) {
@@ -281,6 +306,7 @@ int main(int argc, char** argv) {
   app.add_option("--shapes", o.shapes, "sphere and/or box (--fractions)")->delimiter(',');
   app.add_flag("--redraw", o.redraw, "a new random set of movers every frame (--fractions)");
   app.add_option("--spawn", o.spawn, "objects added at the end of the array every frame (--fractions)");
+  app.add_option("--remove", o.remove, "objects removed every frame, the last one moved into each gap (--fractions)");
   app.add_option("--static", o.statics, "static objects of radius 2 in the slab (--fractions)");
   app.add_option("--static-moving", o.static_moving,
                  "of them, how many glide every frame, as kinematic platforms do (--fractions)");

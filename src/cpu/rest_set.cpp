@@ -223,6 +223,7 @@ void RestSet::reset() {
   sample_n_ = 0;
   std::fill(changed_bits_.begin(), changed_bits_.end(), std::uint64_t{0});
   std::fill(left_bits_.begin(), left_bits_.end(), std::uint64_t{0});
+  vanished_ = 0;
 }
 
 void RestSet::clear_bits() {
@@ -454,9 +455,11 @@ Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int t
     return {};
   }
   // New objects at the end (n above the last frame's count) are placed as objects that left
-  // their bounds are, while they are few; fewer objects rebuild.
+  // their bounds are, and objects gone from the end (n below it) are taken out as those are and
+  // not placed again, while they are few.
   const std::size_t limit = std::max<std::size_t>(n / kGiveUp, 16);
   const bool grows = live_ && n > n_ && n - n_ <= limit;
+  const bool shrinks = live_ && n < n_ && n_ - n <= limit;
   // A static set changed in a few slots since the last frame is followed too (follow_static():
   // a tree query per changed slot, so up to 1 in kStaticShare of the moving count); replaced,
   // cleared or much changed, it rebuilds.
@@ -465,8 +468,8 @@ Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int t
   const bool static_follows = static_changed && !taken.reset && taken.from == static_version_ &&
                               taken.to == set.version() &&
                               taken.slots.size() <= std::max<std::size_t>(n / kStaticShare, 16);
-  if (live_ && ((n != n_ && !grows) || s.kind != kind_ || in.margin != margin_ || in.move_margin != move_margin_ ||
-                in.layout != layout_ || (static_changed && !static_follows)))
+  if (live_ && ((n != n_ && !grows && !shrinks) || s.kind != kind_ || in.margin != margin_ ||
+                in.move_margin != move_margin_ || in.layout != layout_ || (static_changed && !static_follows)))
     reset();
   if (live_ && churned_) {  // the last frame found main due again too soon
     reset();
@@ -480,6 +483,8 @@ Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int t
     bool few = false;
     const std::size_t last_n = n_;
     if (n > n_) grow(n);
+    n_ = n;  // (shrinking: the arrays keep the vanished objects' entries until forget_vanished())
+    vanished_ = last_n > n ? last_n - n : 0;
     status = find_changes(in, threads, limit, last_n, few);
     stats.ms(Stage::cull) += sw.lap();
     if (!status) {
@@ -518,6 +523,7 @@ Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int t
   }
   merge_ = false;
   if (status) clear_bits();
+  if (status && vanished_ > 0) forget_vanished(n_ + vanished_);
   if (!status) {
     reset();
     return status;
@@ -631,7 +637,8 @@ void RestSet::grow(std::size_t n) {
   recent_bits_.resize(words, 0);
   changed_bits_.resize(words, 0);
   left_bits_.resize(words, 0);
-  part_of_.resize(n, kNowhere);
+  // part_of_ never shrinks: delta's ids may still name objects that vanished (not in it).
+  if (part_of_.size() < n) part_of_.resize(n, kNowhere);
   resize_with_headroom(local_, n);
   if (counts_pairs()) {
     a_count_.resize(n, 0);
@@ -639,15 +646,42 @@ void RestSet::grow(std::size_t n) {
   }
 }
 
+void RestSet::forget_vanished(std::size_t old_n) {
+  const std::size_t words = (n_ + 63) / 64;
+  const auto cut = [&](std::vector<std::uint64_t>& bits) {
+    if (bits.size() > words) bits.resize(words);
+    if (n_ % 64 != 0 && words > 0 && bits.size() == words) bits[words - 1] &= (std::uint64_t{1} << (n_ % 64)) - 1;
+  };
+  if (box_lanes())
+    cur_box_.resize(n_);
+  else
+    cur_sph_.resize(n_);
+  if (fat_box_.size() > n_) fat_box_.resize(n_);
+  if (fat_sph_.size() > n_) fat_sph_.resize(n_);
+  if (fat_r_.size() > n_) fat_r_.resize(n_);
+  std::fill(part_of_.begin() + static_cast<std::ptrdiff_t>(n_), part_of_.begin() + static_cast<std::ptrdiff_t>(old_n),
+            std::uint8_t{kNowhere});
+  for (auto* bits : {&recent_bits_, &changed_bits_, &left_bits_, &a_bits_, &pair_bits_}) cut(*bits);
+  if (a_count_.size() > n_) {
+    VISCD_ASSERT(std::all_of(a_count_.begin() + static_cast<std::ptrdiff_t>(n_), a_count_.end(),
+                             [](std::uint32_t c) { return c == 0; }),
+                 "a vanished object's candidates were dropped");
+    a_count_.resize(n_);
+  }
+  vanished_ = 0;
+}
+
 Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, std::size_t old_n, bool& few) {
   const Shapes& s = in.objects;
-  // The last frame's objects are compared (old_n of them: those after it are new). A frame with
-  // a new count needs no list (docs/embedding.md): then every one is compared.
+  // The last frame's objects that are still here are compared (those from old_n on are new, those
+  // from n_ on vanished). A frame with a new count needs no list (docs/embedding.md): then every
+  // one is compared.
   const bool listed = in.moved_listed && old_n == n_;
+  const std::size_t compared = std::min(old_n, n_);
   // The objects to compare: the listed ones, or all of them, in chunks of whole bitset words (so
   // that each chunk sets the bits of its own words). A changed object's shape is taken at once.
-  const std::size_t count = listed ? in.moved.size() : (old_n + 63) / 64;
-  const std::size_t chunks = std::max<std::size_t>(1, ranges_for(listed ? count : old_n, threads));
+  const std::size_t count = listed ? in.moved.size() : (compared + 63) / 64;
+  const std::size_t chunks = std::max<std::size_t>(1, ranges_for(listed ? count : compared, threads));
   chunk_left_.resize(std::max(chunk_left_.size(), chunks));
   chunk_margin_.resize(std::max(chunk_margin_.size(), chunks));
   std::atomic<std::size_t> left_total{0};
@@ -692,7 +726,7 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, st
       // A word of 64 objects at a time: which changed (compares without branches), their shapes
       // taken, then the fat-bounds test on those alone. The chunk owns its words.
       for (std::size_t w = b; w < e; ++w) {
-        const std::size_t first = w * 64, last = std::min(old_n, first + 64);
+        const std::size_t first = w * 64, last = std::min(compared, first + 64);
         std::uint64_t mask = 0;
         if (boxes) {
           for (std::size_t k = first; k < last; ++k)
@@ -792,10 +826,19 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, st
       else
         cur_sph_[k] = s.spheres[k];
     }
+  // The objects that vanished (from n_ to old_n) leave their trees and take their candidates with
+  // them, as objects that left do, but are not placed again: their left bits alone (none changed).
+  // They come last, so left_ still ascends.
+  if (few)
+    for (std::size_t k = n_; k < old_n; ++k) {
+      left_bits_[k >> 6] |= std::uint64_t{1} << (k & 63);
+      left_.push_back(static_cast<std::uint32_t>(k));
+      if (fat()) left_margin_.push_back(margin_);  // (never read: update() places none of them)
+    }
   // The changed objects are the bits alone, counted here. Every object in a jiggling pile
   // changes, and a list of them all cost a store per object; with a tenth of 10^6 objects listed
   // in FrameInput::moved, the list made the listed pass slower than comparing every object.
-  changed_count_ = changed_total.load() + (few ? n_ - old_n : 0);
+  changed_count_ = changed_total.load() + (few && n_ > old_n ? n_ - old_n : 0);
   // Recent is built over the objects that left and those of its own that moved inside their
   // bounds: both count against the limit.
   if (left_.size() + pending_total.load() > limit) few = false;
@@ -826,11 +869,14 @@ bool RestSet::static_pairs_of(const BucketBroadphase& tree, std::span<const std:
 Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, int threads, FrameStats& stats) {
   Stopwatch sw;
   const Shapes& s = in.objects;
+  // left_ ends with the objects that vanished (vanished_ of them, from n_ on): taken out of their
+  // trees with their candidates, never placed.
+  const std::size_t placed = left_.size() - vanished_;
   stats.moved = static_cast<std::uint32_t>(changed_count_);
-  stats.replaced = static_cast<std::uint32_t>(left_.size());
+  stats.replaced = static_cast<std::uint32_t>(placed);
   woken_ = 0;
   // Nothing changed: every candidate keeps its result.
-  if (changed_count_ == 0) return {};
+  if (changed_count_ == 0 && left_.empty()) return {};
   // find_changes() took the changed shapes and set their bits. The objects that left their fat
   // bounds leave their trees, in parallel chunks (each erases its own objects' lanes; the
   // objects lie scattered over memory, and the reads ahead are prefetched). Recent is built anew
@@ -856,7 +902,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
         ++erased[p][c];
         part_of_[k] = kNowhere;
       }
-      if (fat()) place(s, k, left_margin_[t]);
+      if (fat() && k < n_) place(s, k, left_margin_[t]);
     }
   });
   for (std::size_t p = 0; p < 3; ++p)
@@ -880,7 +926,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   for (std::size_t t = 0; t < recent.ids.size(); ++t) {
     if (t + 16 < recent.ids.size()) __builtin_prefetch(&part_of_[recent.ids[t + 16]]);
     const std::uint32_t o = recent.ids[t];
-    if (part_of_[o] != kRecent) continue;
+    if (part_of_[o] != kRecent || o >= n_) continue;  // (vanished: forgotten after the frame)
     const bool moves = bit(left_bits, o) || (own && bit(changed_bits, o));
     if (waits ? !bit(left_bits, o) : !moves)  // (waiting, those that left come from left_ below)
       scratch_.push_back(o);
@@ -899,11 +945,12 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
     for (const std::uint32_t o : recent_next_)
       recent_bits_[o >> 6] =
           (recent_bits_[o >> 6] & ~(std::uint64_t{1} << (o & 63))) | (std::uint64_t{bit(changed_bits, o)} << (o & 63));
-    for (const std::uint32_t o : left_) recent_bits_[o >> 6] |= std::uint64_t{1} << (o & 63);
+    for (const std::uint32_t o : std::span<const std::uint32_t>(left_).first(placed))
+      recent_bits_[o >> 6] |= std::uint64_t{1} << (o & 63);
   }
   // Then the objects placed again (ascending when nothing stays); with own margins alone, those
   // that were in recent are there already.
-  for (const std::uint32_t o : left_)
+  for (const std::uint32_t o : std::span<const std::uint32_t>(left_).first(placed))
     if (waits || !own || part_of_[o] != kRecent) recent_next_.push_back(o);
   if (!scratch_.empty()) {
     for (const std::uint32_t o : delta.ids)
@@ -913,7 +960,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   // The objects that left their fat bounds, placed again: their tree, and its pairs.
   // When every object of recent left, its own search finds their pairs among themselves; else
   // the ones that left search recent below, as they search main and delta.
-  const bool all_search = recent_next_.size() == left_.size();
+  const bool all_search = recent_next_.size() == placed;
   local_pairs_.clear();
   build_part(recent, recent_next_, kRecent, true, threads, all_search ? &local_pairs_ : nullptr);
   stats.ms(Stage::build) += sw.lap();
@@ -933,10 +980,9 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
       search_[q / kBucket] |= static_cast<std::uint16_t>(bit(left_bits, by_pos[q]) << (q % kBucket));
     search = search_.data();
   }
-  if (!left_.empty()) {
+  if (placed > 0) {
     const std::size_t groups = (buckets_for(recent.count) + kWide - 1) / kWide;
-    const std::size_t chunks =
-        threads_for(left_.size() * 8, threads) == 1 ? 1 : std::min<std::size_t>(groups, 4 * threads);
+    const std::size_t chunks = threads_for(placed * 8, threads) == 1 ? 1 : std::min<std::size_t>(groups, 4 * threads);
     if (chunk_keys_.size() < chunks) chunk_keys_.resize(chunks);
     const std::uint32_t* const mat = recent.objects_by_position().data();
     for_chunks(groups, chunks, [&](std::size_t gb, std::size_t ge, std::size_t c) {
@@ -955,7 +1001,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
           list.push_back(a < b ? pair_key(a, b) : pair_key(b, a));
         };
         auto fetch = [&](std::size_t q) { __builtin_prefetch(&at[q]); };  // a bucket's 16: one line
-        const CrossWalk walk = cross_walk_for(left_.size(), other.count - other.erased);
+        const CrossWalk walk = cross_walk_for(placed, other.count - other.erased);
         for (std::size_t g = gb; g < ge; ++g) {
           if (box_lanes())
             cross_pairs_at<BoxTests>(simd_, recent.tree, other.tree, g, walk, search, found, fetch);
@@ -978,7 +1024,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   // The static candidates of the objects placed again, from recent's lanes (their new bounds;
   // its objects that moved inside their own bounds keep theirs).
   stat_found_.clear();
-  if (!set.empty() && !left_.empty()) {
+  if (!set.empty() && placed > 0) {
     // Only the lanes of the objects placed again search (`search`, when recent holds others too).
     if (!static_pairs_of(recent.tree, recent.ids, st, threads, stat_found_, search))
       return check_pair_cap(SIZE_MAX, in.pair_memory_cap, true);
@@ -1056,10 +1102,12 @@ void RestSet::retest_static(const Shapes& s, const StaticSet& set) {
   if (changed_count_ * 4 > n_) {
     // Many objects changed (a settling pile, where a third to a half of them jiggle each frame):
     // whether an entry's object changed is a coin toss, so every entry is tested and the result
-    // taken without a branch. A static box or sphere is read either way.
+    // taken without a branch. A static box or sphere is read either way. (The entries of objects
+    // that vanished, unchanged, are still here until splice_static(): they test object 0.)
+    const std::uint32_t n = static_cast<std::uint32_t>(n_);
     for (std::size_t t = 0; t < count; ++t) {
       const std::uint32_t i = key_i(keys[t]);
-      const std::uint8_t now = static_overlap(s, set, i, key_j(keys[t]));
+      const std::uint8_t now = static_overlap(s, set, i < n ? i : 0, key_j(keys[t]));
       const auto mask = static_cast<std::uint8_t>(0u - bit(changed, i));
       hits[t] = static_cast<std::uint8_t>((now & mask) | (hits[t] & ~mask));
     }

@@ -27,11 +27,12 @@
 //
 // A frame costs the pass over the bounds (none with FrameInput::moved), the movers' tree and its
 // searches, and one merging pass over the candidates and pairs. Objects added at the end (a count
-// above the last frame's, by at most 1 in 5) are placed as objects that left are; such a frame
-// compares every old object (a new count needs no moved list). When more than 1 in 5 objects
-// leave their fat bounds or move inside margins of their own in a frame, when the object count
-// falls, when their kind, the layout or the margin change, when the static set is replaced or
-// changes in more slots than that (fewer are followed: follow_static()), when culling leaves
+// above the last frame's, by at most 1 in 5) are placed as objects that left are, and objects gone
+// from the end (a count below it, by at most 1 in 5) leave their trees and candidates as those do
+// and are not placed again; such a frame compares every object it kept (a new count needs no
+// moved list). When more than 1 in 5 objects leave their fat bounds or move inside margins of
+// their own in a frame, when their kind, the layout or the margin change, when the static set is
+// replaced or changes in more slots than that (fewer are followed: follow_static()), when culling leaves
 // fewer than half of the objects active (the candidates of culled objects would cost more than a
 // culled rebuild saves), or when main comes due again within 3 frames of its last build with many
 // objects come to rest in delta (new objects start and stop moving every frame), the set lets the
@@ -171,6 +172,10 @@ class RestSet {
   [[nodiscard]] Status find_changes(const Input& in, int threads, std::size_t limit, std::size_t old_n, bool& few);
   /// Clears this frame's bits of the changed objects and of left_.
   void clear_bits();
+  /// After a followed frame with fewer objects than the last (`old_n`): the vanished objects'
+  /// entries (copies, fat bounds, bits, counts) dropped or cleared. update() took them out of
+  /// their trees and emit() dropped their candidates.
+  void forget_vanished(std::size_t old_n);
   /// Follows one frame of changes.
   [[nodiscard]] Status update(const Input& in, const StaticSet& set, StaticTree& st, int threads, FrameStats& stats);
   /// The static pairs of the objects in `tree` (ids through `ids`; with `search`, of those in its
@@ -238,7 +243,8 @@ class RestSet {
   std::vector<std::uint32_t> local_;                     // the object's id in its tree
   Part parts_[3];
   std::vector<std::uint32_t> left_, scratch_;
-  std::size_t changed_count_ = 0;                       // this frame's changed objects
+  std::size_t changed_count_ = 0;  // this frame's changed objects
+  std::size_t vanished_ = 0;       // this frame's objects gone from the end (the last ones in left_)
   std::vector<std::vector<std::uint32_t>> chunk_left_;  // find_changes(): left_, per chunk
 
   // The candidates, sorted, with each one's exact result (hit_): in segments, one per chunk of

@@ -7,7 +7,8 @@
 // a scene, then runs phases of a few frames each: nothing moves, objects jiggle inside or past the
 // margin, glide, jump, gather into a cluster, scatter far apart, new movers every frame, everything
 // moves; now and then the object count changes, filters and flags change, static objects come,
-// move and go, a few objects are spawned at the end, a frame holds a NaN.
+// move and go, a few objects are spawned at the end or removed (the last one into the gap), a frame
+// holds a NaN.
 //
 // Checks, every frame: both detectors succeed or fail alike (a failure with the same message);
 // their pairs, states, pixels and contact events are equal; a few queries answer alike; with few
@@ -328,6 +329,21 @@ class Soak {
       for (std::size_t k = n; k < m; ++k) objects_[k] = placed(k);
       if (r_.filters) filters_.resize(m, Filter{});
       if (r_.always) always_.resize(m, 0);
+    }
+    if (frame_ > 0 && chance(0.15)) {  // a few removed as engines remove them: the last one into the gap
+      for (std::size_t t = 1 + index_below(20); t > 0 && objects_.size() > 1; --t) {
+        const std::size_t k = index_below(objects_.size());
+        objects_[k] = objects_.back();
+        objects_.pop_back();
+        if (r_.filters) {
+          filters_[k] = filters_.back();
+          filters_.pop_back();
+        }
+        if (r_.always) {
+          always_[k] = always_.back();
+          always_.pop_back();
+        }
+      }
     }
     if (r_.filters && chance(0.1))
       for (int t = 0; t < 20 && !filters_.empty(); ++t) filters_[index_below(filters_.size())] = random_filter();
