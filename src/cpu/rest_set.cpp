@@ -406,10 +406,12 @@ bool RestSet::sample_rests(const Shapes& s, float margin) {
   const std::size_t n = s.size();
   bool rests = false;
   // The last sample's objects are still there when the count stayed or grew (objects added at
-  // the end do not keep the set from starting).
-  if (sample_n_ > 0 && sample_n_ <= n && sample_kind_ == s.kind && !sample_index_.empty()) {
+  // the end do not keep the set from starting); when it fell, those gone count as moved (a world
+  // that removes a few bodies every frame starts following too).
+  if (sample_n_ > 0 && sample_kind_ == s.kind && !sample_index_.empty()) {
     std::size_t still = 0;
     for (std::size_t k = 0; k < sample_index_.size(); ++k) {
+      if (sample_index_[k] >= n) continue;
       const Aabb now = s.aabb(sample_index_[k]);
       const Box& was = sample_[k];
       if (margin == 0) {

@@ -37,7 +37,7 @@
 // culled rebuild saves), or when main comes due again within 3 frames of its last build with many
 // objects come to rest in delta (new objects start and stop moving every frame), the set lets the
 // frame rebuild and starts again later: while it is not in use it watches a sample of 256 objects
-// (a new one each frame; objects added since do not spoil it), and takes over when 5 in 6 of them
+// (a new one each frame; objects added or removed since do not spoil it), and takes over when 5 in 6 of them
 // rest (after such a give-up for churn, only after a wait that doubles each time).
 // docs/architecture.md, "Resting objects".
 
