@@ -1182,13 +1182,7 @@ void objects_added_or_gone_at_the_end(bool boxes, bool listed, float margin) {
       }
     }
     std::vector<Box> bx;
-    FrameInput in;
-    if (boxes) {
-      for (const Sphere& s : sph) bx.push_back(box_of(s));
-      in.boxes = bx;
-    } else {
-      in.spheres = sph;
-    }
+    const FrameInput in = frame_of(sph, boxes, bx);
     const auto [sa, sb] = detect_both(*a, *b, in, listed, moved, fa, fb);
     ASSERT_TRUE(sa.ok()) << sa.error();
     ASSERT_TRUE(sb.ok()) << sb.error();
@@ -1247,14 +1241,7 @@ TEST(RestSet, AWorldThatRemovesEveryFrameStartsFollowing) {
       moved.erase(std::unique(moved.begin(), moved.end()), moved.end());
       while (!moved.empty() && moved.back() >= sph.size()) moved.pop_back();
       std::vector<Box> bx;
-      FrameInput in;
-      if (boxes) {
-        for (const Sphere& s : sph) bx.push_back(box_of(s));
-        in.boxes = bx;
-      } else {
-        in.spheres = sph;
-      }
-      const auto [sa, sb] = detect_both(*a, *b, in, frame % 2 == 0, moved, fa, fb);
+      const auto [sa, sb] = detect_both(*a, *b, frame_of(sph, boxes, bx), frame % 2 == 0, moved, fa, fb);
       ASSERT_TRUE(sa.ok()) << sa.error();
       ASSERT_TRUE(sb.ok()) << sb.error();
       followed += fa.stats.followed_change;
