@@ -525,7 +525,7 @@ Status RestSet::run(const Input& in, const StaticSet& set, StaticTree& st, int t
   }
   merge_ = false;
   if (status) clear_bits();
-  if (status && vanished_ > 0) forget_vanished(n_ + vanished_);
+  if (status && vanished_ > 0) forget_vanished();
   if (!status) {
     reset();
     return status;
@@ -648,8 +648,8 @@ void RestSet::grow(std::size_t n) {
   }
 }
 
-void RestSet::forget_vanished(std::size_t old_n) {
-  const std::size_t words = (n_ + 63) / 64;
+void RestSet::forget_vanished() {
+  const std::size_t old_n = n_ + vanished_, words = (n_ + 63) / 64;
   const auto cut = [&](std::vector<std::uint64_t>& bits) {
     if (bits.size() > words) bits.resize(words);
     if (n_ % 64 != 0 && words > 0 && bits.size() == words) bits[words - 1] &= (std::uint64_t{1} << (n_ % 64)) - 1;
@@ -829,13 +829,12 @@ Status RestSet::find_changes(const Input& in, int threads, std::size_t limit, st
         cur_sph_[k] = s.spheres[k];
     }
   // The objects that vanished (from n_ to old_n) leave their trees and take their candidates with
-  // them, as objects that left do, but are not placed again: their left bits alone (none changed).
-  // They come last, so left_ still ascends.
+  // them, as objects that left do, but are not placed again: their left bits alone (none changed),
+  // and no margin. They come last, so left_ still ascends.
   if (few)
     for (std::size_t k = n_; k < old_n; ++k) {
       left_bits_[k >> 6] |= std::uint64_t{1} << (k & 63);
       left_.push_back(static_cast<std::uint32_t>(k));
-      if (fat()) left_margin_.push_back(margin_);  // (never read: update() places none of them)
     }
   // The changed objects are the bits alone, counted here. Every object in a jiggling pile
   // changes, and a list of them all cost a store per object; with a tenth of 10^6 objects listed

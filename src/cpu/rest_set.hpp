@@ -172,10 +172,10 @@ class RestSet {
   [[nodiscard]] Status find_changes(const Input& in, int threads, std::size_t limit, std::size_t old_n, bool& few);
   /// Clears this frame's bits of the changed objects and of left_.
   void clear_bits();
-  /// After a followed frame with fewer objects than the last (`old_n`): the vanished objects'
+  /// After a followed frame with fewer objects than the last (vanished_ fewer): the vanished objects'
   /// entries (copies, fat bounds, bits, counts) dropped or cleared. update() took them out of
   /// their trees and emit() dropped their candidates.
-  void forget_vanished(std::size_t old_n);
+  void forget_vanished();
   /// Follows one frame of changes.
   [[nodiscard]] Status update(const Input& in, const StaticSet& set, StaticTree& st, int threads, FrameStats& stats);
   /// The static pairs of the objects in `tree` (ids through `ids`; with `search`, of those in its
@@ -233,8 +233,9 @@ class RestSet {
   std::vector<Box> fat_box_;
   std::vector<Sphere> fat_sph_;
   std::vector<float> fat_r_;
-  std::vector<std::uint64_t> recent_bits_;        // move_margin > 0: the objects in recent, as a bitset
-  std::vector<float> left_margin_;                // with fat bounds: the margin each object of left_ is placed with
+  std::vector<std::uint64_t> recent_bits_;  // move_margin > 0: the objects in recent, as a bitset
+  std::vector<float>
+      left_margin_;  // with fat bounds: the margin each object of left_ is placed with (the vanished, last, have none)
   std::vector<std::vector<float>> chunk_margin_;  // find_changes(): left_margin_, per chunk
   std::vector<std::uint32_t> recent_next_;        // update(): recent's objects for this frame
   std::vector<std::uint16_t> search_;             // update(): per bucket of recent, the lanes that search
