@@ -23,8 +23,9 @@ namespace {
 /// Main is rebuilt over the resting objects when its erased lanes and the objects of delta pass
 /// an eighth of all, and at least this many.
 constexpr std::size_t kMainRebuildFloor = 4096;
-// With a rest margin, the objects of recent that did not leave again wait there (not searching)
-// until more than this many do; then they join delta together (RestSet::update()).
+// The objects of recent that did not leave again (with a rest margin) or did not change (own
+// margins alone) wait there, not searching, until more than this many do; then they join delta
+// together (RestSet::update()).
 constexpr std::size_t kWaitMost = 512;
 /// A main due again within this many frames of the last build, with delta (the objects that came
 /// to rest since) a quarter of what makes it due, means that objects keep starting and stopping (a
@@ -595,7 +596,7 @@ Status RestSet::enter(const Input& in, const StaticSet& set, StaticTree& st, int
   side_unmarked_ = dropped_ = woken_ = 0;
   a_out_valid_ = false;
   count_candidates();
-  packs_ = main_rebuilds_ = 0;
+  packs_ = main_rebuilds_ = delta_builds_ = 0;
   pack(threads);
   stats.ms(Stage::query) += sw.lap();
   stats.moved = stats.replaced = static_cast<std::uint32_t>(n);  // every object placed
@@ -922,7 +923,9 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
   // lanes hold their fat bounds, as delta's would; they do not search) while they are few, and go
   // to delta all at once when they pass kWaitMost: delta is then rebuilt every few frames instead
   // of every frame, and the objects that keep moving inside their own margins are not built into
-  // recent frame after frame. Without one, those that did not move again come to rest in delta.
+  // recent frame after frame. With own margins alone, those that did not move again wait so too
+  // (their lanes hold the bounds they were placed with, which hold their own; any change of
+  // theirs is a leave, their own margin bit being clear), and those that moved stay in recent.
   const bool waits = margin_ > 0;
   for (std::size_t t = 0; t < recent.ids.size(); ++t) {
     if (t + 16 < recent.ids.size()) __builtin_prefetch(&part_of_[recent.ids[t + 16]]);
@@ -934,14 +937,18 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
     else if (!waits && own)
       recent_next_.push_back(o);  // own margins alone: it stays, in its order, while it moves
   }
-  const bool wait = waits && scratch_.size() <= kWaitMost;
-  if (wait) recent_next_.swap(scratch_);  // recent_next_ was empty
+  if ((waits || own) && scratch_.size() <= kWaitMost) {  // they wait in recent, after its movers
+    recent_next_.insert(recent_next_.end(), scratch_.begin(), scratch_.end());
+    scratch_.clear();
+  }
   // Own-margin bits (margin_of()) say "moved in the last frame": set for the objects that left and
   // for those that stay in recent and changed (every one that left changed); clear for those that
   // go to delta and the waiting ones that did not change.
   if (own) {
+    // Woken: not in recent, or waiting there (its candidates may have been merged into the main
+    // list since); the bits still say who moved in the last frame.
     woken_ = 0;
-    for (const std::uint32_t o : left_) woken_ += part_of_[o] != kRecent;
+    for (const std::uint32_t o : left_) woken_ += part_of_[o] != kRecent || !bit(recent_bits_.data(), o);
     for (const std::uint32_t o : scratch_) recent_bits_[o >> 6] &= ~(std::uint64_t{1} << (o & 63));
     for (const std::uint32_t o : recent_next_)
       recent_bits_[o >> 6] =
@@ -957,6 +964,7 @@ Status RestSet::update(const Input& in, const StaticSet& set, StaticTree& st, in
     for (const std::uint32_t o : delta.ids)
       if (part_of_[o] == kDelta) scratch_.push_back(o);
     build_part(delta, scratch_, kDelta, true, threads, nullptr);
+    ++delta_builds_;
   }
   // The objects that left their fat bounds, placed again: their tree, and its pairs.
   // When every object of recent left, its own search finds their pairs among themselves; else

@@ -14,8 +14,9 @@
 // and over its objects that moved inside their own margins, and only the ones placed again search
 // it, main and delta for their new candidates; the objects of the old `recent` that did not move
 // again join delta with their exact bounds (with a rest margin, every one of the old recent that
-// did not leave again waits in recent, not searching, until more than kWaitMost (rest_set.cpp)
-// wait, and then they join delta together). Candidates of objects that changed but stayed inside
+// did not leave again, and with own margins alone every one that did not change, waits in recent,
+// not searching, until more than kWaitMost (rest_set.cpp) wait, and then they join delta
+// together). Candidates of objects that changed but stayed inside
 // their fat bounds are tested again (with own margins alone, the candidates found by searches of
 // recent live in a side list, and only its marked entries are looked at: update_side(); the others
 // are rewritten only when the side list is merged into them); the rest keep their result. The
@@ -113,6 +114,8 @@ class RestSet {
   [[nodiscard]] std::size_t packs() const { return packs_; }
   /// For tests: how often main was rebuilt over the resting objects since then.
   [[nodiscard]] std::size_t main_rebuilds() const { return main_rebuilds_; }
+  /// For tests: how often delta was rebuilt (objects joining it) since then.
+  [[nodiscard]] std::size_t delta_builds() const { return delta_builds_; }
   /// For tests: how often the set gave up because main came due again within a few frames (new
   /// objects starting and stopping every frame), since the detector was made.
   [[nodiscard]] std::size_t churn_giveups() const { return churn_giveups_; }
@@ -316,6 +319,7 @@ class RestSet {
   bool merge_ = false;             // this frame's emit() merges found_ into the candidates
   std::size_t packs_ = 0;          // pack() calls since enter()
   std::size_t main_rebuilds_ = 0;  // main rebuilt by update() since enter()
+  std::size_t delta_builds_ = 0;   // delta rebuilt by update() since enter()
   // Churn (rest_set.cpp, kChurnFrames): followed frames since main was built; whether the last
   // frame found it due again too soon; frames still to wait, and the next wait; followed frames
   // since the last such find; give-ups for churn (for tests).

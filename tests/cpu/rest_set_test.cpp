@@ -1252,6 +1252,57 @@ TEST(RestSet, AWorldThatRemovesEveryFrameStartsFollowing) {
   }
 }
 
+TEST(RestSet, MoversThatStopWaitInRecentWithOwnMargins) {
+  // A world where a few bodies start moving each frame and stop a frame or three later (the
+  // default margins: own ones alone). Those that stop wait in recent and join delta together
+  // once more than 512 wait, instead of rebuilding delta every frame; some move again while they
+  // wait (a leave: their own margin is gone), some jump. The pairs and states are the
+  // rebuilder's every frame.
+  for (const bool boxes : {false, true}) {
+    SCOPED_TRACE(boxes ? "boxes" : "spheres");
+    std::mt19937_64 rng(21);
+    std::uniform_real_distribution<float> u(-1, 1);
+    std::vector<Sphere> sph(4000);
+    for (auto& s : sph) s = {u(rng) * 20, u(rng) * 3, u(rng) * 20, 0.6f};
+    auto [a, b] = follower_and_rebuilder(Config{});
+    FrameResult fa, fb;
+    std::vector<std::uint32_t> until(sph.size(), 0);  // moves in frames before this one
+    int followed = 0;
+    for (std::uint32_t frame = 0; frame < 48; ++frame) {
+      SCOPED_TRACE("frame " + std::to_string(frame));
+      for (int t = 0; t < 30 && frame > 0; ++t) {  // new movers, for 1-3 frames
+        const auto k = static_cast<std::uint32_t>((frame * 37 + static_cast<std::uint32_t>(t) * 131) % sph.size());
+        until[k] = frame + 1 + static_cast<std::uint32_t>(t % 3);
+      }
+      if (frame % 5 == 4)  // some that stopped two frames ago move again, while they wait
+        for (std::uint32_t k = 0; k < sph.size(); ++k)
+          if (until[k] + 2 == frame && k % 2 == 0) until[k] = frame + 1;
+      std::vector<std::uint32_t> moved;
+      for (std::uint32_t k = 0; k < sph.size(); ++k) {
+        if (until[k] <= frame) continue;
+        const float reach = k % 17 == 0 ? 6.0f : 0.05f;  // a few jump
+        sph[k].x += reach * u(rng);
+        sph[k].z += reach * u(rng);
+        moved.push_back(k);
+      }
+      std::vector<Box> bx;
+      const auto [sa, sb] = detect_both(*a, *b, frame_of(sph, boxes, bx), frame % 2 == 0, moved, fa, fb);
+      ASSERT_TRUE(sa.ok()) << sa.error();
+      ASSERT_TRUE(sb.ok()) << sb.error();
+      followed += fa.stats.followed_change;
+      EXPECT_TRUE(test::same_pairs(fa.pairs, fb.pairs));
+      EXPECT_EQ(fa.state, fb.state);
+    }
+    if (!boxes) {
+      EXPECT_TRUE(test::same_pairs(fa.pairs, test::oracle_pairs(sph)));
+    }
+    EXPECT_GE(followed, 44);
+    const auto& rest = detail::backend_as<detail::CpuDetector>(*a).rest_set();
+    EXPECT_GE(rest.delta_builds(), 1u) << "nothing ever joined delta: the test lost its point";
+    EXPECT_LE(rest.delta_builds(), 12u) << "delta was rebuilt nearly every frame";
+  }
+}
+
 TEST(RestSet, FewerChunksAfterAMergeCountEachChangeOnce) {
   // With own margins alone (the default) the objects in pairs are counted as candidates are dropped
   // and merged, chunk by chunk of emit()'s merge. Objects jump out of a dense grid until the
