@@ -12,6 +12,8 @@
 namespace viscd::detail {
 namespace {
 
+bool refuses_default(const Filter& f) { return !pair_passes_filter(Filter{}, f); }
+
 constexpr std::size_t kMaxStatic = std::numeric_limits<std::int32_t>::max();
 
 const char* kind_name(ShapeKind k) { return k == ShapeKind::box ? "boxes" : "spheres"; }
@@ -114,7 +116,10 @@ Status StaticSet::set_all(std::span<const Shape> objects, std::span<const Filter
     filters_.assign(filters.begin(), filters.end());
   live_.assign(objects.size(), 1);
   live_count_ = objects.size();
-  for (const Filter& f : filters_) groups_ |= f.group, masks_ |= f.mask;
+  for (const Filter& f : filters_) {
+    groups_ |= f.group, masks_ |= f.mask;
+    default_refused_ += refuses_default(f);
+  }
   replaced();
   return {};
 }
@@ -135,6 +140,7 @@ Result<std::uint32_t> StaticSet::add_one(const Shape& object, const Filter& filt
   store<Shape>()[k] = object;
   filters_[k] = filter;
   groups_ |= filter.group, masks_ |= filter.mask;
+  default_refused_ += refuses_default(filter);
   live_[k] = 1;
   ++live_count_;
   touched(k);
@@ -165,6 +171,7 @@ Status StaticSet::remove(std::uint32_t k) {
   if (Status s = check_slot(k); !s) return s;
   live_[k] = 0;
   --live_count_;
+  default_refused_ -= refuses_default(filters_[k]);
   free_.push_back(k);
   std::push_heap(free_.begin(), free_.end(), std::greater<>());
   touched(k);
@@ -177,7 +184,7 @@ void StaticSet::clear() {
   filters_.clear();
   live_.clear();
   free_.clear();
-  live_count_ = 0;
+  live_count_ = default_refused_ = 0;
   groups_ = masks_ = 0;
   replaced();
 }

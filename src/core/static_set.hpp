@@ -60,6 +60,9 @@ class StaticSet {
   /// The OR of the groups and of the masks of every filter the set held since it was last
   /// replaced or cleared: never less than the live objects' (the filters' pre-pass needs no more).
   [[nodiscard]] std::uint32_t groups() const { return groups_; }
+  /// Live objects whose filter refuses Filter{} (the moving objects' filter when none is given):
+  /// with none, every static pair of an unfiltered frame passes.
+  [[nodiscard]] std::size_t default_refused() const { return default_refused_; }
   [[nodiscard]] std::uint32_t masks() const { return masks_; }
 
   [[nodiscard]] std::uint64_t memory_bytes() const;
@@ -87,6 +90,7 @@ class StaticSet {
   std::vector<std::uint8_t> live_;
   std::vector<std::uint32_t> free_;  // free slots, a min-heap
   std::size_t live_count_ = 0;
+  std::size_t default_refused_ = 0;  // live objects whose filter refuses Filter{}
   std::uint64_t version_ = 0, compact_version_ = ~std::uint64_t{0};
   Changes changes_;
   std::uint32_t groups_ = 0, masks_ = 0;

@@ -1243,7 +1243,7 @@ void RestSet::count_candidates() {
 }
 
 template <class StaticOk>
-void RestSet::note_pairs(bool known, const StaticOk& static_ok) {
+void RestSet::note_pairs(bool known, bool all_pass, const StaticOk& static_ok) {
   count_changes();
   if (!known) return;
   // The frame's pairs: the candidates' that hold, the side list's that hold, and every static
@@ -1257,7 +1257,7 @@ void RestSet::note_pairs(bool known, const StaticOk& static_ok) {
       set(key_j(side_[t]));
     }
   for (std::size_t t = 0; t < stat_.size(); ++t)
-    if ((stat_hit_[t] & 1) && static_ok(stat_[t])) set(key_i(stat_[t]));
+    if ((stat_hit_[t] & 1) && (all_pass || static_ok(stat_[t]))) set(key_i(stat_[t]));
   pair_bits_ok_ = true;
 }
 
@@ -1379,6 +1379,9 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     if (masked && !(mask[i] & mask[j])) return false;
     return filters.empty() || pair_passes_filter(filters[i], filters[j]);
   };
+  // Unfiltered and unculled, with no static filter that refuses the default one: every static
+  // pair passes (the test below is a call per entry, a fifth of a frame with a static set).
+  const bool static_all = !masked && filters.empty() && set.default_refused() == 0;
   auto static_ok = [&](std::uint64_t k) {
     const std::uint32_t i = key_i(k);
     if (masked && !mask[i]) return false;
@@ -1506,7 +1509,7 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
       const std::size_t before = out;
       if (kt < kb) {
         put(out, Pair{key_i(kt), key_j(kt)});
-        out += (sh[t] & 1) && static_ok(kt);
+        out += (sh[t] & 1) && (static_all || static_ok(kt));
         ++t;
       } else {  // B holds keys only when merging or with the side list
         if constexpr (kRetest == 2) {
@@ -1546,7 +1549,8 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     for (std::size_t c = 0; c < nc; ++c) {
       std::size_t expect = a_out_[c];
       for (std::size_t b = b_at_[c]; b < b_at_[c + 1]; ++b) expect += side_hit_[b] & 1;
-      for (std::size_t t = s_at_[c]; t < s_at_[c + 1]; ++t) expect += (stat_hit_[t] & 1) && static_ok(s_keys[t]);
+      for (std::size_t t = s_at_[c]; t < s_at_[c + 1]; ++t)
+        expect += (stat_hit_[t] & 1) && (static_all || static_ok(s_keys[t]));
       out_[c] = total;
       total += expect;
     }
@@ -1558,7 +1562,7 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
                [&](std::size_t c, std::size_t, std::size_t) { chunk.template operator()<false, false, 2, true>(c); });
     if (std::all_of(direct_ok_.begin(), direct_ok_.end(), [](std::uint8_t ok) { return ok != 0; })) {
       ++direct_frames_;
-      note_pairs(true, static_ok);
+      note_pairs(true, static_all, static_ok);
       return {};
     }
     ++direct_misses_;
@@ -1611,7 +1615,7 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     std::copy_n(pair_buf_.data() + pair_ub_[c], out_[c + 1] - out_[c], pairs.data() + out_[c]);
   });
   if (!merge_) {
-    if (counts_pairs()) note_pairs(!check, static_ok);
+    if (counts_pairs()) note_pairs(!check, static_all, static_ok);
     return {};
   }
   // The merged list becomes the candidates, in segments where the chunks wrote them; packed and
@@ -1629,7 +1633,7 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     side_hit_.resize(kept);
     side_unmarked_ = dropped_ = 0;
   }
-  if (counts_pairs()) note_pairs(!check, static_ok);
+  if (counts_pairs()) note_pairs(!check, static_all, static_ok);
   std::size_t most = 0, sum = 0;
   for (std::size_t c = 0; c < nc; ++c) {
     segs_[c] = Segment{cand_ub_[c], cand_ub_[c] + kept_[c]};

@@ -295,10 +295,10 @@ class RestSet {
   bool pair_bits_ok_ = false;
   /// a_count_ and a_bits_ over cand_ (enter()).
   void count_candidates();
-  /// count_changes(); then the frame's pair_bits_ when `known` (static pairs: those `static_ok`
-  /// accepts).
+  /// count_changes(); then the frame's pair_bits_ when `known` (static pairs: every one with
+  /// `all_pass`, else those `static_ok` accepts).
   template <class StaticOk>
-  void note_pairs(bool known, const StaticOk& static_ok);
+  void note_pairs(bool known, bool all_pass, const StaticOk& static_ok);
   /// The candidates in chunk_gone_ and chunk_added_ taken into a_count_ and a_bits_; the lists
   /// emptied.
   void count_changes();

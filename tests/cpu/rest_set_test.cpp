@@ -1252,6 +1252,35 @@ TEST(RestSet, AWorldThatRemovesEveryFrameStartsFollowing) {
   }
 }
 
+TEST(RestSet, StaticSetCountsFiltersThatRefuseTheDefault) {
+  // Unfiltered frames pass every static pair without a test while no static filter refuses
+  // Filter{}: the count must follow every way the set changes.
+  detail::StaticSet set;
+  const Sphere s{0, 0, 0, 1};
+  const Filter kinematic{2, ~0u ^ 2u};  // Bullet's static bodies: pairs with the default
+  const Filter picky{1, 2};             // pairs only with group 2: refuses Filter{}
+  const std::vector<Sphere> three(3, s);
+  const std::vector<Filter> filters = {Filter{}, kinematic, picky};
+  ASSERT_TRUE(set.set(three, filters).ok());
+  EXPECT_EQ(set.default_refused(), 1u);
+  const Result<std::uint32_t> none = set.add(s, Filter{4, 0});
+  ASSERT_TRUE(none.ok());
+  EXPECT_EQ(set.default_refused(), 2u);
+  ASSERT_TRUE(set.remove(2).ok());  // picky
+  EXPECT_EQ(set.default_refused(), 1u);
+  const Result<std::uint32_t> again = set.add(s, Filter{});  // into picky's slot
+  ASSERT_TRUE(again.ok());
+  EXPECT_EQ(again.value(), 2u);
+  EXPECT_EQ(set.default_refused(), 1u);
+  ASSERT_TRUE(set.move(none.value(), Sphere{1, 1, 1, 1}).ok());
+  EXPECT_EQ(set.default_refused(), 1u);
+  ASSERT_TRUE(set.set(three, {}).ok());
+  EXPECT_EQ(set.default_refused(), 0u);
+  ASSERT_TRUE(set.add(s, picky).ok());
+  set.clear();
+  EXPECT_EQ(set.default_refused(), 0u);
+}
+
 TEST(RestSet, MoversThatStopWaitInRecentWithOwnMargins) {
   // A world where a few bodies start moving each frame and stop a frame or three later (the
   // default margins: own ones alone). Those that stop wait in recent and join delta together
