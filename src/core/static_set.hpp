@@ -60,10 +60,10 @@ class StaticSet {
   /// The OR of the groups and of the masks of every filter the set held since it was last
   /// replaced or cleared: never less than the live objects' (the filters' pre-pass needs no more).
   [[nodiscard]] std::uint32_t groups() const { return groups_; }
+  [[nodiscard]] std::uint32_t masks() const { return masks_; }
   /// Live objects whose filter refuses Filter{} (the moving objects' filter when none is given):
   /// with none, every static pair of an unfiltered frame passes.
   [[nodiscard]] std::size_t default_refused() const { return default_refused_; }
-  [[nodiscard]] std::uint32_t masks() const { return masks_; }
 
   [[nodiscard]] std::uint64_t memory_bytes() const;
 
