@@ -1215,6 +1215,27 @@ TEST(RestSet, ObjectsAddedOrGoneAtTheEndAreFollowed) {
       for (const float margin : {0.0f, 0.05f}) objects_added_or_gone_at_the_end(boxes, listed, margin);
 }
 
+// 4 000 spheres of radius 0.6 in a slab 40 x 6 x 40.
+std::vector<Sphere> wide_slab(std::mt19937_64& rng) {
+  std::uniform_real_distribution<float> u(-1, 1);
+  std::vector<Sphere> sph(4000);
+  for (auto& s : sph) s = {u(rng) * 20, u(rng) * 3, u(rng) * 20, 0.6f};
+  return sph;
+}
+
+// One frame of `sph` (their boxes with `boxes`) on both detectors, the follower given `moved`
+// when `listed`: the pairs and states must agree. Returns whether the follower followed it.
+bool same_frame(Detector& follows, Detector& rebuilds, const std::vector<Sphere>& sph, bool boxes, bool listed,
+                std::span<const std::uint32_t> moved, FrameResult& fa, FrameResult& fb) {
+  std::vector<Box> bx;
+  const auto [sa, sb] = detect_both(follows, rebuilds, frame_of(sph, boxes, bx), listed, moved, fa, fb);
+  EXPECT_TRUE(sa.ok()) << sa.error();
+  EXPECT_TRUE(sb.ok()) << sb.error();
+  EXPECT_TRUE(test::same_pairs(fa.pairs, fb.pairs));
+  EXPECT_EQ(fa.state, fb.state);
+  return sa.ok() && fa.stats.followed_change;
+}
+
 TEST(RestSet, AWorldThatRemovesEveryFrameStartsFollowing) {
   // Bodies removed every frame from the first one on, the last moved into each gap: the set's
   // sample must still stand when the count falls (it once required the same count or more, and
@@ -1222,9 +1243,7 @@ TEST(RestSet, AWorldThatRemovesEveryFrameStartsFollowing) {
   for (const bool boxes : {false, true}) {
     SCOPED_TRACE(boxes ? "boxes" : "spheres");
     std::mt19937_64 rng(7);
-    std::uniform_real_distribution<float> u(-1, 1);
-    std::vector<Sphere> sph(4000);
-    for (auto& s : sph) s = {u(rng) * 20, u(rng) * 3, u(rng) * 20, 0.6f};
+    std::vector<Sphere> sph = wide_slab(rng);
     auto [a, b] = follower_and_rebuilder(Config{});
     FrameResult fa, fb;
     int followed = 0;
@@ -1240,13 +1259,7 @@ TEST(RestSet, AWorldThatRemovesEveryFrameStartsFollowing) {
       std::sort(moved.begin(), moved.end());
       moved.erase(std::unique(moved.begin(), moved.end()), moved.end());
       while (!moved.empty() && moved.back() >= sph.size()) moved.pop_back();
-      std::vector<Box> bx;
-      const auto [sa, sb] = detect_both(*a, *b, frame_of(sph, boxes, bx), frame % 2 == 0, moved, fa, fb);
-      ASSERT_TRUE(sa.ok()) << sa.error();
-      ASSERT_TRUE(sb.ok()) << sb.error();
-      followed += fa.stats.followed_change;
-      EXPECT_TRUE(test::same_pairs(fa.pairs, fb.pairs));
-      EXPECT_EQ(fa.state, fb.state);
+      followed += same_frame(*a, *b, sph, boxes, frame % 2 == 0, moved, fa, fb);
     }
     EXPECT_GE(followed, 20);
   }
@@ -1291,8 +1304,7 @@ TEST(RestSet, MoversThatStopWaitInRecentWithOwnMargins) {
     SCOPED_TRACE(boxes ? "boxes" : "spheres");
     std::mt19937_64 rng(21);
     std::uniform_real_distribution<float> u(-1, 1);
-    std::vector<Sphere> sph(4000);
-    for (auto& s : sph) s = {u(rng) * 20, u(rng) * 3, u(rng) * 20, 0.6f};
+    std::vector<Sphere> sph = wide_slab(rng);
     auto [a, b] = follower_and_rebuilder(Config{});
     FrameResult fa, fb;
     std::vector<std::uint32_t> until(sph.size(), 0);  // moves in frames before this one
@@ -1314,13 +1326,7 @@ TEST(RestSet, MoversThatStopWaitInRecentWithOwnMargins) {
         sph[k].z += reach * u(rng);
         moved.push_back(k);
       }
-      std::vector<Box> bx;
-      const auto [sa, sb] = detect_both(*a, *b, frame_of(sph, boxes, bx), frame % 2 == 0, moved, fa, fb);
-      ASSERT_TRUE(sa.ok()) << sa.error();
-      ASSERT_TRUE(sb.ok()) << sb.error();
-      followed += fa.stats.followed_change;
-      EXPECT_TRUE(test::same_pairs(fa.pairs, fb.pairs));
-      EXPECT_EQ(fa.state, fb.state);
+      followed += same_frame(*a, *b, sph, boxes, frame % 2 == 0, moved, fa, fb);
     }
     if (!boxes) {
       EXPECT_TRUE(test::same_pairs(fa.pairs, test::oracle_pairs(sph)));
