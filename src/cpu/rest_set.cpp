@@ -1380,7 +1380,9 @@ Status RestSet::emit(const Input& in, const StaticSet& set, int threads, std::ve
     return filters.empty() || pair_passes_filter(filters[i], filters[j]);
   };
   // Unfiltered and unculled, with no static filter that refuses the default one: every static
-  // pair passes (the test below is a call per entry, a fifth of a frame with a static set).
+  // pair passes (the test below is a call per entry, a fifth of a frame with a static set). The
+  // flag is tested where the test is called: folded into a wrapping lambda, the frames with a
+  // static set ran 10-30 % slower.
   const bool static_all = !masked && filters.empty() && set.default_refused() == 0;
   auto static_ok = [&](std::uint64_t k) {
     const std::uint32_t i = key_i(k);

@@ -16,10 +16,10 @@
 // again join delta with their exact bounds (with a rest margin, every one of the old recent that
 // did not leave again, and with own margins alone every one that did not change, waits in recent,
 // not searching, until more than kWaitMost (rest_set.cpp) wait, and then they join delta
-// together). Candidates of objects that changed but stayed inside
-// their fat bounds are tested again (with own margins alone, the candidates found by searches of
-// recent live in a side list, and only its marked entries are looked at: update_side(); the others
-// are rewritten only when the side list is merged into them); the rest keep their result. The
+// together). Candidates of objects that changed but stayed inside their fat bounds are tested
+// again (with own margins alone, the candidates found by searches of recent live in a side list,
+// and only its marked entries are looked at: update_side(); the others are rewritten only when
+// the side list is merged into them); the rest keep their result. The
 // frame's pairs are the candidates that hold, whose objects are both active and whose filters
 // accept each other: exactly the pairs of a frame that rebuilt everything (filters, culling and
 // never-culled flags are applied to the carried candidates each frame, so they may change
@@ -237,8 +237,8 @@ class RestSet {
   std::vector<Sphere> fat_sph_;
   std::vector<float> fat_r_;
   std::vector<std::uint64_t> recent_bits_;  // move_margin > 0: the objects in recent, as a bitset
-  std::vector<float>
-      left_margin_;  // with fat bounds: the margin each object of left_ is placed with (the vanished, last, have none)
+  // With fat bounds: the margin each object of left_ is placed with (the vanished, last, have none).
+  std::vector<float> left_margin_;
   std::vector<std::vector<float>> chunk_margin_;  // find_changes(): left_margin_, per chunk
   std::vector<std::uint32_t> recent_next_;        // update(): recent's objects for this frame
   std::vector<std::uint16_t> search_;             // update(): per bucket of recent, the lanes that search
